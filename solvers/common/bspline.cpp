@@ -1,0 +1,219 @@
+#include "common/bspline.h"
+
+#include <Eigen/SparseLU>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+
+namespace parafab {
+
+namespace {
+// Basis functions and their derivatives up to order n at u on span i (Piegl & Tiller A2.3).
+// ders[k][j] = d^k N_{i-p+j,p}(u).
+void basis_derivatives(int span, double u, int p, const std::vector<double>& U, int n,
+                       std::array<std::array<double, 8>, 4>& ders) {
+  double ndu[8][8], left[8], right[8], a[2][8];
+  ndu[0][0] = 1.0;
+  for (int j = 1; j <= p; ++j) {
+    left[j] = u - U[span + 1 - j];
+    right[j] = U[span + j] - u;
+    double saved = 0.0;
+    for (int r = 0; r < j; ++r) {
+      ndu[j][r] = right[r + 1] + left[j - r];
+      const double temp = ndu[r][j - 1] / ndu[j][r];
+      ndu[r][j] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    ndu[j][j] = saved;
+  }
+  for (int j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
+  for (int k = 1; k <= n; ++k)
+    for (int j = 0; j <= p; ++j) ders[k][j] = 0.0;
+  for (int r = 0; r <= p; ++r) {
+    int s1 = 0, s2 = 1;
+    a[0][0] = 1.0;
+    for (int k = 1; k <= std::min(n, p); ++k) {
+      double d = 0.0;
+      const int rk = r - k, pk = p - k;
+      if (r >= k) {
+        a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
+        d = a[s2][0] * ndu[rk][pk];
+      }
+      const int j1 = (rk >= -1) ? 1 : -rk;
+      const int j2 = (r - 1 <= pk) ? k - 1 : p - r;
+      for (int j = j1; j <= j2; ++j) {
+        a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
+        d += a[s2][j] * ndu[rk + j][pk];
+      }
+      if (r <= pk) {
+        a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+        d += a[s2][k] * ndu[r][pk];
+      }
+      ders[k][r] = d;
+      std::swap(s1, s2);
+    }
+  }
+  double factor = p;
+  for (int k = 1; k <= std::min(n, p); ++k) {
+    for (int j = 0; j <= p; ++j) ders[k][j] *= factor;
+    factor *= (p - k);
+  }
+}
+}  // namespace
+
+BSplineCurve2::BSplineCurve2(int degree, std::vector<double> knots, std::vector<Vec2> poles,
+                             std::vector<double> weights)
+    : degree_(degree), knots_(std::move(knots)), poles_(std::move(poles)),
+      weights_(std::move(weights)) {
+  PARAFAB_VERIFY(degree_ >= 1 && degree_ <= 7,
+                 "curve.bspline.degree must be between 1 and 7, got " << degree_);
+  PARAFAB_VERIFY(poles_.size() >= static_cast<size_t>(degree_) + 1,
+                 "curve.bspline.poles: degree " << degree_ << " needs at least " << degree_ + 1
+                                                << " poles, got " << poles_.size());
+  PARAFAB_VERIFY(knots_.size() == poles_.size() + degree_ + 1,
+                 "curve.bspline.knots: expected " << poles_.size() + degree_ + 1
+                     << " knots (poles + degree + 1, multiplicities repeated), got "
+                     << knots_.size());
+  for (size_t i = 0; i < knots_.size(); ++i) {
+    PARAFAB_VERIFY(std::isfinite(knots_[i]), "curve.bspline.knots[" << i << "] is not finite");
+    PARAFAB_VERIFY(i == 0 || knots_[i] >= knots_[i - 1],
+                   "curve.bspline.knots[" << i << "] = " << knots_[i]
+                                          << " decreases (previous " << knots_[i - 1] << ")");
+  }
+  for (size_t i = 0; i < poles_.size(); ++i)
+    PARAFAB_VERIFY(poles_[i].allFinite(), "curve.bspline.poles[" << i << "] is not finite");
+  if (!weights_.empty()) {
+    PARAFAB_VERIFY(weights_.size() == poles_.size(),
+                   "curve.bspline.weights: expected " << poles_.size() << " weights, got "
+                                                      << weights_.size());
+    for (size_t i = 0; i < weights_.size(); ++i)
+      PARAFAB_VERIFY(std::isfinite(weights_[i]) && weights_[i] > 0,
+                     "curve.bspline.weights[" << i << "] must be positive, got " << weights_[i]);
+  }
+  PARAFAB_VERIFY(last_parameter() > first_parameter(),
+                 "curve.bspline.knots: empty parameter range [" << first_parameter() << ", "
+                                                                << last_parameter() << "]");
+}
+
+std::vector<double> BSplineCurve2::breakpoints() const {
+  std::vector<double> b;
+  const double a = first_parameter(), e = last_parameter();
+  for (double k : knots_)
+    if (k >= a && k <= e && (b.empty() || k > b.back())) b.push_back(k);
+  return b;
+}
+
+int BSplineCurve2::find_span(double u) const {
+  const int n = static_cast<int>(poles_.size()) - 1;
+  if (u >= knots_[n + 1]) {
+    int s = n;
+    while (s > degree_ && knots_[s] >= knots_[n + 1]) --s;
+    return s;
+  }
+  if (u <= knots_[degree_]) {
+    int s = degree_;
+    while (s < n && knots_[s + 1] <= knots_[degree_]) ++s;
+    return s;
+  }
+  auto it = std::upper_bound(knots_.begin() + degree_, knots_.begin() + n + 1, u);
+  return static_cast<int>(it - knots_.begin()) - 1;
+}
+
+std::array<Vec2, 4> BSplineCurve2::derivatives(double u) const {
+  u = std::clamp(u, first_parameter(), last_parameter());
+  const int span = find_span(u);
+  const int nd = std::min(3, degree_);
+  std::array<std::array<double, 8>, 4> N{};
+  basis_derivatives(span, u, degree_, knots_, nd, N);
+  std::array<Vec2, 4> A;
+  std::array<double, 4> W{0, 0, 0, 0};
+  for (auto& a : A) a.setZero();
+  for (int k = 0; k <= nd; ++k)
+    for (int j = 0; j <= degree_; ++j) {
+      const int idx = span - degree_ + j;
+      const double w = rational() ? weights_[idx] : 1.0;
+      A[k] += N[k][j] * w * poles_[idx];
+      W[k] += N[k][j] * w;
+    }
+  if (!rational()) return A;
+  // Quotient rule for C = A / W.
+  std::array<Vec2, 4> C;
+  C[0] = A[0] / W[0];
+  C[1] = (A[1] - W[1] * C[0]) / W[0];
+  C[2] = (A[2] - 2 * W[1] * C[1] - W[2] * C[0]) / W[0];
+  C[3] = (A[3] - 3 * W[1] * C[2] - 3 * W[2] * C[1] - W[3] * C[0]) / W[0];
+  return C;
+}
+
+BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree) {
+  const int n = static_cast<int>(points.size());
+  if (n < 2)
+    PARAFAB_INPUT_ERROR("curve.points: need at least 2 points to define a curve, got " << n);
+  for (int i = 0; i < n; ++i)
+    if (!points[i].allFinite())
+      PARAFAB_INPUT_ERROR("curve.points[" << i << "] is not finite (" << points[i].x() << ", "
+                                          << points[i].y() << ")");
+  std::vector<double> chord(n, 0.0);
+  double total = 0.0;
+  for (int i = 1; i < n; ++i) {
+    const double d = (points[i] - points[i - 1]).norm();
+    total += d;
+    chord[i] = d;
+  }
+  for (int i = 1; i < n; ++i)
+    if (chord[i] <= 1e-12 * total)
+      PARAFAB_INPUT_ERROR("curve.points[" << i << "] repeats curve.points[" << i - 1 << "] ("
+                                          << points[i].x() << ", " << points[i].y() << ")");
+  PARAFAB_VERIFY(degree >= 1, "interpolation degree must be >= 1, got " << degree);
+  const int p = std::min(degree, n - 1);
+  // Chord-length parameters on [0, 1].
+  std::vector<double> t(n, 0.0);
+  for (int i = 1; i < n; ++i) t[i] = t[i - 1] + chord[i] / total;
+  t[n - 1] = 1.0;
+  // Averaged knots.
+  std::vector<double> U(n + p + 1, 0.0);
+  for (int i = n; i < n + p + 1; ++i) U[i] = 1.0;
+  for (int j = 1; j < n - p; ++j) {
+    double s = 0.0;
+    for (int i = j; i < j + p; ++i) s += t[i];
+    U[j + p] = s / p;
+  }
+  // Collocation matrix (banded, sparse).
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(n) * (p + 1));
+  for (int i = 0; i < n; ++i) {
+    // Span lookup via the curve; basis values from the shared routine.
+    int span;
+    {
+      const double u = t[i];
+      int lo = p, hi = n;  // knots index range for spans
+      if (u >= U[n]) span = n - 1;
+      else {
+        while (hi - lo > 1) {
+          const int mid = (lo + hi) / 2;
+          if (u < U[mid]) hi = mid; else lo = mid;
+        }
+        span = lo;
+      }
+    }
+    std::array<std::array<double, 8>, 4> N{};
+    basis_derivatives(span, t[i], p, U, 0, N);
+    for (int j = 0; j <= p; ++j)
+      if (N[0][j] != 0.0) trip.emplace_back(i, span - p + j, N[0][j]);
+  }
+  Eigen::SparseMatrix<double> M(n, n);
+  M.setFromTriplets(trip.begin(), trip.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+  lu.compute(M);
+  PARAFAB_VERIFY(lu.info() == Eigen::Success, "curve.points: interpolation matrix is singular");
+  Eigen::MatrixXd rhs(n, 2);
+  for (int i = 0; i < n; ++i) rhs.row(i) = points[i].transpose();
+  const Eigen::MatrixXd P = lu.solve(rhs);
+  std::vector<Vec2> poles(n);
+  for (int i = 0; i < n; ++i) poles[i] = P.row(i).transpose();
+  return BSplineCurve2(p, std::move(U), std::move(poles));
+}
+
+}  // namespace parafab

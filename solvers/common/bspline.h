@@ -1,0 +1,51 @@
+// Plane (2D) B-spline and NURBS curves: evaluation with derivatives up to order 3, and
+// interpolation of points (chord-length parameters, averaged knots; Piegl & Tiller §9.2.1).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <vector>
+
+namespace parafab {
+
+using Vec2 = Eigen::Vector2d;
+
+/// A (possibly rational) B-spline curve in the plane. Knots are the full (clamped or not)
+/// knot vector with repeated entries; weights are empty for a non-rational curve.
+class BSplineCurve2 {
+ public:
+  /// Validates the data (sizes, monotone knots, finite values, positive weights) and
+  /// throws parafab::Error naming the offending entry.
+  BSplineCurve2(int degree, std::vector<double> knots, std::vector<Vec2> poles,
+                std::vector<double> weights = {});
+
+  int degree() const { return degree_; }
+  const std::vector<double>& knots() const { return knots_; }
+  const std::vector<Vec2>& poles() const { return poles_; }
+  const std::vector<double>& weights() const { return weights_; }
+  bool rational() const { return !weights_.empty(); }
+
+  double first_parameter() const { return knots_[degree_]; }
+  double last_parameter() const { return knots_[knots_.size() - degree_ - 1]; }
+  /// Distinct knot values inside [first, last] (span boundaries, where the curve may lose
+  /// smoothness).
+  std::vector<double> breakpoints() const;
+
+  /// Position and derivatives d^k/du^k for k = 0..3 (zero beyond the degree).
+  std::array<Vec2, 4> derivatives(double u) const;
+  Vec2 point(double u) const { return derivatives(u)[0]; }
+
+ private:
+  int find_span(double u) const;
+  int degree_;
+  std::vector<double> knots_;
+  std::vector<Vec2> poles_;
+  std::vector<double> weights_;
+};
+
+/// Interpolates `points` (at least 2, consecutive points distinct) by a B-spline of the
+/// given degree (lowered to points.size()-1 if needed). Throws parafab::Error naming the
+/// offending point index for NaN/inf or repeated points.
+BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree);
+
+}  // namespace parafab

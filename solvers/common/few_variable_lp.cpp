@@ -1,0 +1,172 @@
+#include "common/few_variable_lp.h"
+
+#include <ClpSimplex.hpp>
+#include <chrono>
+#include <limits>
+#include <vector>
+
+#include "common/error.h"
+
+namespace parafab {
+
+const char* to_string(LpStatus status) {
+  switch (status) {
+    case LpStatus::Optimal: return "optimal";
+    case LpStatus::Infeasible: return "infeasible";
+    case LpStatus::Unbounded: return "unbounded";
+    case LpStatus::Failed: return "failed";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// Clp's model.status(): 0 optimal, 1 primal infeasible, 2 dual infeasible (unbounded),
+// 3 stopped on limits, 4 stopped on errors.
+const char* clp_status_text(int s) {
+  switch (s) {
+    case 0: return "optimal";
+    case 1: return "primal infeasible";
+    case 2: return "dual infeasible (unbounded)";
+    case 3: return "stopped on iteration or time limit";
+    default: return "stopped on numerical errors";
+  }
+}
+
+void solve_dual(const FewVariableLp& lp, const FewVariableLpOptions& options,
+                FewVariableLpResult& r) {
+  const int d = static_cast<int>(lp.c.size());
+  const int n = static_cast<int>(lp.G.rows()), m = static_cast<int>(lp.E.rows());
+  const int cols = n + m;
+  // Column j of the dual is row j of [G; E].
+  std::vector<CoinBigIndex> start(cols + 1, 0);
+  std::vector<int> index;
+  std::vector<double> value;
+  index.reserve(static_cast<size_t>(cols) * d);
+  value.reserve(static_cast<size_t>(cols) * d);
+  std::vector<double> collb(cols), colub(cols), obj(cols);
+  const double inf = COIN_DBL_MAX;
+  for (int j = 0; j < cols; ++j) {
+    const bool ineq = j < n;
+    for (int k = 0; k < d; ++k) {
+      const double v = ineq ? lp.G(j, k) : lp.E(j - n, k);
+      if (v != 0.0) {
+        index.push_back(k);
+        value.push_back(v);
+      }
+    }
+    start[j + 1] = static_cast<CoinBigIndex>(index.size());
+    collb[j] = ineq ? 0.0 : -inf;
+    colub[j] = inf;
+    obj[j] = ineq ? -lp.h(j) : -lp.f(j - n);  // maximize hᵀy + fᵀz
+  }
+  std::vector<double> rowb(lp.c.data(), lp.c.data() + d);
+  ClpSimplex model;
+  model.setLogLevel(0);
+  model.setMaximumIterations(options.max_iterations);
+  model.loadProblem(cols, d, start.data(), index.data(), value.data(), collb.data(),
+                    colub.data(), obj.data(), rowb.data(), rowb.data());
+  // Row prices are read back as the primal solution, so they must be accurate: Clp's
+  // automatic scaling with default tolerances left primal violations of 1e-3 on strip LPs
+  // with an inflection (rows scaled by |κ| → 0); unscaled with tight tolerances they are 1e-11.
+  model.scaling(0);
+  model.setDualTolerance(options.tolerance);
+  model.setPrimalTolerance(options.tolerance);
+  model.primal();
+  r.iterations = model.numberIterations();
+  const int s = model.status();
+  if (s == 0) {
+    r.status = LpStatus::Optimal;
+    const double* price = model.getRowPrice();
+    r.x.resize(d);
+    for (int k = 0; k < d; ++k) r.x(k) = -price[k];  // reduced costs ≥ 0 ⇔ G(−λ) ≥ h
+    r.dual_objective = -model.objectiveValue();
+  } else if (s == 2) {
+    r.status = LpStatus::Infeasible;  // dual unbounded ⇒ primal infeasible
+  } else if (s == 1) {
+    r.status = LpStatus::Unbounded;  // dual infeasible ⇒ primal unbounded (or infeasible)
+  } else {
+    r.status = LpStatus::Failed;
+  }
+  if (s != 0) r.message = std::string("Clp on the dual program: ") + clp_status_text(s);
+}
+
+void solve_primal(const FewVariableLp& lp, const FewVariableLpOptions& options,
+                  FewVariableLpResult& r) {
+  const int d = static_cast<int>(lp.c.size());
+  const int n = static_cast<int>(lp.G.rows()), m = static_cast<int>(lp.E.rows());
+  const int rows = n + m;
+  std::vector<CoinBigIndex> start(d + 1, 0);
+  std::vector<int> index;
+  std::vector<double> value;
+  for (int k = 0; k < d; ++k) {
+    for (int i = 0; i < rows; ++i) {
+      const double v = i < n ? lp.G(i, k) : lp.E(i - n, k);
+      if (v != 0.0) {
+        index.push_back(i);
+        value.push_back(v);
+      }
+    }
+    start[k + 1] = static_cast<CoinBigIndex>(index.size());
+  }
+  const double inf = COIN_DBL_MAX;
+  std::vector<double> collb(d, -inf), colub(d, inf), obj(lp.c.data(), lp.c.data() + d);
+  std::vector<double> rowlb(rows), rowub(rows);
+  for (int i = 0; i < rows; ++i) {
+    rowlb[i] = i < n ? lp.h(i) : lp.f(i - n);
+    rowub[i] = i < n ? inf : lp.f(i - n);
+  }
+  ClpSimplex model;
+  model.setLogLevel(0);
+  model.setMaximumIterations(options.max_iterations);
+  model.loadProblem(d, rows, start.data(), index.data(), value.data(), collb.data(),
+                    colub.data(), obj.data(), rowlb.data(), rowub.data());
+  model.setDualTolerance(options.tolerance);
+  model.setPrimalTolerance(options.tolerance);
+  model.dual();
+  r.iterations = model.numberIterations();
+  const int s = model.status();
+  if (s == 0) {
+    r.status = LpStatus::Optimal;
+    r.x = Eigen::Map<const Eigen::VectorXd>(model.getColSolution(), d);
+  } else {
+    r.status = s == 1 ? LpStatus::Infeasible : s == 2 ? LpStatus::Unbounded : LpStatus::Failed;
+    r.message = std::string("Clp on the primal program: ") + clp_status_text(s);
+  }
+}
+
+}  // namespace
+
+FewVariableLpResult solve_few_variable_lp(const FewVariableLp& lp,
+                                          const FewVariableLpOptions& options) {
+  const Eigen::Index d = lp.c.size();
+  PARAFAB_VERIFY(d >= 1, "LP needs at least one variable");
+  PARAFAB_VERIFY(lp.G.cols() == d && lp.G.rows() == lp.h.size(),
+                 "LP inequality block is " << lp.G.rows() << "x" << lp.G.cols() << " with "
+                                           << lp.h.size() << " right-hand sides, d = " << d);
+  PARAFAB_VERIFY(lp.E.rows() == 0 || lp.E.cols() == d, "LP equality block has "
+                                                           << lp.E.cols() << " columns, d = " << d);
+  PARAFAB_VERIFY(lp.E.rows() == lp.f.size(), "LP equality block has " << lp.E.rows()
+                                                 << " rows but " << lp.f.size() << " values");
+  const auto t0 = std::chrono::steady_clock::now();
+  FewVariableLpResult r;
+  if (options.form == LpForm::Dual) solve_dual(lp, options, r);
+  else solve_primal(lp, options, r);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (r.ok()) {
+    r.objective = lp.c.dot(r.x);
+    double viol = 0.0;
+    if (lp.G.rows() > 0) viol = std::max(viol, (lp.h - lp.G * r.x).maxCoeff());
+    if (lp.E.rows() > 0) viol = std::max(viol, (lp.E * r.x - lp.f).cwiseAbs().maxCoeff());
+    r.max_violation = std::max(0.0, viol);
+    if (!(r.max_violation <= options.max_violation)) {
+      r.status = LpStatus::Failed;
+      r.message = "Clp reported optimal, but the solution violates a constraint by " +
+                  std::to_string(r.max_violation) + " (limit " +
+                  std::to_string(options.max_violation) + ")";
+    }
+  }
+  return r;
+}
+
+}  // namespace parafab

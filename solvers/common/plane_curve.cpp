@@ -1,0 +1,102 @@
+#include "common/plane_curve.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+
+namespace parafab {
+
+namespace {
+// 8-point Gauss–Legendre nodes and weights on [-1, 1].
+constexpr double kGaussX[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
+                               -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,
+                               0.7966664774136267,  0.9602898564975363};
+constexpr double kGaussW[8] = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873,
+                               0.3626837833783620, 0.3626837833783620, 0.3137066458778873,
+                               0.2223810344533745, 0.1012285362903763};
+constexpr int kSubdivisionsPerSpan = 16;
+double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+}  // namespace
+
+PlaneCurve::PlaneCurve(BSplineCurve2 curve) : curve_(std::move(curve)) {
+  const std::vector<double> bp = curve_.breakpoints();
+  table_u_.push_back(bp.front());
+  for (size_t k = 0; k + 1 < bp.size(); ++k)
+    for (int j = 1; j <= kSubdivisionsPerSpan; ++j)
+      table_u_.push_back(bp[k] + (bp[k + 1] - bp[k]) * j / kSubdivisionsPerSpan);
+  table_s_.assign(table_u_.size(), 0.0);
+  double max_speed = 0.0, min_speed = INFINITY, u_min = table_u_.front();
+  for (size_t i = 0; i < table_u_.size(); ++i) {
+    const double v = speed(table_u_[i]);
+    max_speed = std::max(max_speed, v);
+    if (v < min_speed) min_speed = v, u_min = table_u_[i];
+  }
+  for (size_t i = 1; i < table_u_.size(); ++i)
+    table_s_[i] = table_s_[i - 1] + integrate_speed(table_u_[i - 1], table_u_[i]);
+  if (!(min_speed > 1e-10 * max_speed) || !(table_s_.back() > 0.0))
+    PARAFAB_INPUT_ERROR("curve: the parametrization stops (zero speed, a cusp or collapsed poles) "
+                        "near parameter u = " << u_min << "; the curve must be regular");
+}
+
+double PlaneCurve::speed(double u) const { return curve_.derivatives(u)[1].norm(); }
+
+double PlaneCurve::integrate_speed(double u0, double u1) const {
+  const double h = 0.5 * (u1 - u0), m = 0.5 * (u1 + u0);
+  double sum = 0.0;
+  for (int q = 0; q < 8; ++q) sum += kGaussW[q] * speed(m + h * kGaussX[q]);
+  return sum * h;
+}
+
+double PlaneCurve::arc_length_at(double u) const {
+  u = std::clamp(u, table_u_.front(), table_u_.back());
+  auto it = std::upper_bound(table_u_.begin(), table_u_.end(), u);
+  const size_t i = (it == table_u_.begin()) ? 0 : static_cast<size_t>(it - table_u_.begin()) - 1;
+  if (i + 1 >= table_u_.size()) return table_s_.back();
+  return table_s_[i] + integrate_speed(table_u_[i], u);
+}
+
+double PlaneCurve::parameter_at(double s) const {
+  s = std::clamp(s, 0.0, length());
+  auto it = std::upper_bound(table_s_.begin(), table_s_.end(), s);
+  size_t i = (it == table_s_.begin()) ? 0 : static_cast<size_t>(it - table_s_.begin()) - 1;
+  if (i + 1 >= table_s_.size()) return table_u_.back();
+  double lo = table_u_[i], hi = table_u_[i + 1];
+  const double s_lo = table_s_[i];
+  // Newton from the linear guess, safeguarded by bisection inside [lo, hi].
+  double u = lo + (hi - lo) * (s - s_lo) / (table_s_[i + 1] - s_lo);
+  for (int iter = 0; iter < 60; ++iter) {
+    const double f = s_lo + integrate_speed(table_u_[i], u) - s;
+    if (std::abs(f) <= 1e-15 * length()) break;
+    if (f > 0) hi = u; else lo = u;
+    double next = u - f / speed(u);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    if (std::abs(next - u) <= 1e-16 * std::max(1.0, std::abs(u))) { u = next; break; }
+    u = next;
+  }
+  return u;
+}
+
+double PlaneCurve::curvature_at(double u) const {
+  const auto d = curve_.derivatives(u);
+  const double v = d[1].norm();
+  return cross(d[1], d[2]) / (v * v * v);
+}
+
+CurvePoint PlaneCurve::at_parameter(double u) const {
+  const auto d = curve_.derivatives(u);
+  const double v = d[1].norm();
+  CurvePoint c;
+  c.u = u;
+  c.s = arc_length_at(u);
+  c.point = d[0];
+  c.tangent = d[1] / v;
+  const double det12 = cross(d[1], d[2]);
+  c.kappa = det12 / (v * v * v);
+  const double dkappa_du =
+      cross(d[1], d[3]) / (v * v * v) - 3.0 * det12 * d[1].dot(d[2]) / std::pow(v, 5);
+  c.dkappa_ds = dkappa_du / v;
+  return c;
+}
+
+}  // namespace parafab

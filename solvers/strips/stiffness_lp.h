@@ -1,0 +1,43 @@
+// Optimal stiffness profile of a plane equilibrium curve: the linear program of thesis
+// Eq. 4.4 (§4.3.4), minimize R subject to 1 ≤ (a + ⟨b, γ(s_i)⟩)/κ(s_i) ≤ R and
+// a + ⟨b, γ(s_j)⟩ = 0 at the zero-curvature points, solved through its dual (4 rows).
+#pragma once
+
+#include <vector>
+
+#include "common/few_variable_lp.h"
+#include "common/plane_curve.h"
+
+namespace parafab {
+
+struct StiffnessLpOptions {
+  LpForm form = LpForm::Dual;
+};
+
+struct StiffnessLpResult {
+  LpStatus status = LpStatus::Failed;
+  double a = 0;               ///< K(s) = (a + ⟨b, γ(s)⟩) / κ(s) with min over samples = 1
+  Vec2 b{0, 0};
+  double R = 0;               ///< max K / min K over the samples and the zeros
+  int rows = 0;               ///< inequality rows of the primal program
+  int iterations = 0;
+  double seconds = 0;
+  double max_violation = 0;   ///< of the normalized program
+  std::string message;
+  bool ok() const { return status == LpStatus::Optimal; }
+};
+
+/// `samples` must have κ ≠ 0. The line a + ⟨b, x⟩ = 0 must pass through every point of
+/// `line_points` (the zero-curvature points themselves, or two points of the line fitted
+/// through three or more nearly collinear ones). At each zero-curvature point the limit
+/// K = ⟨b, γ'⟩ / κ' (l'Hôpital) is bounded like a sample. `length` sets the scale used to
+/// normalize coordinates for the solver (results are in input units).
+StiffnessLpResult solve_stiffness_lp(const std::vector<CurvePoint>& samples,
+                                     const std::vector<CurvePoint>& zeros,
+                                     const std::vector<Vec2>& line_points, double length,
+                                     const StiffnessLpOptions& options = {});
+
+/// K at a point: the ratio at a sample, or the l'Hôpital limit at a zero-curvature point.
+double stiffness_at(const CurvePoint& p, double a, const Vec2& b, bool is_zero);
+
+}  // namespace parafab

@@ -1,0 +1,69 @@
+// Bending-active strip design (thesis §4.3): a plane curve in; the feasibility diagnosis of
+// Theorem 1, the optimal stiffness profile of LP Eq. 4.4 with the sample count chosen from a
+// tolerance on R, the width profile of a sheet (K = E·w·h³/12) and the flat outline out.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "common/few_variable_lp.h"
+#include "strips/equilibrium_check.h"
+
+namespace parafab {
+
+struct StripDesignOptions {
+  double youngs_modulus = 3e9;  ///< E of the sheet [Pa]
+  double thickness = 0.5e-3;    ///< h of the sheet [m]
+  double min_width = 0.01;      ///< width where K is smallest [m]
+  /// Sampling: start with `initial_samples` samples equally spaced in arc length and double
+  /// until R changes by at most `tolerance`·R between two refinements.
+  double tolerance = 1e-6;
+  int initial_samples = 64;
+  int max_samples = 1 << 21;
+  LpForm lp_form = LpForm::Dual;
+  ZeroCurvatureOptions zeros;
+  EquilibriumCheckOptions check;
+};
+
+struct StripSample {
+  double s = 0;
+  Vec2 point{0, 0};
+  double kappa = 0;
+  double K = 1;  ///< normalized stiffness, min over the strip = 1
+};
+
+struct StripDesign {
+  // What was computed.
+  bool feasible = false;
+  std::string reason_code;  ///< "" or a stable code, see to_code(Infeasibility)
+  std::string reason;       ///< human-readable, names where
+  double reason_s = -1;     ///< arc length of the offending point, −1 if none
+  double length = 0;
+  std::vector<ZeroCurvaturePoint> zeros;  ///< inflections (and zeros at the ends)
+  double a = 0;             ///< the line a + ⟨b, x⟩ = 0 through the inflections
+  Vec2 b{0, 0};
+  double collinearity_error = 0;  ///< max distance of an inflection from the line [m]
+  double R = 1;             ///< max K / min K
+  std::vector<StripSample> samples;  ///< sorted by s; zeros included (K by its limit)
+  std::vector<double> width;         ///< [m], min = min_width
+  std::vector<double> bending_stiffness;  ///< E·w·h³/12 [N·m²]
+  std::vector<Vec2> outline;  ///< flat strip: centreline on +x from 0 to length, CCW polygon
+  // Diagnostics.
+  bool converged = false;   ///< R met the tolerance before max_samples
+  int lp_samples = 0;       ///< samples in the final LP
+  std::vector<std::pair<int, double>> refinement;  ///< (samples, R) for each LP solved
+  int lp_iterations = 0;    ///< of the final LP
+  double lp_seconds = 0;    ///< of the final LP
+  double total_seconds = 0;
+  std::string lp_message;
+};
+
+/// Throws parafab::Error for invalid options (non-positive E, thickness, width, tolerance) or
+/// a singular curve; an infeasible curve is a result with feasible = false and a reason.
+StripDesign design_strip(const BSplineCurve2& curve, const StripDesignOptions& options = {});
+
+/// Samples equally spaced in arc length, leaving out points within 1e-6·length of a zero.
+std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
+                                             const std::vector<ZeroCurvaturePoint>& zeros);
+
+}  // namespace parafab

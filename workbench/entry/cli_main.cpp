@@ -1,0 +1,77 @@
+// The `parafab` command line: thin over the same JSON calls as the Python module.
+// Exit codes: 0 result written (a strip may still be infeasible: see "feasible"),
+// 2 invalid input (JSON error on stdout), 1 internal error.
+#include <CLI/CLI.hpp>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "common/error.h"
+#include "occt_version.h"
+#include "strip_json.h"
+
+namespace {
+
+using nlohmann::json;
+
+int emit(const json& j, const std::string& out_path) {
+  const std::string text = j.dump(2);
+  if (out_path.empty()) {
+    std::cout << text << "\n";
+    return 0;
+  }
+  std::ofstream f(out_path);
+  if (!f || !(f << text << "\n")) {
+    std::cout << parafab::entry::error_json("cannot write output file " + out_path, "io").dump(2) << "\n";
+    return 2;
+  }
+  return 0;
+}
+
+int fail(const std::string& message, const std::string& kind, int code) {
+  std::cout << parafab::entry::error_json(message, kind).dump(2) << "\n";
+  return code;
+}
+
+json read_json_file(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw parafab::Error("cannot open input file " + path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  if (ss.str().find_first_not_of(" \t\r\n") == std::string::npos)
+    throw parafab::Error("input file " + path + " is empty");
+  try {
+    return json::parse(ss.str());
+  } catch (const json::parse_error& e) {
+    throw parafab::Error("input file " + path + " is not valid JSON (byte " +
+                         std::to_string(e.byte) + "): " + e.what());
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ParaFab: fabrication-aware design of bending-active strips, rods and CAD parts"};
+  app.require_subcommand(1);
+  std::string in_path, out_path;
+  auto* strip = app.add_subcommand("strip", "Design a bending-active strip for a plane curve (JSON in, JSON out)");
+  strip->add_option("input", in_path, "Strip request JSON (see README: JSON formats)")->required();
+  strip->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* version = app.add_subcommand("version", "Print versions as JSON");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    return fail(std::string("command line: ") + e.what() + " (see parafab --help)", "usage", 2);
+  }
+  try {
+    if (*version)
+      return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
+    if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
+  } catch (const parafab::Error& e) {
+    return fail(e.what(), "invalid_input", 2);
+  } catch (const std::exception& e) {
+    return fail(std::string("internal error: ") + e.what(), "internal", 1);
+  }
+  return 0;
+}

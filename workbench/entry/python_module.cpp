@@ -1,0 +1,48 @@
+// The `parafab` Python module: the same JSON calls as the CLI, with dicts in and out.
+// parafab.Error (a ValueError) is raised for invalid input, with the offending field named.
+#include <pybind11/pybind11.h>
+
+#include "common/error.h"
+#include "occt_version.h"
+#include "strip_json.h"
+
+namespace py = pybind11;
+
+namespace {
+// dict -> nlohmann::json through Python's own json module (exact for floats and ints).
+nlohmann::json to_json(const py::object& obj) {
+  py::module_ json = py::module_::import("json");
+  try {
+    return nlohmann::json::parse(py::str(json.attr("dumps")(obj, py::arg("allow_nan") = true))
+                                     .cast<std::string>());
+  } catch (const nlohmann::json::parse_error&) {
+    // NaN / Infinity are not JSON: report them as the invalid numbers they are.
+    throw parafab::Error("the request contains NaN or infinite numbers");
+  }
+}
+py::object to_python(const nlohmann::json& j) {
+  return py::module_::import("json").attr("loads")(j.dump());
+}
+}  // namespace
+
+PYBIND11_MODULE(parafab, m) {
+  m.doc() = "ParaFab: bending-active strips (thesis ch. 4); rods and X-CAD follow.";
+  py::register_exception<parafab::Error>(m, "Error", PyExc_ValueError);
+  m.def(
+      "design_strip",
+      [](const py::dict& request) {
+        const nlohmann::json in = to_json(request);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::design_strip_json(in);
+        }
+        return to_python(out);
+      },
+      py::arg("request"),
+      "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
+      "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
+      "min_width, tolerance.");
+  m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
+  m.attr("__version__") = "0.1.0";
+}
