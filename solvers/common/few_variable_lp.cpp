@@ -121,9 +121,7 @@ void solve_primal(const FewVariableLp& lp, const FewVariableLpOptions& options,
   model.setMaximumIterations(options.max_iterations);
   model.loadProblem(d, rows, start.data(), index.data(), value.data(), collb.data(),
                     colub.data(), obj.data(), rowlb.data(), rowub.data());
-  model.setDualTolerance(options.tolerance);
-  model.setPrimalTolerance(options.tolerance);
-  model.dual();
+  model.primal();
   r.iterations = model.numberIterations();
   const int s = model.status();
   if (s == 0) {

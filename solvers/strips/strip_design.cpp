@@ -46,6 +46,60 @@ void validate(const StripDesignOptions& o) {
                      << o.initial_samples << " and " << o.max_samples);
 }
 
+struct ContinuousRatio {
+  double ratio = NAN;  ///< max K / min K of the line (a, b) on the continuous curve
+};
+
+// Refines every local extremum of K among the samples by golden-section search on the
+// continuous curve between the neighbouring samples (intervals touching a zero-curvature
+// point keep the zero's exact l'Hôpital value instead).
+ContinuousRatio continuous_ratio(const PlaneCurve& curve, const std::vector<CurvePoint>& samples,
+                                 const std::vector<CurvePoint>& zeros, double a, const Vec2& b) {
+  const double l = curve.length();
+  double kmax = -INFINITY, kmin = INFINITY;
+  std::vector<double> K(samples.size());
+  for (size_t i = 0; i < samples.size(); ++i) {
+    K[i] = stiffness_at(samples[i], a, b, false);
+    kmax = std::max(kmax, K[i]);
+    kmin = std::min(kmin, K[i]);
+  }
+  for (const auto& z : zeros) {
+    const double kz = stiffness_at(z, a, b, true);
+    kmax = std::max(kmax, kz);
+    kmin = std::min(kmin, kz);
+  }
+  auto K_at = [&](double s) { return stiffness_at(curve.at_arc_length(s), a, b, false); };
+  auto has_zero = [&](double s0, double s1) {
+    for (const auto& z : zeros)
+      if (z.s >= s0 - 2 * kZeroExclusion * l && z.s <= s1 + 2 * kZeroExclusion * l) return true;
+    return false;
+  };
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const size_t lo_i = i == 0 ? 0 : i - 1, hi_i = std::min(i + 1, samples.size() - 1);
+    const bool is_max = K[i] >= K[lo_i] && K[i] >= K[hi_i];
+    const bool is_min = K[i] <= K[lo_i] && K[i] <= K[hi_i];
+    if (!is_max && !is_min) continue;
+    double lo = samples[lo_i].s, hi = samples[hi_i].s;
+    if (hi <= lo || has_zero(lo, hi)) continue;
+    for (const double sign : {1.0, -1.0}) {  // maximize sign·K
+      if ((sign > 0 && !is_max) || (sign < 0 && !is_min)) continue;
+      double x0 = lo, x3 = hi, x1 = x3 - g * (x3 - x0), x2 = x0 + g * (x3 - x0);
+      double f1 = sign * K_at(x1), f2 = sign * K_at(x2);
+      for (int it = 0; it < 80 && x3 - x0 > 1e-13 * l; ++it) {
+        if (f1 > f2) x3 = x2, x2 = x1, f2 = f1, x1 = x3 - g * (x3 - x0), f1 = sign * K_at(x1);
+        else x0 = x1, x1 = x2, f1 = f2, x2 = x0 + g * (x3 - x0), f2 = sign * K_at(x2);
+      }
+      const double best = std::max(f1, f2) * sign;
+      kmax = std::max(kmax, best);
+      kmin = std::min(kmin, best);
+    }
+  }
+  ContinuousRatio r;
+  r.ratio = kmax / kmin;
+  return r;
+}
+
 void finish_outputs(const StripDesignOptions& o, StripDesign& d) {
   const double h3 = o.thickness * o.thickness * o.thickness;
   d.width.resize(d.samples.size());
@@ -105,21 +159,27 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   lpo.form = options.lp_form;
   StiffnessLpResult lp;
   std::vector<CurvePoint> samples;
-  double prev_R = -1;
-  // Nested grids (count − 1 doubles): every refinement keeps the previous samples, so R
-  // grows monotonically towards sup K.
+  // Nested grids (count − 1 doubles): every refinement keeps the previous samples. The LP
+  // optimum R_n on the samples is a lower bound of the optimal R*, and the ratio of the
+  // LP's own line on the continuous curve, R_c ≥ R*, an upper bound: refine until
+  // R_c / R_n − 1 ≤ tolerance, a certified bound on the error of R.
+  ContinuousRatio cont;
   for (int n = options.initial_samples + 1;; n = std::min(2 * n - 1, options.max_samples)) {
     samples = sample_by_arc_length(curve, n, zeros.points);
     lp = solve_stiffness_lp(samples, zero_points, line_points, d.length, lpo);
-    d.refinement.emplace_back(n, lp.ok() ? lp.R : NAN);
-    if (!lp.ok()) break;
-    if (prev_R > 0 && std::abs(lp.R - prev_R) <= options.tolerance * lp.R) {
+    if (!lp.ok()) {
+      d.refinement.push_back({n, NAN, NAN});
+      break;
+    }
+    cont = continuous_ratio(curve, samples, zero_points, lp.a, lp.b);
+    d.refinement.push_back({n, lp.R, cont.ratio});
+    if (cont.ratio / lp.R - 1 <= options.tolerance) {
       d.converged = true;
       break;
     }
     if (n >= options.max_samples) break;
-    prev_R = lp.R;
   }
+  d.R_continuous = cont.ratio;
   d.lp_samples = static_cast<int>(samples.size());
   d.lp_iterations = lp.iterations;
   d.lp_seconds = lp.seconds;

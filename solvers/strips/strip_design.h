@@ -16,7 +16,9 @@ struct StripDesignOptions {
   double thickness = 0.5e-3;    ///< h of the sheet [m]
   double min_width = 0.01;      ///< width where K is smallest [m]
   /// Sampling: start with `initial_samples` samples equally spaced in arc length and double
-  /// until R changes by at most `tolerance`·R between two refinements.
+  /// until the certified relative gap between the sampled optimum R (a lower bound of the
+  /// continuous optimum) and the continuous ratio of its line (an upper bound) is at most
+  /// `tolerance`.
   double tolerance = 1e-6;
   int initial_samples = 64;
   int max_samples = 1 << 21;
@@ -49,9 +51,15 @@ struct StripDesign {
   std::vector<double> bending_stiffness;  ///< E·w·h³/12 [N·m²]
   std::vector<Vec2> outline;  ///< flat strip: centreline on +x from 0 to length, CCW polygon
   // Diagnostics.
-  bool converged = false;   ///< R met the tolerance before max_samples
+  bool converged = false;   ///< the gap met the tolerance before max_samples
+  double R_continuous = NAN;  ///< max K / min K of the line on the continuous curve (≥ R)
   int lp_samples = 0;       ///< samples in the final LP
-  std::vector<std::pair<int, double>> refinement;  ///< (samples, R) for each LP solved
+  struct Refinement {
+    int samples;
+    double R;             ///< LP optimum on the samples (lower bound)
+    double R_continuous;  ///< the same line on the continuous curve (upper bound)
+  };
+  std::vector<Refinement> refinement;  ///< one entry per LP solved
   int lp_iterations = 0;    ///< of the final LP
   double lp_seconds = 0;    ///< of the final LP
   double total_seconds = 0;

@@ -116,6 +116,12 @@ json design_strip_json(const json& request) {
   out["reason_code"] = d.reason_code;
   out["where"] = d.reason_s >= 0 ? json{{"s", d.reason_s}} : json(nullptr);
   out["length"] = d.length;
+  {  // the curve as designed (the interpolant when points were given)
+    json poles = json::array();
+    for (const auto& p : curve.poles()) poles.push_back(to_json(p));
+    out["bspline"] = {{"degree", curve.degree()}, {"knots", curve.knots()}, {"poles", poles}};
+    if (curve.rational()) out["bspline"]["weights"] = curve.weights();
+  }
   json infl = json::array();
   for (const auto& z : d.zeros)
     infl.push_back({{"s", z.at.s}, {"point", to_json(z.at.point)}, {"kind", to_string(z.kind)},
@@ -140,10 +146,12 @@ json design_strip_json(const json& request) {
   for (const auto& p : d.outline) outline.push_back(to_json(p));
   out["outline"] = outline;
   json refinement = json::array();
-  for (const auto& [n, R] : d.refinement)
-    refinement.push_back({{"samples", n}, {"R", std::isfinite(R) ? json(R) : json(nullptr)}});
+  auto num = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
+  for (const auto& r : d.refinement)
+    refinement.push_back({{"samples", r.samples}, {"R", num(r.R)}, {"R_continuous", num(r.R_continuous)}});
   out["diagnostics"] = {{"converged", d.converged},
                         {"samples", d.lp_samples},
+                        {"R_continuous", num(d.R_continuous)},
                         {"refinement", refinement},
                         {"lp_iterations", d.lp_iterations},
                         {"lp_seconds", d.lp_seconds},

@@ -1,0 +1,401 @@
+"""Headless FreeCAD tests of the ParaFab ``Strip`` feature.
+
+Run with ``tests/freecad/run_tests.sh [BUILD_DIR]`` or, with this directory
+on ``PYTHONPATH``, ``freecadcmd -t test_strip_feature``.
+
+Paths (environment variables, all optional):
+
+* ``PARAFAB_MODULE_DIR`` -- directory holding ``parafab*.so``
+  (default ``<repo>/build/workbench/entry``);
+* ``PARAFAB_WB_DIR`` -- directory holding the ``parafab_wb`` package
+  (default ``<repo>/workbench/freecad/ParaFab``).
+
+The tests need the real solver; ``import parafab`` failing is an error.
+"""
+
+import math
+import os
+import shutil
+import sys
+import tempfile
+import unittest
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+_REPO = os.path.normpath(os.path.join(_HERE, os.pardir, os.pardir))
+
+
+def _setup_paths():
+    """Put the solver module and the workbench package first on sys.path."""
+    paths = (
+        os.environ.get("PARAFAB_MODULE_DIR")
+        or os.path.join(_REPO, "build", "workbench", "entry"),
+        os.environ.get("PARAFAB_WB_DIR")
+        or os.path.join(_REPO, "workbench", "freecad", "ParaFab"),
+    )
+    for path in paths:
+        if path not in sys.path:
+            sys.path.insert(0, path)
+
+
+_setup_paths()
+
+import FreeCAD  # noqa: E402
+import Part  # noqa: E402
+
+import parafab  # noqa: E402
+from parafab_wb import geometry  # noqa: E402
+from parafab_wb import strip_feature  # noqa: E402
+
+V = FreeCAD.Vector
+
+#: Strip defaults, SI units, for independent solver calls.
+E_PA = 3e9
+THICKNESS_M = 0.5e-3
+MIN_WIDTH_M = 10e-3
+
+
+def _spec_xy(bs, tolerance=1e-6):
+    """Solver input for a B-spline lying in the global XY plane (mm -> m).
+
+    Built directly from the curve, independently of ``parafab_wb.geometry``.
+    """
+    bspline = {
+        "degree": bs.Degree,
+        "knots": list(bs.KnotSequence),
+        "poles": [[p.x * 1e-3, p.y * 1e-3] for p in bs.getPoles()],
+    }
+    if bs.isRational():
+        bspline["weights"] = list(bs.getWeights())
+    return {"curve": {"bspline": bspline},
+            "material": {"E": E_PA, "thickness": THICKNESS_M},
+            "min_width": MIN_WIDTH_M, "tolerance": tolerance}
+
+
+def _interpolated(points):
+    """Non-rational B-spline interpolating ``(x, y)`` points (mm) at z = 0."""
+    bs = Part.BSplineCurve()
+    bs.interpolate([V(x, y, 0) for x, y in points])
+    return bs
+
+
+def _convex_bspline():
+    """A convex planar B-spline (no inflection), about 200 mm long."""
+    return _interpolated([(0, 0), (40, 30), (90, 45), (140, 35), (180, 5)])
+
+
+def _s_curve_three_inflections():
+    """y = sin(x) + 0.1 x^2 on [1, 10], scaled by 20 mm.
+
+    Its inflections (sin x = 0.2, x ~ 2.94, 6.48, 9.22) lie on a parabola,
+    hence are not collinear: no straight inflection line exists.
+    """
+    pts = []
+    for i in range(61):
+        x = 1.0 + 9.0 * i / 60.0
+        pts.append((20.0 * x, 20.0 * (math.sin(x) + 0.1 * x * x)))
+    return _interpolated(pts)
+
+
+def _bspline_from_planar(curve):
+    """Rebuild a 2D ``Part.BSplineCurve`` (z = 0) from a ``PlanarCurve``."""
+    knots, mults = [], []
+    for k in curve.knots:
+        if knots and k == knots[-1]:
+            mults[-1] += 1
+        else:
+            knots.append(k)
+            mults.append(1)
+    bs = Part.BSplineCurve()
+    bs.buildFromPolesMultsKnots([V(x, y, 0) for x, y in curve.poles], mults,
+                                knots, False, curve.degree, curve.weights)
+    return bs
+
+
+def _is_error(obj):
+    """True when ``obj`` is in FreeCAD's error state."""
+    return "Invalid" in obj.State and not obj.isValid()
+
+
+class StripTestCase(unittest.TestCase):
+    """Base class: one fresh document per test."""
+
+    def setUp(self):
+        self.doc = FreeCAD.newDocument("ParaFabTest")
+        self.tmpdir = None
+
+    def tearDown(self):
+        FreeCAD.closeDocument(self.doc.Name)
+        if self.tmpdir:
+            shutil.rmtree(self.tmpdir, ignore_errors=True)
+
+    def add_shape(self, name, shape):
+        """Add a ``Part::Feature`` holding ``shape``."""
+        obj = self.doc.addObject("Part::Feature", name)
+        obj.Shape = shape
+        return obj
+
+    def strip_on(self, name, shape, recompute=True):
+        """Part feature with ``shape`` + a strip on its Edge1."""
+        src = self.add_shape(name, shape)
+        strip = strip_feature.make_strip(src, "Edge1")
+        if recompute:
+            self.doc.recompute()
+        return src, strip
+
+    def assert_feasible_strip(self, strip):
+        """Common checks of a successfully designed strip."""
+        self.assertEqual(strip.State, ["Up-to-date"], strip.getStatusString())
+        self.assertTrue(strip.Feasible, strip.Reason)
+        self.assertEqual(strip.Reason, "")
+        self.assertTrue(strip.Shape.isValid())
+        self.assertEqual(len(strip.Shape.Faces), 2)
+        self.assertGreater(strip.Length.Value, 0.0)
+        self.assertGreaterEqual(strip.R, 1.0 - 1e-9)
+
+
+class TestGeometry(StripTestCase):
+    """Exactness of the edge -> planar NURBS conversion (no solver)."""
+
+    def check_exact(self, edge, hint=None, tol=1e-9):
+        """The 2D NURBS must reproduce the edge (mapped to 2D) exactly."""
+        curve = geometry.planar_curve_from_edge(edge, hint)
+        bs2 = _bspline_from_planar(curve)
+        self.assertAlmostEqual(bs2.length(), edge.Length,
+                               delta=tol * max(1.0, edge.Length))
+        for i in range(21):
+            p = edge.valueAt(edge.FirstParameter + (edge.LastParameter
+                                                    - edge.FirstParameter) * i / 20.0)
+            self.assertLess(abs(curve.frame.height(p)), 1e-7)
+            x, y = curve.frame.to_2d(p)
+            self.assertLess(bs2.toShape().distToShape(Part.Vertex(V(x, y, 0)))[0],
+                            1e-7, "point %d off the converted curve" % i)
+        return curve
+
+    def test_circle_arc_is_rational(self):
+        edge = Part.Edge(Part.Circle(V(1, 2, 3), V(0, 0, 1), 50), 0.3, 2.9)
+        curve = self.check_exact(edge)
+        self.assertIsNotNone(curve.weights)
+        self.assertEqual(curve.degree, 2)
+
+    def test_ellipse_arc(self):
+        edge = Part.Edge(Part.Ellipse(V(0, 0, 0), 80, 30), 0.2, 2.5)
+        self.check_exact(edge)
+
+    def test_trimmed_bspline(self):
+        bs = _convex_bspline()
+        edge = Part.Edge(bs, 0.2 * bs.LastParameter, 0.7 * bs.LastParameter)
+        curve = self.check_exact(edge)
+        self.assertEqual(curve.knots[0], curve.knots[curve.degree])  # clamped
+
+    def test_periodic_bspline_across_seam(self):
+        bs = Part.BSplineCurve()
+        bs.interpolate([V(0, 0, 0), V(100, 0, 0), V(100, 80, 0), V(0, 60, 0)],
+                       PeriodicFlag=True)
+        period = bs.LastParameter - bs.FirstParameter
+        edge = Part.Edge(bs, bs.LastParameter - 0.2 * period,
+                         bs.LastParameter + 0.3 * period)
+        self.check_exact(edge)
+
+    def test_tilted_plane_and_placement(self):
+        edge = Part.Edge(Part.Circle(V(0, 0, 0), V(0, 0, 1), 40), 0.0, 2.0)
+        edge.Placement = FreeCAD.Placement(V(5, -3, 7),
+                                           FreeCAD.Rotation(V(1, 1, 0), 35))
+        self.check_exact(edge)
+
+    def test_sketch_hint_keeps_sketch_coordinates(self):
+        placement = FreeCAD.Placement(V(10, 20, 30), FreeCAD.Rotation(V(1, 0, 0), 90))
+        bs = _convex_bspline()
+        shape = bs.toShape()
+        shape.Placement = placement
+        curve = geometry.planar_curve_from_edge(
+            shape.Edges[0], geometry.PlaneFrame.from_placement(placement))
+        for (x, y), p in zip(curve.poles, bs.getPoles()):
+            self.assertAlmostEqual(x, p.x, places=9)
+            self.assertAlmostEqual(y, p.y, places=9)
+
+    def test_helix_is_not_planar(self):
+        helix = Part.makeHelix(5.0, 20.0, 10.0)
+        with self.assertRaisesRegex(geometry.GeometryError, "planar"):
+            geometry.planar_curve_from_edge(helix.Edges[0])
+
+
+class TestStripFeature(StripTestCase):
+    """The Strip feature in a document, against the real solver."""
+
+    def test_bspline_strip_matches_solver(self):
+        bs = _convex_bspline()
+        src, strip = self.strip_on("Curve", bs.toShape())
+        self.assert_feasible_strip(strip)
+        expected = parafab.design_strip(_spec_xy(bs))
+        self.assertTrue(expected["feasible"])
+        self.assertAlmostEqual(strip.R, expected["R"],
+                               delta=1e-9 * abs(expected["R"]))
+        self.assertAlmostEqual(strip.Length.Value, expected["length"] * 1e3,
+                               delta=1e-9 * expected["length"] * 1e3)
+        self.assertAlmostEqual(strip.Length.Value, bs.length(),
+                               delta=1e-4 * bs.length())
+        # Flat strip in the curve's plane (z = 0), bent strip spans the width
+        # along the plane normal (z).
+        flat, bent = strip.Shape.Faces
+        self.assertLess(flat.BoundBox.ZLength, 1e-6)
+        self.assertLess(flat.BoundBox.YMax, bs.toShape().BoundBox.YMin)
+        self.assertGreaterEqual(bent.BoundBox.ZLength, 10.0 - 1e-6)
+        self.assertAlmostEqual(bent.BoundBox.ZMin, -bent.BoundBox.ZMax, places=6)
+
+    def test_circular_arc_R_is_one(self):
+        radius, angle = 150.0, 2.0
+        edge = Part.Edge(Part.Circle(V(0, 0, 0), V(0, 0, 1), radius), 0.4, 0.4 + angle)
+        _, strip = self.strip_on("Arc", edge)
+        self.assert_feasible_strip(strip)
+        self.assertAlmostEqual(strip.R, 1.0, delta=1e-9)
+        self.assertAlmostEqual(strip.Length.Value, radius * angle,
+                               delta=1e-6 * radius * angle)
+        # Constant curvature -> constant width: bent strip is exactly MinWidth wide.
+        self.assertAlmostEqual(strip.Shape.Faces[1].BoundBox.ZLength, 10.0, places=6)
+
+    def test_sketch_bspline_in_rotated_plane(self):
+        bs = _convex_bspline()
+        sketch = self.doc.addObject("Sketcher::SketchObject", "Sketch")
+        sketch.Placement = FreeCAD.Placement(V(0, 50, 0),
+                                             FreeCAD.Rotation(V(1, 0, 0), 90))
+        sketch.addGeometry(bs, False)
+        self.doc.recompute()
+        strip = strip_feature.make_strip(sketch, "Edge1")
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        expected = parafab.design_strip(_spec_xy(bs))
+        self.assertAlmostEqual(strip.R, expected["R"], delta=1e-6 * expected["R"])
+        # Sketch plane is y = 50 with normal -Y: the flat strip lies in it,
+        # the bent strip spans the width along Y.
+        flat, bent = strip.Shape.Faces
+        self.assertLess(flat.BoundBox.YLength, 1e-6)
+        self.assertAlmostEqual(flat.BoundBox.YMin, 50.0, places=6)
+        self.assertGreaterEqual(bent.BoundBox.YLength, 10.0 - 1e-6)
+        self.assertAlmostEqual(bent.BoundBox.Center.y, 50.0, places=6)
+
+    def test_sketch_in_placed_body(self):
+        body = self.doc.addObject("PartDesign::Body", "Body")
+        body.Placement = FreeCAD.Placement(V(0, 0, 40),
+                                           FreeCAD.Rotation(V(0, 0, 1), 30))
+        sketch = body.newObject("Sketcher::SketchObject", "Sketch")
+        sketch.addGeometry(_convex_bspline(), False)
+        self.doc.recompute()
+        strip = strip_feature.make_strip(sketch, "Edge1")
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        # The strip follows the sketch in global coordinates (plane z = 40).
+        flat, bent = strip.Shape.Faces
+        self.assertLess(flat.BoundBox.ZLength, 1e-6)
+        self.assertAlmostEqual(flat.BoundBox.ZMin, 40.0, places=6)
+        self.assertAlmostEqual(bent.BoundBox.Center.z, 40.0, places=6)
+        global_edge = sketch.Shape.Edges[0].copy()
+        global_edge.Placement = body.Placement.multiply(global_edge.Placement)
+        self.assertLess(bent.distToShape(global_edge)[0], 1e-6)
+
+    def test_move_pole_recomputes(self):
+        bs = _convex_bspline()
+        src, strip = self.strip_on("Curve", bs.toShape())
+        self.assert_feasible_strip(strip)
+        r_before, length_before = strip.R, strip.Length.Value
+        moved = bs.copy()
+        moved.setPole(3, moved.getPole(3) + V(0, 25, 0))
+        src.Shape = moved.toShape()
+        self.assertIn("Touched", src.State)
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        self.assertNotAlmostEqual(strip.R, r_before, delta=1e-9 * r_before)
+        self.assertNotAlmostEqual(strip.Length.Value, length_before, places=3)
+        expected = parafab.design_strip(_spec_xy(moved))
+        self.assertAlmostEqual(strip.R, expected["R"], delta=1e-9 * expected["R"])
+
+    def test_save_and_reopen(self):
+        _, strip = self.strip_on("Curve", _convex_bspline().toShape())
+        strip.Thickness = "0.8 mm"
+        strip.MinWidth = "12 mm"
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        r_saved = strip.R
+        self.tmpdir = tempfile.mkdtemp(prefix="parafab_")
+        path = os.path.join(self.tmpdir, "strip.FCStd")
+        self.doc.saveAs(path)
+        FreeCAD.closeDocument(self.doc.Name)
+
+        self.doc = FreeCAD.openDocument(path)
+        strip = self.doc.getObject("Strip")
+        self.assertIsInstance(strip.Proxy, strip_feature.StripFeature)
+        self.assertEqual(strip.Proxy.Type, strip_feature.TYPE)
+        self.assertEqual(strip.Proxy.Version, strip_feature.VERSION)
+        self.assertAlmostEqual(strip.Thickness.Value, 0.8)
+        self.assertAlmostEqual(strip.MinWidth.Value, 12.0)
+        self.assertAlmostEqual(strip.YoungsModulus.getValueAs("Pa"), 3e9)
+        self.assertEqual(strip.Edge[0].Name, "Curve")
+        self.assertEqual(list(strip.Edge[1]), ["Edge1"])
+        self.assertTrue(strip.Feasible)
+        self.assertAlmostEqual(strip.R, r_saved, delta=1e-12 * r_saved)
+        strip.touch()
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        self.assertAlmostEqual(strip.R, r_saved, delta=1e-12 * r_saved)
+
+    def test_infeasible_curve(self):
+        box = self.doc.addObject("Part::Box", "Box")
+        bs = _s_curve_three_inflections()
+        expected = parafab.design_strip(_spec_xy(bs))
+        self.assertFalse(expected["feasible"])
+        src, strip = self.strip_on("SCurve", bs.toShape())
+        self.assertTrue(_is_error(strip))
+        self.assertFalse(strip.Feasible)
+        self.assertNotEqual(expected["reason"], "")
+        self.assertIn(expected["reason"], strip.Reason)
+        self.assertAlmostEqual(strip.Length.Value, expected["length"] * 1e3,
+                               delta=1e-9 * expected["length"] * 1e3)
+        self.assertIn(strip.Reason, strip.getStatusString())
+        self.assertTrue(strip.Shape.isNull())
+        for obj in (box, src):
+            self.assertTrue(obj.isValid(), obj.Name)
+            self.assertEqual(obj.State, ["Up-to-date"], obj.Name)
+        # The document stays usable.
+        box.Length = 20
+        self.doc.recompute()
+        self.assertAlmostEqual(box.Shape.Volume, 2000.0)
+
+    def test_zero_thickness_is_an_error_then_recovers(self):
+        _, strip = self.strip_on("Curve", _convex_bspline().toShape(),
+                                 recompute=False)
+        strip.Thickness = 0
+        self.doc.recompute()
+        self.assertTrue(_is_error(strip))
+        self.assertFalse(strip.Feasible)
+        self.assertIn("thickness", strip.Reason)
+        self.assertTrue(strip.Shape.isNull())
+        strip.Thickness = "0.5 mm"
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+
+    def test_non_planar_edges(self):
+        bs3d = Part.BSplineCurve()
+        bs3d.interpolate([V(0, 0, 0), V(50, 30, 10), V(100, 20, -15), V(150, 60, 5)])
+        for name, shape in (("Helix", Part.makeHelix(20.0, 60.0, 15.0)),
+                            ("Curve3D", bs3d.toShape())):
+            _, strip = self.strip_on(name, shape)
+            self.assertTrue(_is_error(strip), name)
+            self.assertFalse(strip.Feasible)
+            self.assertIn("planar", strip.Reason)
+            self.assertTrue(strip.Shape.isNull())
+
+    def test_missing_link_is_an_error(self):
+        _, strip = self.strip_on("Curve", _convex_bspline().toShape(),
+                                 recompute=False)
+        strip.Edge = None
+        self.doc.recompute()
+        self.assertTrue(_is_error(strip))
+        self.assertIn("No edge", strip.Reason)
+
+    def test_make_strip_rejects_non_edge(self):
+        src = self.add_shape("Box", Part.makeBox(1, 2, 3))
+        with self.assertRaises(ValueError):
+            strip_feature.make_strip(src, "Face1")
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,40 @@
+"""ParaFab FreeCAD workbench package.
+
+Modules:
+
+* :mod:`parafab_wb.geometry` -- planar edge -> exact 2D NURBS data (and back).
+* :mod:`parafab_wb.shapes` -- solver result -> Part shapes (flat + bent strip).
+* :mod:`parafab_wb.strip_feature` -- the ``Strip`` feature proxy, its view
+  provider and :func:`~parafab_wb.strip_feature.make_strip`.
+* :mod:`parafab_wb.commands` -- GUI commands (imported by ``InitGui.py`` only).
+
+This ``__init__`` must stay importable without FreeCAD: it only knows where
+the icons live.  ``Init.py``/``InitGui.py`` have no ``__file__`` in FreeCAD
+0.20, so they ask this package for resource paths instead.
+"""
+
+import os
+
+_PKG_DIR = os.path.dirname(os.path.abspath(__file__))
+
+# Installed layout: <Mod>/ParaFab/parafab_wb and <Mod>/ParaFab/Resources/icons.
+# Source layout:    <repo>/workbench/freecad/ParaFab/parafab_wb and
+#                   <repo>/resources/icons.
+_ICON_DIRS = (
+    os.path.join(_PKG_DIR, os.pardir, "Resources", "icons"),
+    os.path.join(_PKG_DIR, os.pardir, os.pardir, os.pardir, os.pardir,
+                 "resources", "icons"),
+)
+
+
+def icon_path(name):
+    """Return the absolute path of icon ``name`` or ``""`` when not found.
+
+    FreeCAD accepts an empty pixmap path and shows a default icon, so a
+    missing icon never breaks the workbench.
+    """
+    for directory in _ICON_DIRS:
+        path = os.path.normpath(os.path.join(directory, name))
+        if os.path.isfile(path):
+            return path
+    return ""

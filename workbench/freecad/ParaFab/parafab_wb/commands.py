@@ -1,0 +1,63 @@
+"""GUI commands of the ParaFab workbench.
+
+Importing this module registers the commands with ``FreeCADGui.addCommand``;
+``InitGui.py`` does so when the workbench is first activated.
+
+* ``ParaFab_Strip`` -- "Bending-active strip": create a ``Strip`` feature on
+  the selected planar edge (sketch B-spline, arc, ellipse arc, Part edge).
+"""
+
+import FreeCAD
+import FreeCADGui
+
+from . import icon_path
+from . import strip_feature
+
+
+def selected_edge():
+    """``(object, "EdgeN")`` of the first selected edge, or ``None``."""
+    for sel in FreeCADGui.Selection.getSelectionEx():
+        for name in sel.SubElementNames:
+            # Sub-element names may carry a path prefix ("Sketch.Edge1").
+            element = name.split(".")[-1]
+            if element.startswith("Edge"):
+                return sel.Object, element
+    return None
+
+
+class StripCommand(object):
+    """Create a bending-active strip on the selected edge."""
+
+    def GetResources(self):
+        """Icon, menu text and tooltip."""
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Bending-active strip",
+            "ToolTip": "Design a bending-active strip whose bent shape follows "
+                       "the selected planar edge",
+        }
+
+    def IsActive(self):
+        """Enabled when a document is open and an edge is selected."""
+        return FreeCAD.ActiveDocument is not None and selected_edge() is not None
+
+    def Activated(self):
+        """Create and recompute the strip inside an undo transaction."""
+        selection = selected_edge()
+        if selection is None:
+            FreeCAD.Console.PrintError("ParaFab: select a planar edge first\n")
+            return
+        owner, element = selection
+        doc = owner.Document
+        doc.openTransaction("Bending-active strip")
+        try:
+            strip_feature.make_strip(owner, element, doc)
+            doc.recompute()
+        except Exception as exc:
+            doc.abortTransaction()
+            FreeCAD.Console.PrintError("ParaFab: cannot create strip: %s\n" % exc)
+            return
+        doc.commitTransaction()
+
+
+FreeCADGui.addCommand("ParaFab_Strip", StripCommand())

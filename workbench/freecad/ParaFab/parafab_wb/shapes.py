@@ -1,0 +1,130 @@
+"""Solver result -> Part shapes: the flat strip and the bent strip.
+
+Given a feasible :func:`parafab.design_strip` result (SI units) and the
+:class:`~parafab_wb.geometry.PlaneFrame` of the curve, build
+
+* the **flat strip**: a planar face bounded by the two sides of the
+  ``outline`` (interpolated B-splines) and two straight end edges, laid out
+  in the curve's plane below the curve;
+* the **bent strip**: the ruled surface between ``gamma(s) + w(s)/2 n`` and
+  ``gamma(s) - w(s)/2 n`` (``n`` = plane normal): the strip is bent in the
+  plane of the curve, so its width is perpendicular to that plane.
+
+Side curves interpolate a subsample of at most :data:`MAX_EDGE_POINTS`
+samples.  The only arithmetic here is unit scaling and placement.
+"""
+
+import Part
+
+#: Metres (solver) -> millimetres (FreeCAD).
+M_TO_MM = 1e3
+#: Maximum number of samples interpolated per side edge.
+MAX_EDGE_POINTS = 200
+
+
+def subsample(n, limit=MAX_EDGE_POINTS):
+    """Indices of at most ``limit`` evenly spread samples of ``range(n)``.
+
+    The first and last index are always included.
+    """
+    if n <= limit:
+        return list(range(n))
+    step = (n - 1) / float(limit - 1)
+    return sorted(set(int(round(i * step)) for i in range(limit)))
+
+
+def _strictly_increasing(params, points, eps):
+    """Drop samples whose parameter does not increase by more than ``eps``."""
+    out_p, out_x = [], []
+    for u, p in zip(params, points):
+        if out_p and u - out_p[-1] <= eps:
+            continue
+        out_p.append(u)
+        out_x.append(p)
+    return out_p, out_x
+
+
+def interpolated_edge(points, params):
+    """Edge of the B-spline interpolating 3D ``points`` at ``params``."""
+    if len(points) < 2:
+        raise ValueError("Need at least two samples to build a strip edge")
+    if len(points) == 2:
+        return Part.LineSegment(points[0], points[1]).toShape()
+    bs = Part.BSplineCurve()
+    bs.interpolate(Points=points, Parameters=params)
+    return bs.toShape()
+
+
+def _outline_sides(outline):
+    """Split the closed outline into its upper (y > 0) and lower (y < 0) sides.
+
+    Each side is returned as a list of ``(x, y)`` sorted by x.  This does
+    not depend on where the polygon starts or on its orientation.
+    """
+    upper = sorted((float(x), float(y)) for x, y in outline if y > 0)
+    lower = sorted((float(x), float(y)) for x, y in outline if y < 0)
+    if len(upper) < 2 or len(lower) < 2:
+        raise ValueError("The solver returned a degenerate strip outline")
+    return upper, lower
+
+
+def flat_strip_face(outline, frame, offset, scale=M_TO_MM):
+    """Planar face of the flat strip.
+
+    ``outline`` is the solver's closed polygon (strip frame, metres),
+    ``offset`` the ``(dx, dy)`` position (mm, plane coordinates) of the
+    strip frame origin in the curve's plane.
+    """
+    dx, dy = offset
+    sides = []
+    for side in _outline_sides(outline):
+        eps = 1e-9 * (side[-1][0] - side[0][0])
+        xs, pts = _strictly_increasing([x for x, _ in side], side, eps)
+        idx = subsample(len(pts))
+        pts3 = [frame.to_3d(dx + pts[i][0] * scale, dy + pts[i][1] * scale)
+                for i in idx]
+        sides.append(interpolated_edge(pts3, [xs[i] * scale for i in idx]))
+    upper, lower = sides
+    ends = [Part.LineSegment(upper.Vertexes[0].Point, lower.Vertexes[0].Point).toShape(),
+            Part.LineSegment(upper.Vertexes[-1].Point, lower.Vertexes[-1].Point).toShape()]
+    wire = Part.Wire([upper, ends[1], lower, ends[0]])  # connected in this order
+    return Part.Face(wire)
+
+
+def bent_strip_face(points, s, width, frame, scale=M_TO_MM):
+    """Ruled face of the strip bent onto the curve ``points`` (metres, 2D)."""
+    if not (len(points) == len(s) == len(width)):
+        raise ValueError("The solver returned samples of different lengths")
+    idx = subsample(len(s))
+    params, top, bottom = [], [], []
+    for i in idx:
+        x, y = points[i]
+        h = 0.5 * width[i] * scale
+        top.append(frame.to_3d(x * scale, y * scale, h))
+        bottom.append(frame.to_3d(x * scale, y * scale, -h))
+        params.append(s[i] * scale)
+    return Part.makeRuledSurface(interpolated_edge(top, params),
+                                 interpolated_edge(bottom, params))
+
+
+def flat_layout_offset(points, width, length, scale=M_TO_MM):
+    """Where to put the flat strip: below the curve, left-aligned with it.
+
+    Returns ``(dx, dy)`` in mm plane coordinates with a gap of
+    ``max(0.1 * length, max width)`` between curve and strip.
+    """
+    xmin = min(p[0] for p in points) * scale
+    ymin = min(p[1] for p in points) * scale
+    wmax = max(width) * scale
+    gap = max(0.1 * length * scale, wmax)
+    return xmin, ymin - gap - 0.5 * wmax
+
+
+def strip_shape(result, frame, scale=M_TO_MM):
+    """Compound ``[flat strip face, bent strip face]`` of a feasible result."""
+    offset = flat_layout_offset(result["points"], result["width"],
+                                result["length"], scale)
+    flat = flat_strip_face(result["outline"], frame, offset, scale)
+    bent = bent_strip_face(result["points"], result["s"], result["width"],
+                           frame, scale)
+    return Part.makeCompound([flat, bent])

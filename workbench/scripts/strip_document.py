@@ -1,0 +1,55 @@
+"""Build a FreeCAD document with one strip feature per strip result (run by freecadcmd).
+
+Environment: PARAFAB_RESULTS (folder of *.result.json written by `parafab strip`),
+PARAFAB_DOCUMENT (the .FCStd to write). Each curve is rebuilt from the B-spline the solver
+designed (output field "bspline", metres → mm), placed in its own row of the XY plane, and a
+ParaFab Strip feature is recomputed on it: feasible curves get the flat and bent strips,
+infeasible ones show their reason as the feature's error state.
+"""
+import glob
+import json
+import os
+
+import FreeCAD
+import Part
+
+from parafab_wb.strip_feature import make_strip
+
+M_TO_MM = 1000.0
+results = sorted(glob.glob(os.path.join(os.environ["PARAFAB_RESULTS"], "*.result.json")))
+doc = FreeCAD.newDocument("ParaFabStrips")
+y_offset = 0.0
+summary = []
+for path in results:
+    name = os.path.basename(path)[: -len(".result.json")]
+    with open(path) as f:
+        result = json.load(f)
+    spec = result["bspline"]
+    knots, mults = [], []
+    for k in spec["knots"]:
+        if knots and k == knots[-1]:
+            mults[-1] += 1
+        else:
+            knots.append(k)
+            mults.append(1)
+    poles = [FreeCAD.Vector(x * M_TO_MM, y * M_TO_MM + y_offset, 0) for x, y in spec["poles"]]
+    curve = Part.BSplineCurve()
+    curve.buildFromPolesMultsKnots(poles, mults, knots, False, spec["degree"], spec.get("weights"))
+    owner = doc.addObject("Part::Feature", name)
+    owner.Shape = curve.toShape()
+    strip = make_strip(owner, "Edge1", doc)
+    strip.Label = name + "_strip"
+    with open(path.replace(".result.json", ".request.json")) as f:
+        request = json.load(f)
+    strip.Thickness = FreeCAD.Units.Quantity(request["material"]["thickness"] * M_TO_MM, FreeCAD.Units.Length)
+    strip.YoungsModulus = FreeCAD.Units.Quantity("%r Pa" % request["material"]["E"])
+    strip.MinWidth = FreeCAD.Units.Quantity(request["min_width"] * M_TO_MM, FreeCAD.Units.Length)
+    strip.Tolerance = request.get("tolerance", 1e-6)
+    doc.recompute()
+    summary.append((name, strip.Feasible, strip.R, strip.Reason))
+    bb = owner.Shape.BoundBox
+    y_offset -= bb.YLength + 400.0
+doc.saveAs(os.environ["PARAFAB_DOCUMENT"])
+for name, ok, R, reason in summary:
+    print("strip %-22s %s" % (name, ("feasible, R = %.6f" % R) if ok else "infeasible: " + reason[:90]))
+print("wrote", os.environ["PARAFAB_DOCUMENT"])
