@@ -19,10 +19,19 @@ std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
                                              const std::vector<ZeroCurvaturePoint>& zeros) {
   PARAFAB_VERIFY(count >= 2, "need at least 2 samples, got " << count);
   const double l = curve.length();
+  // Equally spaced arc lengths plus the interior knots, where K may have a kink (κ' jumps on
+  // a cubic) or a jump (κ jumps on a quadratic): there sup K is attained exactly.
+  std::vector<double> at;
+  at.reserve(count + curve.bspline().knots().size());
+  for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
+  const std::vector<double> bp = curve.bspline().breakpoints();
+  for (size_t i = 1; i + 1 < bp.size(); ++i) at.push_back(curve.arc_length_at(bp[i]));
+  std::sort(at.begin(), at.end());
   std::vector<CurvePoint> out;
-  out.reserve(count);
-  for (int k = 0; k < count; ++k) {
-    const double s = l * k / (count - 1);
+  out.reserve(at.size());
+  for (size_t k = 0; k < at.size(); ++k) {
+    const double s = at[k];
+    if (k > 0 && s - at[k - 1] <= 1e-12 * l) continue;
     bool near_zero = false;
     for (const auto& z : zeros) near_zero |= std::abs(z.at.s - s) <= kZeroExclusion * l;
     if (!near_zero) out.push_back(curve.at_arc_length(s));
@@ -74,16 +83,28 @@ ContinuousRatio continuous_ratio(const PlaneCurve& curve, const std::vector<Curv
       if (z.s >= s0 - 2 * kZeroExclusion * l && z.s <= s1 + 2 * kZeroExclusion * l) return true;
     return false;
   };
-  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  // Candidates: local maxima and minima among the samples; only the kMaxRefined largest
+  // maxima and smallest minima can move the ratio (a flat K has extrema everywhere).
+  constexpr size_t kMaxRefined = 16;
+  std::vector<size_t> maxima, minima;
   for (size_t i = 0; i < samples.size(); ++i) {
     const size_t lo_i = i == 0 ? 0 : i - 1, hi_i = std::min(i + 1, samples.size() - 1);
-    const bool is_max = K[i] >= K[lo_i] && K[i] >= K[hi_i];
-    const bool is_min = K[i] <= K[lo_i] && K[i] <= K[hi_i];
-    if (!is_max && !is_min) continue;
-    double lo = samples[lo_i].s, hi = samples[hi_i].s;
-    if (hi <= lo || has_zero(lo, hi)) continue;
-    for (const double sign : {1.0, -1.0}) {  // maximize sign·K
-      if ((sign > 0 && !is_max) || (sign < 0 && !is_min)) continue;
+    if (K[i] >= K[lo_i] && K[i] >= K[hi_i]) maxima.push_back(i);
+    if (K[i] <= K[lo_i] && K[i] <= K[hi_i]) minima.push_back(i);
+  }
+  auto keep_best = [&](std::vector<size_t>& idx, double sign) {
+    if (idx.size() <= kMaxRefined) return;
+    std::partial_sort(idx.begin(), idx.begin() + kMaxRefined, idx.end(),
+                      [&](size_t x, size_t y) { return sign * K[x] > sign * K[y]; });
+    idx.resize(kMaxRefined);
+  };
+  keep_best(maxima, 1.0);
+  keep_best(minima, -1.0);
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (const double sign : {1.0, -1.0}) {  // maximize sign·K around each candidate
+    for (size_t i : sign > 0 ? maxima : minima) {
+      const double lo = samples[i == 0 ? 0 : i - 1].s, hi = samples[std::min(i + 1, samples.size() - 1)].s;
+      if (hi <= lo || has_zero(lo, hi)) continue;
       double x0 = lo, x3 = hi, x1 = x3 - g * (x3 - x0), x2 = x0 + g * (x3 - x0);
       double f1 = sign * K_at(x1), f2 = sign * K_at(x2);
       for (int it = 0; it < 80 && x3 - x0 > 1e-13 * l; ++it) {

@@ -21,7 +21,7 @@ struct StripDesignOptions {
   /// `tolerance`.
   double tolerance = 1e-6;
   int initial_samples = 64;
-  int max_samples = 1 << 21;
+  int max_samples = (1 << 18) + 1;
   LpForm lp_form = LpForm::Dual;
   ZeroCurvatureOptions zeros;
   EquilibriumCheckOptions check;
@@ -70,7 +70,8 @@ struct StripDesign {
 /// a singular curve; an infeasible curve is a result with feasible = false and a reason.
 StripDesign design_strip(const BSplineCurve2& curve, const StripDesignOptions& options = {});
 
-/// Samples equally spaced in arc length, leaving out points within 1e-6·length of a zero.
+/// Samples equally spaced in arc length plus the interior knots, leaving out points within
+/// 1e-6·length of a zero.
 std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
                                              const std::vector<ZeroCurvaturePoint>& zeros);
 
