@@ -1,5 +1,6 @@
 #include "strips/stiffness_lp.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
@@ -67,7 +68,19 @@ StiffnessLpResult solve_stiffness_lp(const std::vector<CurvePoint>& samples,
   const Vec2 bh(r.x(1), r.x(2));
   out.a = (r.x(0) - bh.dot(c) / l) / l;
   out.b = bh / (l * l);
-  out.R = r.x(3);
+  // R of the returned line, evaluated on the rows themselves: the LP variable R can sit a
+  // dual tolerance (~1e-9) above max K / min K, and users get the line, not the variable.
+  double kmax = -INFINITY, kmin = INFINITY;
+  for (const auto& p : samples) {
+    const double k = stiffness_at(p, out.a, out.b, false);
+    kmax = std::max(kmax, k), kmin = std::min(kmin, k);
+  }
+  for (const auto& z : zeros) {
+    const double k = stiffness_at(z, out.a, out.b, true);
+    kmax = std::max(kmax, k), kmin = std::min(kmin, k);
+  }
+  out.R = kmax / kmin;
+  out.objective = r.x(3);
   return out;
 }
 

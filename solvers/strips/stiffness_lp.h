@@ -18,7 +18,8 @@ struct StiffnessLpResult {
   LpStatus status = LpStatus::Failed;
   double a = 0;               ///< K(s) = (a + ⟨b, γ(s)⟩) / κ(s) with min over samples = 1
   Vec2 b{0, 0};
-  double R = 0;               ///< max K / min K over the samples and the zeros
+  double R = 0;               ///< max K / min K of the line over the samples and the zeros
+  double objective = 0;       ///< the LP variable R (≥ R by at most the solver tolerance)
   int rows = 0;               ///< inequality rows of the primal program
   int iterations = 0;
   double seconds = 0;

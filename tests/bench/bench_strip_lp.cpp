@@ -78,7 +78,7 @@ double ratio_for(double c) {
   auto refine = [&](int i, double sign) {
     const double lo = std::max(kT0, kT0 + (i - 1) * h), hi = std::min(t1, kT0 + (i + 1) * h);
     const double t = golden([&](double x) { return sign * stiffness(c, x); }, lo, hi, 1e-13);
-    return std::max(sign * stiffness(c, t), sign * K[i]) * sign;
+    return sign * std::min(sign * stiffness(c, t), sign * K[i]);  // golden minimizes sign·K
   };
   const double kmax = refine(imax, -1.0), kmin = refine(imin, 1.0);
   return kmax / kmin;
