@@ -8,6 +8,7 @@
 
 #include "common/error.h"
 #include "occt_version.h"
+#include "part_json.h"
 #include "strip_json.h"
 
 namespace {
@@ -57,6 +58,12 @@ int main(int argc, char** argv) {
   auto* strip = app.add_subcommand("strip", "Design a bending-active strip for a plane curve (JSON in, JSON out)");
   strip->add_option("input", in_path, "Strip request JSON (see README: JSON formats)")->required();
   strip->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* inspect = app.add_subcommand("inspect", "Face model of a STEP/BREP part: types, NURBS, edges, tangencies (JSON)");
+  parafab::entry::InspectOptions inspect_options;
+  inspect->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
+  inspect->add_option("--solid", inspect_options.read.solid_index, "Index of the solid when the file holds several");
+  inspect->add_option("--solid-name", inspect_options.read.solid_name, "Name of the solid (STEP product) to inspect");
+  inspect->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -68,6 +75,7 @@ int main(int argc, char** argv) {
     if (*version)
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
     if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
+    if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
   } catch (const parafab::Error& e) {
     return fail(e.what(), "invalid_input", 2);
   } catch (const std::exception& e) {

@@ -1,0 +1,62 @@
+// Grid cutting for X-CAD (thesis §6.2.2, §6.3, Fig. 6.3/6.5): an axis-aligned grid over the
+// part's bounding box; every B-rep face is split by the grid planes with OCCT's Boolean
+// splitter (built on its surface–surface intersectors), giving for every cut cell its
+// connected subvolumes, each bounded by trimmed B-rep face pieces and planar regions on the
+// cell's faces, all as plain data (xfem::Subvolume) for the quadrature.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "xfem/cut_geometry.h"
+
+namespace parafab::occ {
+
+struct PartShape;  // occ_bridge/occt_shape.h
+
+struct GridOptions {
+  int cells_longest = 8;    ///< cells along the longest side of the bounding box
+  double cell_size = 0;     ///< if > 0, overrides cells_longest [model units]
+  /// Grid planes within this distance (× cell size) of a vertex, or of a face's extreme
+  /// coordinate (tangent or coincident face), are shifted deterministically by the same
+  /// amount until clear (the thesis perturbs grid planes to avoid these corner cases).
+  double perturbation = 1e-4;
+  /// Boundary loops: parabolic (2) or linear (1) segments, refined until the deviation from
+  /// the exact pcurve is below `segment_tolerance` × the face's uv extent.
+  int segment_order = 2;
+  double segment_tolerance = 1e-10;
+  int max_segments_per_edge = 4096;
+  bool parallel = false;    ///< let OCCT's splitter use threads
+};
+
+/// One grid cell that the boundary cuts.
+struct CutCell {
+  std::array<int, 3> index{0, 0, 0};
+  std::vector<int> subvolumes;  ///< indices into GridCut::subvolumes
+};
+
+struct GridCut {
+  bool done = false;
+  std::string message;                     ///< why not done
+  xfem::Box3 grid;                         ///< the grid's box (covers the part)
+  std::array<int, 3> cells{0, 0, 0};       ///< cells per axis
+  xfem::Vec3 cell_size{0, 0, 0};
+  std::array<std::vector<double>, 3> planes;  ///< interior grid planes per axis (after shifts)
+  int shifted_planes = 0;                  ///< planes moved off vertices / tangencies
+  std::vector<std::array<int, 3>> interior_cells;  ///< uncut cells fully inside the part
+  std::vector<CutCell> cut_cells;
+  std::vector<xfem::Subvolume> subvolumes;        ///< of cut cells only
+  std::vector<std::array<int, 2>> connections;    ///< subvolume pairs sharing a grid face
+  std::vector<std::array<int, 2>> interior_connections;  ///< (subvolume, interior cell) pairs
+  int patches = 0, segments = 0;
+  double split_seconds = 0, extract_seconds = 0;
+
+  xfem::Box3 cell_box(const std::array<int, 3>& ijk) const;
+};
+
+/// Cuts the part by the grid. Never throws for geometry the splitter cannot handle: that is
+/// `done == false` with a message. Throws parafab::Error for invalid options.
+GridCut cut_by_grid(const PartShape& part, const GridOptions& options = {});
+
+}  // namespace parafab::occ

@@ -1,0 +1,31 @@
+// NURBS patches in projective coordinates (thesis §6.2.1, Eq. 6.1): σ(u, v) = Σ B_ij(u, v) q_ij
+// with poles q_ij = [w x, w y, w z, w] ∈ P³, polynomial in (u, v); points by perspective division.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+namespace parafab::occ {
+
+struct NurbsSurface {
+  int degree_u = 0, degree_v = 0;
+  int count_u = 0, count_v = 0;          ///< poles along u and v
+  std::vector<double> knots_u, knots_v;  ///< flat knot vectors (repeated), count + degree + 1 each
+  std::vector<Eigen::Vector4d> poles;    ///< q(i, j) = poles[i * count_v + j], i along u
+
+  const Eigen::Vector4d& pole(int i, int j) const { return poles[i * count_v + j]; }
+  double u_min() const { return knots_u[degree_u]; }
+  double u_max() const { return knots_u[count_u]; }
+  double v_min() const { return knots_v[degree_v]; }
+  double v_max() const { return knots_v[count_v]; }
+};
+
+/// σ(u, v) in projective coordinates (Eq. 6.1). (u, v) is clamped to the knot range.
+/// Throws parafab::Error if the sizes of degrees, knots and poles disagree.
+Eigen::Vector4d evaluate_projective(const NurbsSurface& s, double u, double v);
+
+/// The Euclidean surface point X = perspective division of σ, and its derivatives Xu, Xv.
+void evaluate(const NurbsSurface& s, double u, double v, Eigen::Vector3d& X, Eigen::Vector3d& Xu,
+              Eigen::Vector3d& Xv);
+
+}  // namespace parafab::occ

@@ -1,0 +1,45 @@
+// Reads a CAD part (STEP, BREP file, or a BRep string from FreeCAD's exportBrepToString)
+// into one validated solid, the B-rep input of X-CAD (thesis §6.2.1). No OCCT types here.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace parafab::occ {
+
+/// Opaque handle: one valid closed solid with stable face/edge indices (occt_shape.h).
+struct PartShape;
+
+struct ReadOptions {
+  /// Which solid to take when the file holds several: 0-based, in file (TopExp) order.
+  /// −1: none chosen, then the file must hold exactly one solid (or `solid_name` chooses).
+  int solid_index = -1;
+  /// Or choose by name: the STEP product name (FreeCAD: the object's label) or the
+  /// solid entity's name. Empty: none chosen.
+  std::string solid_name;
+};
+
+/// Reads a STEP (.step/.stp) or BREP (.brep/.brp) file; the format comes from the content
+/// (ISO-10303-21 header, or "CASCADE Topology"). Throws parafab::Error naming the file and the
+/// problem: missing, empty, not STEP/BREP, unreadable, no solid, several solids and none
+/// chosen, open shell, non-manifold edge, or a failed BRepCheck (with the face/edge index).
+std::shared_ptr<const PartShape> read_part(const std::string& path, const ReadOptions& options = {});
+
+/// Same for the text of a BREP file, e.g. FreeCAD's `Shape.exportBrepToString()`.
+std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& brep,
+                                                            const ReadOptions& options = {});
+
+/// Global facts about a part (units: those of the file, mm for STEP).
+struct PartInfo {
+  std::string source, name;
+  int solid_index = 0, solid_count = 1;
+  int face_count = 0, edge_count = 0, vertex_count = 0;
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero(), bbox_max = Eigen::Vector3d::Zero();
+  double volume = 0, area = 0;
+};
+
+PartInfo part_info(const PartShape& part);
+
+}  // namespace parafab::occ

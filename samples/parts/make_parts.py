@@ -1,0 +1,141 @@
+# Regenerates the STEP sample parts in samples/parts with FreeCAD's Part workbench: the
+# X-CAD inputs of thesis ch. 6 (B-rep solids with fillets, holes, slots, tori; §6.2.1).
+#
+#   freecadcmd samples/parts/make_parts.py
+#   PARAFAB_PARTS_DIR=/tmp/parts freecadcmd -c "exec(open('samples/parts/make_parts.py').read())"
+#
+# Output: PARAFAB_PARTS_DIR, default samples/parts under the current directory. Sizes in mm.
+# The tests (tests/occ_bridge) check the radii used here; keep them in sync.
+import os
+
+import FreeCAD
+import Import
+import Part
+
+V = FreeCAD.Vector
+Z = V(0, 0, 1)
+
+
+def vertical_edges(shape, pred):
+    """Edges parallel to z whose midpoint satisfies pred(x, y)."""
+    out = []
+    for e in shape.Edges:
+        a, b = e.Vertexes[0].Point, e.Vertexes[-1].Point
+        if e.Curve.TypeId == "Part::GeomLine" and abs(a.x - b.x) < 1e-9 and abs(a.y - b.y) < 1e-9:
+            if pred(a.x, a.y):
+                out.append(e)
+    return out
+
+
+def edges_where(shape, pred):
+    """Edges whose midpoint m satisfies pred(m)."""
+    return [e for e in shape.Edges if pred(e.valueAt(0.5 * (e.FirstParameter + e.LastParameter)))]
+
+
+def box():
+    return Part.makeBox(40, 30, 20)
+
+
+def cylinder():
+    return Part.makeCylinder(15, 40)  # radius 15
+
+
+def l_bracket():
+    # L profile in xz: base 60 x 8, upright 8 x 50, extruded 40 along y; two bolt holes r=4.
+    base = Part.makeBox(60, 40, 8)
+    upright = Part.makeBox(8, 40, 50)
+    s = base.fuse(upright).removeSplitter()
+    inner = edges_where(s, lambda m: abs(m.x - 8) < 1e-6 and abs(m.z - 8) < 1e-6)   # concave
+    outer = edges_where(s, lambda m: abs(m.x) < 1e-6 and abs(m.z) < 1e-6)           # convex
+    s = s.makeFillet(5, inner)      # inner fillet radius 5
+    s = s.makeFillet(12, outer)     # outer fillet radius 12
+    for y in (12, 28):
+        s = s.cut(Part.makeCylinder(4, 20, V(40, y, -5), Z))
+    return s
+
+
+def wrench():
+    # Handle with a stadium slot, round head with an open jaw, ring end with a hole; 6 mm thick.
+    t = 6
+    handle = Part.makeBox(80, 14, t, V(0, -7, 0))
+    head = Part.makeCylinder(16, t, V(80, 0, 0), Z)
+    ring = Part.makeCylinder(10, t, V(0, 0, 0), Z)
+    s = handle.fuse(head).fuse(ring).removeSplitter()
+    # Concave handle/head and handle/ring junctions: fillet radius 4.
+    s = s.makeFillet(4, vertical_edges(s, lambda x, y: abs(abs(y) - 7) < 1e-6 and x > 1))
+    jaw = Part.makeBox(20, 10, t + 2, V(84, -5, -1))
+    s = s.cut(jaw)
+    slot = Part.makeBox(30, 6, t + 2, V(25, -3, -1))
+    slot = slot.fuse(Part.makeCylinder(3, t + 2, V(25, 0, -1), Z))
+    slot = slot.fuse(Part.makeCylinder(3, t + 2, V(55, 0, -1), Z)).removeSplitter()
+    s = s.cut(slot).cut(Part.makeCylinder(5, t + 2, V(0, 0, -1), Z))
+    # Convex jaw mouth edges: fillet radius 1.5.
+    s = s.makeFillet(1.5, vertical_edges(s, lambda x, y: x > 94 and abs(abs(y) - 5) < 1e-6))
+    return s.removeSplitter()
+
+
+def ring():
+    # Annulus (outer radius 30, inner 20) extruded 10 along z.
+    disc = Part.Face(Part.Wire(Part.makeCircle(30)))
+    annulus = disc.cut(Part.Face(Part.Wire(Part.makeCircle(20)))).Faces[0]
+    return annulus.extrude(V(0, 0, 10))
+
+
+def half_torus():
+    # Torus major radius 30, minor 8, swept over 180 degrees.
+    return Part.makeTorus(30, 8, V(0, 0, 0), Z, -180, 180, 180)
+
+
+def wheel():
+    # Hub and rim joined by five spokes at irregular angles and widths; 10 mm thick.
+    t = 10
+    rim = Part.makeCylinder(50, t).cut(Part.makeCylinder(42, t))
+    hub = Part.makeCylinder(12, t).cut(Part.makeCylinder(5, t))
+    s = rim.fuse(hub)
+    for angle, width in ((0, 8), (65, 6), (140, 10), (200, 6), (290, 8)):
+        spoke = Part.makeBox(34, width, t, V(10, -width / 2.0, 0))
+        spoke.rotate(V(0, 0, 0), Z, angle)
+        s = s.fuse(spoke)
+    return s.removeSplitter()
+
+
+def housing():
+    # Open-bottom shell 60 x 40 x 30 (wall 3) with rounded vertical corners (radius 6),
+    # four cooling fins on top and a round boss with a fillet at its base (torus).
+    outer = Part.makeBox(60, 40, 30)
+    outer = outer.makeFillet(6, vertical_edges(outer, lambda x, y: True))
+    inner = Part.makeBox(54, 34, 28, V(3, 3, -1))
+    inner = inner.makeFillet(3, vertical_edges(inner, lambda x, y: True))
+    s = outer.cut(inner)
+    for i in range(4):
+        s = s.fuse(Part.makeBox(2, 30, 8, V(8 + 8 * i, 5, 30)))
+    s = s.fuse(Part.makeCylinder(6, 10, V(48, 20, 30), Z)).removeSplitter()
+    base = edges_where(s, lambda m: abs(m.z - 30) < 1e-6 and abs((m - V(48, 20, 30)).Length - 6) < 1e-6)
+    s = s.makeFillet(2, base)  # boss base fillet: torus, major radius 8, minor 2
+    return s.removeSplitter()
+
+
+PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
+         "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing}
+
+out_dir = os.environ.get("PARAFAB_PARTS_DIR", os.path.join("samples", "parts"))
+os.makedirs(out_dir, exist_ok=True)
+for name, make in PARTS.items():
+    shape = make()
+    if not shape.isValid() or len(shape.Solids) != 1:
+        raise RuntimeError("%s: invalid shape or not one solid (%d solids)" % (name, len(shape.Solids)))
+    path = os.path.join(out_dir, name + ".step")
+    shape.Solids[0].exportStep(path)
+    print("%-11s %3d faces  volume %10.1f mm^3  -> %s" % (name, len(shape.Faces), shape.Volume, path))
+
+# Two named solids in one file (STEP products named by the objects' labels): for choosing a
+# solid by index or name.
+doc = FreeCAD.newDocument("two_blocks")
+left = doc.addObject("Part::Feature", "left_block")
+left.Shape = Part.makeBox(20, 20, 10)
+right = doc.addObject("Part::Feature", "right_block")
+right.Shape = Part.makeCylinder(8, 10, V(40, 10, 0))
+doc.recompute()
+Import.export([left, right], os.path.join(out_dir, "two_blocks.step"))
+FreeCAD.closeDocument(doc.Name)
+print("two_blocks: left_block (box) and right_block (cylinder r=8)")

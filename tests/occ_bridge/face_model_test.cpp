@@ -1,0 +1,380 @@
+// Tests of the face model (thesis §6.2.1, §6.5.1): surface types and parameters of the sample
+// parts, projective NURBS reproducing the B-rep surfaces, trimming loops, edge continuity, and
+// tangency relations (Fig. 6.11) whose residuals vanish on the actual parts.
+#include <BRepAlgoAPI_Fuse.hxx>
+#include <BRepClass3d_SolidClassifier.hxx>
+#include <BRepFilletAPI_MakeFillet.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCylinder.hxx>
+#include <BRepPrimAPI_MakeSphere.hxx>
+#include <BRepPrimAPI_MakeTorus.hxx>
+#include <BRep_Tool.hxx>
+#include <BRepAdaptor_Surface.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <Geom_BSplineSurface.hxx>
+#include <TColStd_Array1OfInteger.hxx>
+#include <TColStd_Array1OfReal.hxx>
+#include <TColStd_Array2OfReal.hxx>
+#include <TColgp_Array2OfPnt.hxx>
+#include <TopExp_Explorer.hxx>
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "common/error.h"
+#include "face_model.h"
+#include "occt_shape.h"
+
+namespace parafab::occ {
+namespace {
+
+std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name + ".step"; }
+
+const std::vector<std::string> kSamples = {"box", "cylinder", "l_bracket", "wrench", "ring", "half_torus", "wheel", "housing"};
+
+double part_size(const PartShape& part) {
+  const PartInfo info = part_info(part);
+  return (info.bbox_max - info.bbox_min).norm();
+}
+
+std::map<std::string, int> type_counts(const FaceModel& m) {
+  std::map<std::string, int> out;
+  for (const auto& f : m.faces) ++out[to_string(f.primitive.type)];
+  return out;
+}
+
+std::multiset<double> radii(const FaceModel& m, SurfaceType type) {
+  std::multiset<double> out;
+  for (const auto& f : m.faces)
+    if (f.primitive.type == type) out.insert(std::round(f.primitive.radius * 1e6) / 1e6);
+  return out;
+}
+
+std::vector<const TangencyRelation*> relations_of(const FaceModel& m, const std::string& kind) {
+  std::vector<const TangencyRelation*> out;
+  for (const auto& r : m.relations)
+    if (r.kind == kind) out.push_back(&r);
+  return out;
+}
+
+Vec3 vec(const gp_Pnt& p) { return {p.X(), p.Y(), p.Z()}; }
+
+// The NURBS as an OCCT surface, to check our evaluation against OCCT's.
+Handle(Geom_BSplineSurface) occt_surface(const NurbsSurface& s) {
+  auto split = [](const std::vector<double>& flat, std::vector<double>& k, std::vector<int>& m) {
+    for (double x : flat)
+      if (!k.empty() && x == k.back()) ++m.back();
+      else k.push_back(x), m.push_back(1);
+  };
+  std::vector<double> ku, kv;
+  std::vector<int> mu, mv;
+  split(s.knots_u, ku, mu);
+  split(s.knots_v, kv, mv);
+  TColStd_Array1OfReal UK(1, static_cast<int>(ku.size())), VK(1, static_cast<int>(kv.size()));
+  TColStd_Array1OfInteger UM(1, static_cast<int>(mu.size())), VM(1, static_cast<int>(mv.size()));
+  for (size_t i = 0; i < ku.size(); ++i) UK(i + 1) = ku[i], UM(i + 1) = mu[i];
+  for (size_t i = 0; i < kv.size(); ++i) VK(i + 1) = kv[i], VM(i + 1) = mv[i];
+  TColgp_Array2OfPnt P(1, s.count_u, 1, s.count_v);
+  TColStd_Array2OfReal W(1, s.count_u, 1, s.count_v);
+  for (int i = 0; i < s.count_u; ++i)
+    for (int j = 0; j < s.count_v; ++j) {
+      const Eigen::Vector4d& q = s.pole(i, j);
+      P(i + 1, j + 1) = gp_Pnt(q[0] / q[3], q[1] / q[3], q[2] / q[3]);
+      W(i + 1, j + 1) = q[3];
+    }
+  return new Geom_BSplineSurface(P, W, UK, VK, UM, VM, s.degree_u, s.degree_v);
+}
+
+TEST(FaceModel, BoxHasSixPlanesAndTwelveSharpRightAngledEdges) {
+  const auto part = read_part(sample("box"));
+  const FaceModel m = build_face_model(*part);
+  EXPECT_EQ(type_counts(m), (std::map<std::string, int>{{"plane", 6}}));
+  ASSERT_EQ(m.edges.size(), 12u);
+  for (const auto& e : m.edges) {
+    EXPECT_NEAR(e.max_angle_deg, 90.0, 1e-9);
+    EXPECT_FALSE(e.tangent);
+    EXPECT_FALSE(e.seam);
+    EXPECT_EQ(e.continuity, "C0");
+    EXPECT_NE(e.faces[0], e.faces[1]);
+  }
+  EXPECT_TRUE(m.relations.empty());
+  for (const auto& f : m.faces) {
+    EXPECT_NEAR(f.primitive.axis.norm(), 1.0, 1e-12);
+    EXPECT_EQ(f.nurbs.degree_u, 1);
+    EXPECT_EQ(f.nurbs.degree_v, 1);
+    EXPECT_EQ(f.loops.size(), 1u);
+    EXPECT_EQ(f.loops[0].edges.size(), 4u);
+  }
+  double area = 0;
+  for (const auto& f : m.faces) area += f.area;
+  EXPECT_NEAR(area, 2 * (40 * 30 + 40 * 20 + 30 * 20), 1e-6);
+}
+
+TEST(FaceModel, PrimitiveParametersMatchMakeParts) {
+  const FaceModel cyl = build_face_model(*read_part(sample("cylinder")));
+  EXPECT_EQ(type_counts(cyl), (std::map<std::string, int>{{"cylinder", 1}, {"plane", 2}}));
+  for (const auto& f : cyl.faces)
+    if (f.primitive.type == SurfaceType::cylinder) {
+      EXPECT_NEAR(f.primitive.radius, 15, 1e-12);
+      EXPECT_NEAR(std::abs(f.primitive.axis.z()), 1, 1e-12);
+      EXPECT_NEAR(f.primitive.location.head<2>().norm(), 0, 1e-12);
+    }
+  int seams = 0;
+  for (const auto& e : cyl.edges)
+    if (e.seam) {
+      ++seams;
+      EXPECT_EQ(e.faces[0], e.faces[1]);
+      EXPECT_TRUE(e.tangent);
+    }
+  EXPECT_EQ(seams, 1);
+  EXPECT_TRUE(cyl.relations.empty());  // a seam is no tangency between two faces
+
+  const FaceModel ring = build_face_model(*read_part(sample("ring")));
+  EXPECT_EQ(radii(ring, SurfaceType::cylinder), (std::multiset<double>{20, 30}));
+  const FaceModel torus = build_face_model(*read_part(sample("half_torus")));
+  EXPECT_EQ(type_counts(torus), (std::map<std::string, int>{{"plane", 2}, {"torus", 1}}));
+  for (const auto& f : torus.faces)
+    if (f.primitive.type == SurfaceType::torus) {
+      EXPECT_NEAR(f.primitive.major_radius, 30, 1e-12);
+      EXPECT_NEAR(f.primitive.radius, 8, 1e-12);
+    }
+  const FaceModel bracket = build_face_model(*read_part(sample("l_bracket")));
+  EXPECT_EQ(radii(bracket, SurfaceType::cylinder), (std::multiset<double>{4, 4, 5, 12}));  // holes, fillets
+  const FaceModel wheel = build_face_model(*read_part(sample("wheel")));
+  EXPECT_EQ(type_counts(wheel), (std::map<std::string, int>{{"cylinder", 12}, {"plane", 12}}));
+  EXPECT_TRUE(wheel.relations.empty());
+}
+
+// The projective NURBS, evaluated by ParaFab, equals OCCT's evaluation of the same data, lies
+// on the face's B-rep surface (after perspective division), and has consistent derivatives.
+TEST(FaceModel, NurbsReproducesTheBrepSurfaces) {
+  for (const auto& name : kSamples) {
+    SCOPED_TRACE(name);
+    const auto part = read_part(sample(name));
+    const double size = part_size(*part);
+    const FaceModel m = build_face_model(*part);
+    for (const auto& f : m.faces) {
+      SCOPED_TRACE("face " + std::to_string(f.index) + " " + to_string(f.primitive.type));
+      const Handle(Geom_BSplineSurface) reference = occt_surface(f.nurbs);
+      const Handle(Geom_Surface) brep = BRep_Tool::Surface(part->face(f.index));
+      const BRepAdaptor_Surface adaptor(part->face(f.index));
+      const auto [u0, u1, v0, v1] = f.uv_bounds;
+      for (int a = 0; a <= 4; ++a)
+        for (int b = 0; b <= 4; ++b) {
+          const double u = u0 + (u1 - u0) * a / 4, v = v0 + (v1 - v0) * b / 4;
+          const Eigen::Vector4d q = evaluate_projective(f.nurbs, u, v);
+          Vec3 X, Xu, Xv;
+          evaluate(f.nurbs, u, v, X, Xu, Xv);
+          EXPECT_LT((q.head<3>() / q[3] - X).norm(), 1e-12 * size);
+          EXPECT_LT((X - vec(reference->Value(u, v))).norm(), 1e-9 * size);
+          GeomAPI_ProjectPointOnSurf onto(gp_Pnt(X.x(), X.y(), X.z()), brep);
+          ASSERT_GT(onto.NbPoints(), 0);
+          EXPECT_LT(onto.LowerDistance(), 1e-9 * size);
+          if (f.primitive.type == SurfaceType::plane)  // same parameterization: same point
+            EXPECT_LT((X - vec(adaptor.Value(u, v))).norm(), 1e-9 * size);
+          const double hu = 1e-6 * (u1 - u0), hv = 1e-6 * (v1 - v0);
+          if (a > 0 && a < 4 && b > 0 && b < 4) {
+            Vec3 Xp, Xm, d1, d2;
+            evaluate(f.nurbs, u + hu, v, Xp, d1, d2);
+            evaluate(f.nurbs, u - hu, v, Xm, d1, d2);
+            EXPECT_LT((Xu - (Xp - Xm) / (2 * hu)).norm(), 1e-5 * (1 + Xu.norm()));
+            evaluate(f.nurbs, u, v + hv, Xp, d1, d2);
+            evaluate(f.nurbs, u, v - hv, Xm, d1, d2);
+            EXPECT_LT((Xv - (Xp - Xm) / (2 * hv)).norm(), 1e-5 * (1 + Xv.norm()));
+          }
+        }
+    }
+  }
+}
+
+double signed_area(const std::vector<Vec2>& poly) {
+  double a = 0;
+  for (size_t i = 0; i + 1 < poly.size(); ++i) a += poly[i].x() * poly[i + 1].y() - poly[i + 1].x() * poly[i].y();
+  return a / 2;
+}
+
+// Loops are closed uv polylines on the NURBS, outer first and counter-clockwise, holes
+// clockwise; just inside the outer loop, −σ_u × σ_v (reversed) or +σ_u × σ_v points out of the solid.
+TEST(FaceModel, TrimmingLoopsAndOrientationAreConsistent) {
+  for (const auto& name : kSamples) {
+    SCOPED_TRACE(name);
+    const auto part = read_part(sample(name));
+    const double size = part_size(*part);
+    const FaceModel m = build_face_model(*part);
+    BRepClass3d_SolidClassifier classify(part->shape);
+    for (const auto& f : m.faces) {
+      SCOPED_TRACE("face " + std::to_string(f.index));
+      ASSERT_FALSE(f.loops.empty());
+      EXPECT_TRUE(f.loops[0].outer);
+      for (size_t k = 0; k < f.loops.size(); ++k) {
+        const TrimLoop& loop = f.loops[k];
+        EXPECT_EQ(loop.outer, k == 0);
+        EXPECT_EQ(loop.uv.front(), loop.uv.back());
+        EXPECT_FALSE(loop.edges.empty());
+        for (int e : loop.edges) EXPECT_TRUE(e >= 0 && e < static_cast<int>(m.edges.size()));
+        EXPECT_GT((k == 0 ? 1 : -1) * signed_area(loop.uv), 0);
+        const double span = std::max(f.uv_bounds[1] - f.uv_bounds[0], f.uv_bounds[3] - f.uv_bounds[2]);
+        for (size_t i = 0; i + 1 < loop.uv.size(); ++i)  // no jump across a seam
+          EXPECT_LE((loop.uv[i + 1] - loop.uv[i]).norm(), span * (1 + 1e-9));
+      }
+      // A point just inside the outer loop, left of its first segment.
+      const Vec2 p0 = f.loops[0].uv[0], p1 = f.loops[0].uv[1];
+      const Vec2 t = (p1 - p0).normalized();
+      const Vec2 uv = (p0 + p1) / 2 + 1e-2 * (p1 - p0).norm() * Vec2(-t.y(), t.x());
+      Vec3 X, Xu, Xv;
+      evaluate(f.nurbs, uv.x(), uv.y(), X, Xu, Xv);
+      const Vec3 n = (f.reversed ? -1.0 : 1.0) * Xu.cross(Xv).normalized();
+      const double eps = 1e-4 * size;
+      classify.Perform(gp_Pnt(X.x() + eps * n.x(), X.y() + eps * n.y(), X.z() + eps * n.z()), 1e-9);
+      EXPECT_EQ(classify.State(), TopAbs_OUT);
+      classify.Perform(gp_Pnt(X.x() - eps * n.x(), X.y() - eps * n.y(), X.z() - eps * n.z()), 1e-9);
+      EXPECT_EQ(classify.State(), TopAbs_IN);
+    }
+  }
+  const FaceModel ring = build_face_model(*read_part(sample("ring")));
+  for (const auto& f : ring.faces)
+    EXPECT_EQ(f.loops.size(), f.primitive.type == SurfaceType::plane ? 2u : 1u);  // annulus: outer + hole
+}
+
+// Every detected relation holds on the actual part, and re-evaluates to the same residuals.
+void expect_relations_hold(const FaceModel& m, double tolerance) {
+  for (const auto& r : m.relations) {
+    SCOPED_TRACE(r.kind + " faces " + std::to_string(r.faces[0]) + ", " + std::to_string(r.faces[1]));
+    ASSERT_EQ(r.equations.size(), r.residuals.size());
+    EXPECT_FALSE(r.edges.empty());
+    for (double x : r.residuals) EXPECT_LT(std::abs(x), tolerance);
+    EXPECT_EQ(tangency_residuals(r, m.faces[r.faces[0]], m.faces[r.faces[1]]), r.residuals);
+    for (int e : r.edges) EXPECT_TRUE(m.edges[e].tangent);
+  }
+}
+
+TEST(FaceModel, FilletedBracketHasFourPlaneCylinderTangencies) {
+  const FaceModel m = build_face_model(*read_part(sample("l_bracket")));
+  ASSERT_EQ(m.relations.size(), 4u);
+  expect_relations_hold(m, 1e-9);
+  std::multiset<double> fillet_radii;
+  for (const auto& r : m.relations) {
+    EXPECT_EQ(r.kind, "plane-cylinder");
+    const FaceInfo& plane = m.faces[r.faces[0]];
+    const FaceInfo& cyl = m.faces[r.faces[1]];
+    EXPECT_EQ(plane.primitive.type, SurfaceType::plane);
+    fillet_radii.insert(cyl.primitive.radius);
+    for (int e : r.edges) EXPECT_EQ(m.edges[e].continuity, "G1");
+    const std::string i = std::to_string(plane.index), j = std::to_string(cyl.index);
+    EXPECT_EQ(r.equations[1], "dot(n" + i + ", d" + j + ") = 0");
+    EXPECT_NE(r.equations[0].find("dot(p" + i + " - c" + j + ", n" + i + ") - r" + j + " = 0"), std::string::npos);
+    // Re-evaluation for changed parameters: a larger radius breaks the distance equation only.
+    FaceInfo bigger = cyl;
+    bigger.primitive.radius += 0.25;
+    const auto res = tangency_residuals(r, plane, bigger);
+    EXPECT_NEAR(res[0], -0.25, 1e-9);
+    EXPECT_NEAR(res[1], 0.0, 1e-12);
+  }
+  EXPECT_EQ(fillet_radii, (std::multiset<double>{5, 5, 12, 12}));
+  for (const auto& e : m.edges)
+    if (!e.tangent) EXPECT_NEAR(e.max_angle_deg, 90.0, 1e-6);
+}
+
+TEST(FaceModel, RelationsHoldOnEverySample) {
+  std::map<std::string, int> kinds;
+  for (const auto& name : kSamples) {
+    SCOPED_TRACE(name);
+    const auto part = read_part(sample(name));
+    const FaceModel m = build_face_model(*part);
+    expect_relations_hold(m, 1e-9 * part_size(*part));
+    for (const auto& r : m.relations) ++kinds[name + ":" + r.kind];
+  }
+  EXPECT_EQ(kinds["wrench:plane-cylinder"], 10);
+  EXPECT_EQ(kinds["wrench:cylinder-cylinder"], 6);  // fillets on the head, ring and jaw
+  EXPECT_EQ(kinds["housing:plane-cylinder"], 16);   // rounded corners, outside and inside
+  EXPECT_EQ(kinds["housing:plane-torus"], 1);       // boss base fillet
+  EXPECT_EQ(kinds["housing:cylinder-torus"], 1);
+  EXPECT_EQ(kinds.count("wrench:g1") + kinds.count("housing:g1"), 0u);
+}
+
+std::shared_ptr<const PartShape> part_of(const TopoDS_Shape& shape) { return make_part(shape, "test shape"); }
+
+TEST(FaceModel, RoundedBoxHasCylinderSphereCorners) {
+  const TopoDS_Shape box = BRepPrimAPI_MakeBox(20, 30, 40).Shape();
+  BRepFilletAPI_MakeFillet fillet(box);
+  for (TopExp_Explorer e(box, TopAbs_EDGE); e.More(); e.Next()) fillet.Add(3, TopoDS::Edge(e.Current()));
+  const FaceModel m = build_face_model(*part_of(fillet.Shape()));
+  expect_relations_hold(m, 1e-9);
+  std::map<std::string, int> kinds;
+  for (const auto& r : m.relations) ++kinds[r.kind];
+  EXPECT_EQ(kinds["plane-cylinder"], 24);
+  EXPECT_EQ(kinds["cylinder-sphere"], 24);
+}
+
+TEST(FaceModel, PipeElbowAndCapsule) {
+  // Quarter torus (R 20, r 4) continued by a cylinder of the same radius.
+  const TopoDS_Shape elbow = BRepPrimAPI_MakeTorus(20, 4, M_PI / 2).Shape();
+  const TopoDS_Shape leg = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(20, 0, 0), -gp::DY()), 4, 15).Shape();
+  const FaceModel pipe = build_face_model(*part_of(BRepAlgoAPI_Fuse(elbow, leg).Shape()));
+  expect_relations_hold(pipe, 1e-9);
+  ASSERT_EQ(relations_of(pipe, "cylinder-torus-pipe").size(), 1u);
+  EXPECT_EQ(relations_of(pipe, "cylinder-torus-pipe")[0]->residuals.size(), 4u);
+
+  // A cylinder (r 5) with a half sphere on top.
+  const TopoDS_Shape body = BRepPrimAPI_MakeCylinder(5, 20).Shape();
+  const TopoDS_Shape cap = BRepPrimAPI_MakeSphere(gp_Pnt(0, 0, 20), 5).Shape();
+  const FaceModel capsule = build_face_model(*part_of(BRepAlgoAPI_Fuse(body, cap).Shape()));
+  expect_relations_hold(capsule, 1e-9);
+  EXPECT_FALSE(relations_of(capsule, "cylinder-sphere").empty());
+}
+
+TEST(FaceModel, VariableRadiusFilletGivesGenericG1Relations) {
+  const TopoDS_Shape box = BRepPrimAPI_MakeBox(40, 30, 20).Shape();
+  BRepFilletAPI_MakeFillet fillet(box);
+  TopExp_Explorer e(box, TopAbs_EDGE);
+  fillet.Add(2, 6, TopoDS::Edge(e.Current()));
+  const FaceModel m = build_face_model(*part_of(fillet.Shape()));
+  EXPECT_EQ(type_counts(m)["bspline"], 1);
+  const auto g1 = relations_of(m, "g1");
+  ASSERT_EQ(g1.size(), 2u);  // the fillet against each of the two planes
+  expect_relations_hold(m, 1e-6);  // normals agree to the fillet's approximation tolerance
+  for (const auto* r : g1) {
+    EXPECT_EQ(r->residuals.size(), 3 * r->samples.size());
+    EXPECT_EQ(r->samples.size(), 9u * r->edges.size());
+    EXPECT_NE(r->equations[0].find("cross(N"), std::string::npos);
+  }
+}
+
+TEST(FaceModel, RelationFormulasVanishOnTangentConfigurations) {
+  const double alpha = 0.5, h = 7;
+  FaceInfo plane, cone, sphere, torus;
+  plane.primitive.type = SurfaceType::plane;
+  plane.primitive.location = Vec3(0, 3, 0);  // contains the apex (origin) ruling along (sin a, 0, cos a)
+  plane.primitive.axis = Vec3(std::cos(alpha), 0, -std::sin(alpha));
+  cone.primitive.type = SurfaceType::cone;
+  cone.primitive.location = Vec3(0, 0, h);
+  cone.primitive.axis = Vec3(0, 0, 1);
+  cone.primitive.radius = h * std::tan(alpha);
+  cone.primitive.semi_angle = alpha;
+  TangencyRelation r;
+  r.kind = "plane-cone";
+  r.sign = -1;
+  for (double x : tangency_residuals(r, plane, cone)) EXPECT_NEAR(x, 0, 1e-12);
+
+  // Sphere (r 5) resting in a torus (R 6, r 2) along a circle: |centre to tube circle| = 5 + 2.
+  sphere.primitive.type = SurfaceType::sphere;
+  sphere.primitive.radius = 5;
+  torus.primitive.type = SurfaceType::torus;
+  torus.primitive.axis = Vec3(0, 0, 1);
+  torus.primitive.major_radius = 6;
+  torus.primitive.radius = 2;
+  sphere.primitive.location = Vec3(0, 0, std::sqrt(49.0 - 36.0));
+  r.kind = "sphere-torus";
+  r.sign = 1;
+  for (double x : tangency_residuals(r, sphere, torus)) EXPECT_NEAR(x, 0, 1e-12);
+
+  EXPECT_THROW(tangency_residuals(r, plane, torus), Error);  // wrong face types
+  r.kind = "plane-hyperboloid";
+  EXPECT_THROW(tangency_residuals(r, plane, cone), Error);
+}
+
+}  // namespace
+}  // namespace parafab::occ
