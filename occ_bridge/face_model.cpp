@@ -9,6 +9,7 @@
 #include <BRepTools.hxx>
 #include <BRepTools_WireExplorer.hxx>
 #include <BRep_Tool.hxx>
+#include <Eigen/Geometry>
 #include <GProp_GProps.hxx>
 #include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2d_BSplineCurve.hxx>
@@ -20,7 +21,6 @@
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Wire.hxx>
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -72,8 +72,12 @@ Primitive primitive_of(const TopoDS_Face& face) {
       p.major_radius = s.Torus().MajorRadius();
       p.radius = s.Torus().MinorRadius();
       break;
-    case GeomAbs_BSplineSurface: p.type = SurfaceType::bspline; break;
-    case GeomAbs_BezierSurface: p.type = SurfaceType::bezier; break;
+    case GeomAbs_BSplineSurface:
+      p.type = SurfaceType::bspline;
+      break;
+    case GeomAbs_BezierSurface:
+      p.type = SurfaceType::bezier;
+      break;
     case GeomAbs_SurfaceOfRevolution:
       p.type = SurfaceType::revolution;
       p.location = vec(s.AxeOfRevolution().Location().XYZ());
@@ -87,7 +91,8 @@ Primitive primitive_of(const TopoDS_Face& face) {
       p.type = SurfaceType::offset;
       p.offset = s.OffsetValue();
       break;
-    default: p.type = SurfaceType::other;
+    default:
+      p.type = SurfaceType::other;
   }
   return p;
 }
@@ -96,7 +101,8 @@ Primitive primitive_of(const TopoDS_Face& face) {
 // non-periodic, in projective coordinates.
 NurbsSurface nurbs_of(const TopoDS_Face& nface, int index) {
   const auto surface = Handle(Geom_BSplineSurface)::DownCast(BRep_Tool::Surface(nface));
-  PARAFAB_VERIFY(!surface.IsNull(), "face " << index << ": BRepBuilderAPI_NurbsConvert gave no B-spline surface");
+  PARAFAB_VERIFY(!surface.IsNull(),
+                 "face " << index << ": BRepBuilderAPI_NurbsConvert gave no B-spline surface");
   const auto bs = Handle(Geom_BSplineSurface)::DownCast(surface->Copy());
   double u0, u1, v0, v1, su0, su1, sv0, sv1;
   BRepTools::UVBounds(nface, u0, u1, v0, v1);
@@ -137,8 +143,8 @@ std::vector<double> curve_samples(const Geom2dAdaptor_Curve& c, int samples) {
 }
 
 // Boundary loops of a converted (FORWARD) face as uv polylines, outer loop first.
-std::vector<TrimLoop> loops_of(const TopoDS_Face& nface, const TopTools_IndexedMapOfShape& nedges, int samples,
-                               int index) {
+std::vector<TrimLoop> loops_of(const TopoDS_Face& nface, const TopTools_IndexedMapOfShape& nedges,
+                               int samples, int index) {
   const TopoDS_Wire outer = BRepTools::OuterWire(nface);
   std::vector<TrimLoop> loops;
   for (TopExp_Explorer w(nface, TopAbs_WIRE); w.More(); w.Next()) {
@@ -206,18 +212,22 @@ struct RelationKind {
 const std::vector<RelationKind>& relation_table() {
   using T = SurfaceType;
   using P = const Primitive&;
+  // clang-format off
   static const std::vector<RelationKind> table = {
+      // Coplanar neighbours (a face split in two).
       {"plane-plane", T::plane, T::plane,
        {"cross(n{a}, n{b}){xyz} = 0", "dot(p{b} - p{a}, n{a}) = 0"},
        [](P, P) { return 1; },
        [](P a, P b, int) { return residuals({a.axis.cross(b.axis)}, {(b.location - a.location).dot(a.axis)}); }},
-      {"plane-cylinder", T::plane, T::cylinder,  // Fig. 6.11
+      // Fig. 6.11: the axis lies at distance r from the plane, parallel to it.
+      {"plane-cylinder", T::plane, T::cylinder,
        {"{s}dot(p{a} - c{b}, n{a}) - r{b} = 0", "dot(n{a}, d{b}) = 0"},
        [](P a, P b) { return sign_of((a.location - b.location).dot(a.axis)); },
        [](P a, P b, int s) {
          return residuals({}, {s * (a.location - b.location).dot(a.axis) - b.radius, a.axis.dot(b.axis)});
        }},
-      {"plane-cone", T::plane, T::cone,  // tangent along a ruling: apex on the plane
+      // Tangent along a ruling: the apex lies on the plane, the axis at the semi-angle to it.
+      {"plane-cone", T::plane, T::cone,
        {"dot(c{b} - r{b}/tan(a{b}) d{b} - p{a}, n{a}) = 0", "{s}dot(n{a}, d{b}) - sin(a{b}) = 0"},
        [](P a, P b) { return sign_of(a.axis.dot(b.axis) * std::sin(b.semi_angle)); },
        [](P a, P b, int s) {
@@ -228,13 +238,15 @@ const std::vector<RelationKind>& relation_table() {
        {"{s}dot(p{a} - c{b}, n{a}) - r{b} = 0"},
        [](P a, P b) { return sign_of((a.location - b.location).dot(a.axis)); },
        [](P a, P b, int s) { return residuals({}, {s * (a.location - b.location).dot(a.axis) - b.radius}); }},
-      {"plane-torus", T::plane, T::torus,  // plane ⟂ axis, touching the tube along a circle
+      // Plane perpendicular to the axis, touching the tube along a circle.
+      {"plane-torus", T::plane, T::torus,
        {"cross(n{a}, d{b}){xyz} = 0", "{s}dot(p{a} - c{b}, n{a}) - r{b} = 0"},
        [](P a, P b) { return sign_of((a.location - b.location).dot(a.axis)); },
        [](P a, P b, int s) {
          return residuals({a.axis.cross(b.axis)}, {s * (a.location - b.location).dot(a.axis) - b.radius});
        }},
-      {"cylinder-cylinder", T::cylinder, T::cylinder,  // parallel axes; a has the larger radius
+      // Parallel axes at distance r_a ± r_b; a has the larger radius.
+      {"cylinder-cylinder", T::cylinder, T::cylinder,
        {"cross(d{a}, d{b}){xyz} = 0", "|cross(c{b} - c{a}, d{a})| - (r{a} {pm} r{b}) = 0"},
        [](P a, P b) {
          const double dist = (b.location - a.location).cross(a.axis).norm();
@@ -244,18 +256,21 @@ const std::vector<RelationKind>& relation_table() {
          return residuals({a.axis.cross(b.axis)},
                           {(b.location - a.location).cross(a.axis).norm() - (a.radius + s * b.radius)});
        }},
-      {"cylinder-sphere", T::cylinder, T::sphere,  // sphere centre on the axis, equal radii
+      // Sphere centre on the axis, equal radii (a rounded corner, a capsule).
+      {"cylinder-sphere", T::cylinder, T::sphere,
        {"cross(c{b} - c{a}, d{a}){xyz} = 0", "r{b} - r{a} = 0"},
        [](P, P) { return 1; },
        [](P a, P b, int) { return residuals({(b.location - a.location).cross(a.axis)}, {b.radius - a.radius}); }},
-      {"cylinder-torus", T::cylinder, T::torus,  // coaxial, e.g. a fillet at the foot of a boss
+      // Coaxial, the tube touching the cylinder: a fillet at the foot of a boss.
+      {"cylinder-torus", T::cylinder, T::torus,
        {"cross(d{a}, d{b}){xyz} = 0", "cross(c{b} - c{a}, d{a}){xyz} = 0", "R{b} {pm} r{b} - r{a} = 0"},
        [](P a, P b) { return closer(b.major_radius + b.radius - a.radius, b.major_radius - b.radius - a.radius); },
        [](P a, P b, int s) {
          return residuals({a.axis.cross(b.axis), (b.location - a.location).cross(a.axis)},
                           {b.major_radius + s * b.radius - a.radius});
        }},
-      {"cylinder-torus-pipe", T::cylinder, T::torus,  // the cylinder continues the torus tube
+      // The cylinder continues the torus tube (a pipe elbow): its axis is tangent to the centre circle.
+      {"cylinder-torus-pipe", T::cylinder, T::torus,
        {"dot(d{a}, d{b}) = 0", "dot(c{a} - c{b}, d{b}) = 0", "|cross(c{a} - c{b}, d{a})| - R{b} = 0",
         "r{a} - r{b} = 0"},
        [](P, P) { return 1; },
@@ -264,7 +279,8 @@ const std::vector<RelationKind>& relation_table() {
          return residuals({}, {a.axis.dot(b.axis), cc.dot(b.axis), cc.cross(a.axis).norm() - b.major_radius,
                                a.radius - b.radius});
        }},
-      {"sphere-torus", T::sphere, T::torus,  // sphere centre on the torus axis
+      // Sphere centre on the torus axis, touching the tube along a circle.
+      {"sphere-torus", T::sphere, T::torus,
        {"cross(c{a} - c{b}, d{b}){xyz} = 0", "sqrt(R{b}^2 + dot(c{a} - c{b}, d{b})^2) - (r{a} {pm} r{b}) = 0"},
        [](P a, P b) {
          const double h = (a.location - b.location).dot(b.axis), dist = std::hypot(b.major_radius, h);
@@ -276,6 +292,7 @@ const std::vector<RelationKind>& relation_table() {
                           {std::hypot(b.major_radius, cc.dot(b.axis)) - (a.radius + s * b.radius)});
        }},
   };
+  // clang-format on
   return table;
 }
 
@@ -286,7 +303,8 @@ const RelationKind* find_kind(const std::string& name) {
 }
 
 std::string replace_all(std::string s, const std::string& from, const std::string& to) {
-  for (size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size())) s.replace(at, from.size(), to);
+  for (size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size()))
+    s.replace(at, from.size(), to);
   return s;
 }
 
@@ -296,7 +314,8 @@ std::vector<std::string> equations_of(const RelationKind& kind, int a, int b, in
     std::string t = replace_all(eq, "{a}", std::to_string(a));
     t = replace_all(replace_all(replace_all(t, "{b}", std::to_string(b)), "{s}", s < 0 ? "-" : ""), "{pm}",
                     s < 0 ? "-" : "+");
-    if (t.find("{xyz}") == std::string::npos) out.push_back(t);
+    if (t.find("{xyz}") == std::string::npos)
+      out.push_back(t);
     else
       for (const char* c : {".x", ".y", ".z"}) out.push_back(replace_all(t, "{xyz}", c));
   }
@@ -320,12 +339,13 @@ std::string g1_equation(int a, int b, const std::array<Vec2, 2>& uv, const char*
 }  // namespace
 
 const char* to_string(SurfaceType type) {
-  static const char* names[] = {"plane",  "cylinder", "cone",      "sphere",     "torus", "bspline",
+  static const char* names[] = {"plane",  "cylinder",  "cone",       "sphere", "torus", "bspline",
                                 "bezier", "extrusion", "revolution", "offset", "other"};
   return names[static_cast<int>(type)];
 }
 
-std::vector<double> tangency_residuals(const TangencyRelation& relation, const FaceInfo& a, const FaceInfo& b) {
+std::vector<double> tangency_residuals(const TangencyRelation& relation, const FaceInfo& a,
+                                       const FaceInfo& b) {
   if (relation.kind == "g1") {
     Residuals r;
     for (const auto& uv : relation.samples) {
@@ -337,9 +357,9 @@ std::vector<double> tangency_residuals(const TangencyRelation& relation, const F
   const RelationKind* kind = find_kind(relation.kind);
   PARAFAB_VERIFY(kind, "unknown tangency relation kind '" << relation.kind << "'");
   PARAFAB_VERIFY(a.primitive.type == kind->a && b.primitive.type == kind->b,
-                 "relation " << relation.kind << " needs a " << to_string(kind->a) << " and a " << to_string(kind->b)
-                             << ", got faces of type " << to_string(a.primitive.type) << " and "
-                             << to_string(b.primitive.type));
+                 "relation " << relation.kind << " needs a " << to_string(kind->a) << " and a "
+                             << to_string(kind->b) << ", got faces of type " << to_string(a.primitive.type)
+                             << " and " << to_string(b.primitive.type));
   return kind->eval(a.primitive, b.primitive, relation.sign);
 }
 
@@ -353,7 +373,8 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
   TopTools_IndexedMapOfShape nedges;
   try {
     BRepBuilderAPI_NurbsConvert convert(part.shape, true);
-    for (int i = 0; i < nf; ++i) nfaces[i] = TopoDS::Face(convert.ModifiedShape(part.face(i)).Oriented(TopAbs_FORWARD));
+    for (int i = 0; i < nf; ++i)
+      nfaces[i] = TopoDS::Face(convert.ModifiedShape(part.face(i)).Oriented(TopAbs_FORWARD));
     for (int i = 0; i < ne; ++i) nedges.Add(convert.ModifiedShape(part.edge(i)));
   } catch (const Standard_Failure& e) {
     PARAFAB_INPUT_ERROR(part.source << ": conversion of the faces to NURBS failed: " << e.GetMessageString());
@@ -387,8 +408,10 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
     const TopoDS_Edge& edge = part.edge(i);
     std::vector<int> faces;
     for (const TopoDS_Shape& f : edge_faces.FindFromKey(edge))
-      if (std::find(faces.begin(), faces.end(), part.face_index(f)) == faces.end()) faces.push_back(part.face_index(f));
+      if (std::find(faces.begin(), faces.end(), part.face_index(f)) == faces.end())
+        faces.push_back(part.face_index(f));
     std::sort(faces.begin(), faces.end());
+    PARAFAB_VERIFY(!faces.empty(), part.source << ": edge " << i << " bounds no face");
     e.degenerated = BRep_Tool::Degenerated(edge);
     e.seam = faces.size() == 1 && !e.degenerated && BRep_Tool::IsClosed(edge, part.face(faces[0]));
     e.faces = {faces[0], faces.size() > 1 ? faces[1] : e.seam ? faces[0] : -1};
@@ -401,6 +424,9 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
       double fa, la, fb, lb;
       const Handle(Geom2d_Curve) ca = BRep_Tool::CurveOnSurface(ea, nfaces[a], fa, la);
       const Handle(Geom2d_Curve) cb = BRep_Tool::CurveOnSurface(eb, nfaces[b], fb, lb);
+      PARAFAB_VERIFY(!ca.IsNull() && !cb.IsNull(), part.source << ": edge " << i << " has no curve on face "
+                                                               << a << " or " << b
+                                                               << " after NURBS conversion");
       const BRepAdaptor_Surface sa(nfaces[a], false), sb(nfaces[b], false);
       for (int k = 1; k <= options.edge_samples; ++k) {
         const double t = static_cast<double>(k) / (options.edge_samples + 1);
@@ -409,7 +435,8 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
         const Vec3 nb = outward_normal(sb, model.faces[b].reversed, ub);
         edge_uv[i].push_back({Vec2(ua.X(), ua.Y()), Vec2(ub.X(), ub.Y())});
         if (na.isZero() || nb.isZero()) continue;
-        e.max_angle_deg = std::max(e.max_angle_deg, std::acos(std::clamp(na.dot(nb), -1.0, 1.0)) * 180.0 / M_PI);
+        e.max_angle_deg =
+            std::max(e.max_angle_deg, std::acos(std::clamp(na.dot(nb), -1.0, 1.0)) * 180.0 / M_PI);
       }
       e.tangent = e.max_angle_deg * M_PI / 180.0 < options.tangent_angle;
     }
@@ -427,7 +454,8 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
     r.edges = edges;
     const FaceInfo *a = &model.faces[pair.first], *b = &model.faces[pair.second];
     const auto ta = a->primitive.type, tb = b->primitive.type;
-    const bool swap = ta > tb || (ta == tb && ta == SurfaceType::cylinder && a->primitive.radius < b->primitive.radius);
+    const bool swap =
+        ta > tb || (ta == tb && ta == SurfaceType::cylinder && a->primitive.radius < b->primitive.radius);
     if (swap) std::swap(a, b);
     r.faces = {a->index, b->index};
     for (const RelationKind& kind : relation_table()) {
@@ -448,7 +476,8 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
         for (auto uv : edge_uv[e]) {
           if (swap) std::swap(uv[0], uv[1]);
           r.samples.push_back(uv);
-          for (const char* c : {".x", ".y", ".z"}) r.equations.push_back(g1_equation(a->index, b->index, uv, c));
+          for (const char* c : {".x", ".y", ".z"})
+            r.equations.push_back(g1_equation(a->index, b->index, uv, c));
         }
       r.residuals = tangency_residuals(r, *a, *b);
     }

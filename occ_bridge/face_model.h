@@ -16,7 +16,19 @@ namespace parafab::occ {
 using Vec2 = Eigen::Vector2d;
 using Vec3 = Eigen::Vector3d;
 
-enum class SurfaceType { plane, cylinder, cone, sphere, torus, bspline, bezier, extrusion, revolution, offset, other };
+enum class SurfaceType {
+  plane,
+  cylinder,
+  cone,
+  sphere,
+  torus,
+  bspline,
+  bezier,
+  extrusion,
+  revolution,
+  offset,
+  other
+};
 
 /// "plane", "cylinder", ...
 const char* to_string(SurfaceType type);
@@ -49,19 +61,20 @@ struct TrimLoop {
 
 struct FaceInfo {
   int index = -1;
-  Primitive primitive;  ///< primitive.type is the surface type
-  bool reversed = false;  ///< the outward normal is −σ_u × σ_v (else +σ_u × σ_v)
+  Primitive primitive;                ///< primitive.type is the surface type
+  bool reversed = false;              ///< the outward normal is −σ_u × σ_v (else +σ_u × σ_v)
   std::array<double, 4> uv_bounds{};  ///< u_min, u_max, v_min, v_max (= the NURBS's knot range)
   double area = 0;
-  NurbsSurface nurbs;  ///< the face's surface restricted to uv_bounds, exact (rational) form
+  NurbsSurface nurbs;           ///< the face's surface restricted to uv_bounds, exact (rational) form
   std::vector<TrimLoop> loops;  ///< outer loop first
 };
 
 struct EdgeInfo {
   int index = -1;
-  std::array<int, 2> faces{-1, -1};  ///< the faces sharing the edge (seam: twice the same; degenerated: [f, −1])
+  /// The faces sharing the edge, lower index first (seam: twice the same; degenerated: [f, −1]).
+  std::array<int, 2> faces{-1, -1};
   bool seam = false, degenerated = false;
-  std::string continuity;  ///< as stored in the B-rep (BRep_Tool::Continuity): "C0", "G1", "C1", ...
+  std::string continuity;    ///< as stored in the B-rep (BRep_Tool::Continuity): "C0", "G1", "C1", ...
   double max_angle_deg = 0;  ///< largest angle between the faces' outward normals at the edge samples
   bool tangent = false;      ///< G1: max angle below FaceModelOptions::tangent_angle
 };
@@ -85,7 +98,8 @@ struct TangencyRelation {
 /// Re-evaluates the residuals of `relation` for (possibly changed) face data: the primitives
 /// of a and b, or for "g1" their NURBS. Same order as relation.equations. Vectors are used as
 /// given (no normalization).
-std::vector<double> tangency_residuals(const TangencyRelation& relation, const FaceInfo& a, const FaceInfo& b);
+std::vector<double> tangency_residuals(const TangencyRelation& relation, const FaceInfo& a,
+                                       const FaceInfo& b);
 
 struct FaceModelOptions {
   int edge_samples = 9;            ///< interior points per edge for normal angles and "g1" relations
@@ -97,8 +111,8 @@ struct FaceModelOptions {
 };
 
 struct FaceModel {
-  std::vector<FaceInfo> faces;    ///< faces[i].index == i
-  std::vector<EdgeInfo> edges;    ///< edges[i].index == i
+  std::vector<FaceInfo> faces;  ///< faces[i].index == i
+  std::vector<EdgeInfo> edges;  ///< edges[i].index == i
   std::vector<TangencyRelation> relations;
 };
 

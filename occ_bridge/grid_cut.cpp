@@ -9,6 +9,7 @@
 #include <Bnd_Box.hxx>
 #include <Geom2d_Curve.hxx>
 #include <Geom2d_Line.hxx>
+#include <Geom_Curve.hxx>
 #include <Geom_Surface.hxx>
 #include <Message_Report.hxx>
 #include <TopExp.hxx>
@@ -166,6 +167,28 @@ std::vector<double> grid_planes(double lo, double h, int n, const std::vector<do
   return planes;
 }
 
+// A point inside the closed box of a piece (cheap, unlike an optimal bounding box): the mean
+// of its vertices, edge midpoints and face mid-parameter points.
+Vec3 representative_point(const TopoDS_Shape& solid) {
+  Vec3 sum = Vec3::Zero();
+  int n = 0;
+  auto add = [&](const gp_Pnt& p) { sum += Vec3(p.X(), p.Y(), p.Z()), ++n; };
+  for (TopExp_Explorer ex(solid, TopAbs_VERTEX); ex.More(); ex.Next())
+    add(BRep_Tool::Pnt(TopoDS::Vertex(ex.Current())));
+  for (TopExp_Explorer ex(solid, TopAbs_EDGE); ex.More(); ex.Next()) {
+    double f, l;
+    Handle(Geom_Curve) c = BRep_Tool::Curve(TopoDS::Edge(ex.Current()), f, l);
+    if (!c.IsNull()) add(c->Value(0.5 * (f + l)));
+  }
+  for (TopExp_Explorer ex(solid, TopAbs_FACE); ex.More(); ex.Next()) {
+    const TopoDS_Face& f = TopoDS::Face(ex.Current());
+    double u0, u1, v0, v1;
+    BRepTools::UVBounds(f, u0, u1, v0, v1);
+    add(BRep_Tool::Surface(f)->Value(0.5 * (u0 + u1), 0.5 * (v0 + v1)));
+  }
+  return sum / std::max(n, 1);
+}
+
 std::array<int, 3> cell_of(const Vec3& p, const GridCut& g) {
   std::array<int, 3> ijk{};
   for (int a = 0; a < 3; ++a) {
@@ -198,8 +221,15 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     for (int a = 0; a < 3; ++a) avoid[a].push_back(fb.min[a]), avoid[a].push_back(fb.max[a]);
   }
   for (int a = 0; a < 3; ++a) {
-    g.cells[a] = std::max(1, static_cast<int>(std::ceil(ext[a] / h - 1e-9)));
-    const double span = g.cells[a] * h, lo = bb.min[a] - 0.5 * (span - ext[a]);
+    double lo;
+    if (o.anchored) {
+      lo = o.origin[a] + std::floor((bb.min[a] - o.origin[a]) / h) * h;
+      g.cells[a] = std::max(1, static_cast<int>(std::ceil((bb.max[a] - lo) / h - 1e-9)));
+    } else {
+      g.cells[a] = std::max(1, static_cast<int>(std::ceil(ext[a] / h - 1e-9)));
+      lo = bb.min[a] - 0.5 * (g.cells[a] * h - ext[a]);
+    }
+    const double span = g.cells[a] * h;
     g.grid.min[a] = std::min(lo, bb.min[a]);
     g.grid.max[a] = std::max(lo + span, bb.max[a]);
     g.cell_size[a] = h;
@@ -258,8 +288,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
   std::vector<TopoDS_Shape> solids;
   for (TopExp_Explorer ex(pieces, TopAbs_SOLID); ex.More(); ex.Next()) solids.push_back(ex.Current());
   for (const TopoDS_Shape& solid : solids) {
-    const Box3 sb = tight_box(solid);
-    const std::array<int, 3> ijk = cell_of(0.5 * (sb.min + sb.max), g);
+    const std::array<int, 3> ijk = cell_of(representative_point(solid), g);
     xfem::Subvolume sv;
     sv.cell = g.cell_box(ijk);
     bool cut = false;

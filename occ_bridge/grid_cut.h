@@ -18,6 +18,10 @@ struct PartShape;  // occ_bridge/occt_shape.h
 struct GridOptions {
   int cells_longest = 8;    ///< cells along the longest side of the bounding box
   double cell_size = 0;     ///< if > 0, overrides cells_longest [model units]
+  /// Grid anchor: by default the grid is centred on the bounding box; with `anchored`, grid
+  /// planes pass through `origin` + k·cell size (e.g. to keep one grid while a part changes).
+  bool anchored = false;
+  xfem::Vec3 origin{0, 0, 0};
   /// Grid planes within this distance (× cell size) of a vertex, or of a face's extreme
   /// coordinate (tangent or coincident face), are shifted deterministically by the same
   /// amount until clear (the thesis perturbs grid planes to avoid these corner cases).
@@ -25,7 +29,7 @@ struct GridOptions {
   /// Boundary loops: parabolic (2) or linear (1) segments, refined until the deviation from
   /// the exact pcurve is below `segment_tolerance` × the face's uv extent.
   int segment_order = 2;
-  double segment_tolerance = 1e-10;
+  double segment_tolerance = 1e-8;
   int max_segments_per_edge = 4096;
   bool parallel = false;    ///< let OCCT's splitter use threads
 };

@@ -11,7 +11,8 @@ namespace parafab::occ {
 namespace {
 
 void check(const NurbsSurface& s) {
-  PARAFAB_VERIFY(s.degree_u >= 1 && s.degree_v >= 1, "NURBS degrees must be >= 1, got " << s.degree_u << ", " << s.degree_v);
+  PARAFAB_VERIFY(s.degree_u >= 1 && s.degree_v >= 1,
+                 "NURBS degrees must be >= 1, got " << s.degree_u << ", " << s.degree_v);
   PARAFAB_VERIFY(s.count_u > s.degree_u && s.count_v > s.degree_v,
                  "NURBS needs more poles than its degree, got " << s.count_u << "x" << s.count_v);
   PARAFAB_VERIFY(static_cast<int>(s.knots_u.size()) == s.count_u + s.degree_u + 1 &&
@@ -30,8 +31,9 @@ struct Basis {
 Basis basis(const std::vector<double>& U, int p, int count, double t) {
   t = std::clamp(t, U[p], U[count]);
   Basis b;
-  b.span = t >= U[count] ? count - 1
-                          : static_cast<int>(std::upper_bound(U.begin() + p, U.begin() + count, t) - U.begin()) - 1;
+  b.span = t >= U[count]
+               ? count - 1
+               : static_cast<int>(std::upper_bound(U.begin() + p, U.begin() + count, t) - U.begin()) - 1;
   // Triangular table of degree-(p-1) and degree-p functions (A2.2), derivatives from the former.
   std::vector<double> left(p + 1), right(p + 1), N(p + 1, 0.0), lower(p, 0.0);
   N[0] = 1.0;
@@ -64,7 +66,8 @@ Basis basis(const std::vector<double>& U, int p, int count, double t) {
 
 Eigen::Vector4d evaluate_projective(const NurbsSurface& s, double u, double v) {
   check(s);
-  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u), bv = basis(s.knots_v, s.degree_v, s.count_v, v);
+  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u),
+              bv = basis(s.knots_v, s.degree_v, s.count_v, v);
   Eigen::Vector4d q = Eigen::Vector4d::Zero();
   for (int a = 0; a <= s.degree_u; ++a)
     for (int b = 0; b <= s.degree_v; ++b)
@@ -75,7 +78,8 @@ Eigen::Vector4d evaluate_projective(const NurbsSurface& s, double u, double v) {
 void evaluate(const NurbsSurface& s, double u, double v, Eigen::Vector3d& X, Eigen::Vector3d& Xu,
               Eigen::Vector3d& Xv) {
   check(s);
-  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u), bv = basis(s.knots_v, s.degree_v, s.count_v, v);
+  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u),
+              bv = basis(s.knots_v, s.degree_v, s.count_v, v);
   Eigen::Vector4d q = Eigen::Vector4d::Zero(), qu = q, qv = q;
   for (int a = 0; a <= s.degree_u; ++a)
     for (int b = 0; b <= s.degree_v; ++b) {

@@ -21,10 +21,10 @@ namespace parafab::occ {
 struct PartShape {
   TopoDS_Shape shape;  ///< a TopoDS_Solid
   TopTools_IndexedMapOfShape faces, edges, vertices;
-  std::string source;    ///< file path, or "BRep string"
-  std::string name;      ///< the solid's name in the file (STEP product or entity), may be ""
-  int solid_index = 0;   ///< position among the solids of the file
-  int solid_count = 1;   ///< solids in the file
+  std::string source;   ///< file path, or "BRep string"
+  std::string name;     ///< the solid's name in the file (STEP product or entity), may be ""
+  int solid_index = 0;  ///< position among the solids of the file
+  int solid_count = 1;  ///< solids in the file
 
   int face_count() const { return faces.Extent(); }
   int edge_count() const { return edges.Extent(); }

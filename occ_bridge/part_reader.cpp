@@ -26,8 +26,8 @@
 #include <Transfer_TransientProcess.hxx>
 #include <XSControl_TransferReader.hxx>
 #include <XSControl_WorkSession.hxx>
-#include <filesystem>
 #include <cctype>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
@@ -54,7 +54,7 @@ std::string failure_text(const Standard_Failure& e) {
   return std::string(e.DynamicType()->Name()) + (m && *m ? std::string(": ") + m : "");
 }
 
-std::string text(const Handle(TCollection_HAsciiString)& s) { return s.IsNull() ? "" : s->ToCString(); }
+std::string text(const Handle(TCollection_HAsciiString) & s) { return s.IsNull() ? "" : s->ToCString(); }
 
 // Names of `solids` in a STEP file: the solid entity's own name if set, else the name of the
 // innermost product whose shape contains it. Matched by TShape (instances carry locations).
@@ -70,7 +70,8 @@ std::vector<std::string> step_solid_names(const STEPControl_Reader& reader,
     const auto brep = Handle(StepShape_ManifoldSolidBrep)::DownCast(ent);
     const auto pd = Handle(StepBasic_ProductDefinition)::DownCast(ent);
     std::string name;
-    if (!brep.IsNull()) name = text(brep->Name());
+    if (!brep.IsNull())
+      name = text(brep->Name());
     else if (!pd.IsNull() && !pd->Formation().IsNull() && !pd->Formation()->OfProduct().IsNull())
       name = text(pd->Formation()->OfProduct()->Name());
     if (name.empty()) continue;
@@ -81,8 +82,10 @@ std::vector<std::string> step_solid_names(const STEPControl_Reader& reader,
     for (int j = 1; j <= inside.Extent(); ++j)
       for (int i = 0; i < n; ++i) {
         if (solids(i + 1).TShape() != inside(j).TShape()) continue;
-        if (!brep.IsNull()) entity[i] = name;
-        else if (inside.Extent() <= product_size[i]) product[i] = name, product_size[i] = inside.Extent();
+        if (!brep.IsNull())
+          entity[i] = name;
+        else if (inside.Extent() <= product_size[i])
+          product[i] = name, product_size[i] = inside.Extent();
       }
   }
   for (int i = 0; i < n; ++i)
@@ -110,8 +113,7 @@ int face_count_of(const TopTools_IndexedDataMapOfShapeListOfShape& edge_faces, c
 
 // An edge bounding a single face that is not that face's seam: the shell is open there.
 bool is_free_edge(const TopoDS_Edge& e, const TopTools_IndexedMapOfShape& faces) {
-  return faces.Extent() == 1 && !BRep_Tool::Degenerated(e) &&
-         !BRep_Tool::IsClosed(e, TopoDS::Face(faces(1)));
+  return faces.Extent() == 1 && !BRep_Tool::Degenerated(e) && !BRep_Tool::IsClosed(e, TopoDS::Face(faces(1)));
 }
 
 // "open shell: N edges bound only one face, first edge k (face j)", or "" if none.
@@ -171,7 +173,8 @@ std::string describe_check_failure(const PartShape& part) {
     if (auto t = check_failure(analyzer, part.edge(i)); !t.empty()) {
       os << t << " on edge " << i;
       face_count_of(edge_faces, part.edge(i), faces);
-      for (int k = 1; k <= faces.Extent(); ++k) os << (k == 1 ? " (faces " : ", ") << part.face_index(faces(k));
+      for (int k = 1; k <= faces.Extent(); ++k)
+        os << (k == 1 ? " (faces " : ", ") << part.face_index(faces(k));
       return (os << (faces.IsEmpty() ? "" : ")"), os.str());
     }
   for (int i = 1; i <= part.vertices.Extent(); ++i)
@@ -206,7 +209,8 @@ void validate(const PartShape& part) {
   GProp_GProps props;
   BRepGProp::VolumeProperties(part.shape, props);
   if (!(props.Mass() > 0))
-    PARAFAB_INPUT_ERROR(src << ": invalid shape: the solid is inside out or empty (volume " << props.Mass() << ")");
+    PARAFAB_INPUT_ERROR(src << ": invalid shape: the solid is inside out or empty (volume " << props.Mass()
+                            << ")");
 }
 
 [[noreturn]] void no_solid(const TopoDS_Shape& shape, const std::string& src) {
@@ -252,8 +256,9 @@ class CaptureStdout {
   std::streambuf* old_;
 };
 
+// Runs f, turning OpenCASCADE exceptions into parafab::Error naming `what`.
 template <class F>
-auto guarded(const std::string& what, F&& f) {
+auto guarded(const std::string& what, F&& f) -> decltype(f()) {
   try {
     return f();
   } catch (const Standard_Failure& e) {
@@ -264,10 +269,7 @@ auto guarded(const std::string& what, F&& f) {
 TopoDS_Shape read_brep_stream(std::istream& in, const std::string& src) {
   TopoDS_Shape shape;
   const CaptureStdout log;
-  guarded(src + " (reading BREP)", [&] {
-    BRepTools::Read(shape, in, BRep_Builder());
-    return 0;
-  });
+  guarded(src + " (reading BREP)", [&] { BRepTools::Read(shape, in, BRep_Builder()); });
   if (shape.IsNull()) PARAFAB_INPUT_ERROR(src << ": unreadable BREP, no shape in it" << log.detail());
   return shape;
 }
@@ -275,7 +277,8 @@ TopoDS_Shape read_brep_stream(std::istream& in, const std::string& src) {
 }  // namespace
 
 std::shared_ptr<const PartShape> make_part(const TopoDS_Shape& shape, const std::string& source,
-                                           const ReadOptions& options, const std::vector<std::string>& names) {
+                                           const ReadOptions& options,
+                                           const std::vector<std::string>& names) {
   if (shape.IsNull()) PARAFAB_INPUT_ERROR(source << ": no shape");
   TopTools_IndexedMapOfShape solids;
   TopExp::MapShapes(shape, TopAbs_SOLID, solids);
@@ -286,20 +289,21 @@ std::shared_ptr<const PartShape> make_part(const TopoDS_Shape& shape, const std:
   int chosen = 0;
   if (options.solid_index >= 0) {
     if (options.solid_index >= n)
-      PARAFAB_INPUT_ERROR(source << ": solid_index " << options.solid_index << " is out of range: it holds " << n
-                                 << " solid(s) (" << list_solids(names, n) << ")");
+      PARAFAB_INPUT_ERROR(source << ": solid_index " << options.solid_index << " is out of range: it holds "
+                                 << n << " solid(s) (" << list_solids(names, n) << ")");
     chosen = options.solid_index;
   } else if (!options.solid_name.empty()) {
     chosen = -1;
     for (int i = 0; i < n && i < static_cast<int>(names.size()); ++i)
       if (names[i] == options.solid_name) {
-        if (chosen >= 0) PARAFAB_INPUT_ERROR(source << ": several solids are named '" << options.solid_name << "' ("
-                                                    << list_solids(names, n) << "); choose by index");
+        if (chosen >= 0)
+          PARAFAB_INPUT_ERROR(source << ": several solids are named '" << options.solid_name << "' ("
+                                     << list_solids(names, n) << "); choose by index");
         chosen = i;
       }
     if (chosen < 0)
-      PARAFAB_INPUT_ERROR(source << ": no solid named '" << options.solid_name << "' (solids: "
-                                 << list_solids(names, n) << ")");
+      PARAFAB_INPUT_ERROR(source << ": no solid named '" << options.solid_name
+                                 << "' (solids: " << list_solids(names, n) << ")");
   } else if (n > 1) {
     PARAFAB_INPUT_ERROR(source << ": " << n << " solids (" << list_solids(names, n)
                                << "); choose one with solid_index (--solid N) or solid_name");
@@ -313,10 +317,7 @@ std::shared_ptr<const PartShape> make_part(const TopoDS_Shape& shape, const std:
   TopExp::MapShapes(part->shape, TopAbs_FACE, part->faces);
   TopExp::MapShapes(part->shape, TopAbs_EDGE, part->edges);
   TopExp::MapShapes(part->shape, TopAbs_VERTEX, part->vertices);
-  guarded(source + " (validating the solid)", [&] {
-    validate(*part);
-    return 0;
-  });
+  guarded(source + " (validating the solid)", [&] { validate(*part); });
   return part;
 }
 
@@ -361,11 +362,13 @@ std::shared_ptr<const PartShape> read_part(const std::string& path, const ReadOp
   });
 }
 
-std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& brep, const ReadOptions& options) {
+std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& brep,
+                                                            const ReadOptions& options) {
   const std::string src = "BRep string";
   if (brep.find_first_not_of(" \t\r\n") == std::string::npos) PARAFAB_INPUT_ERROR(src << " is empty");
   if (sniff(brep.substr(0, 4096)) != Format::brep)
-    PARAFAB_INPUT_ERROR(src << " is not BREP text (no 'CASCADE Topology' header; expected Shape.exportBrepToString())");
+    PARAFAB_INPUT_ERROR(
+        src << " is not BREP text (no 'CASCADE Topology' header; expected Shape.exportBrepToString())");
   std::istringstream in(brep);
   return make_part(read_brep_stream(in, src), src, options);
 }

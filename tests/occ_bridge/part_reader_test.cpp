@@ -1,5 +1,9 @@
 // Tests of the part reader (thesis §6.2.1 input): every sample in samples/parts reads as one
 // valid solid; BREP files and strings; solid selection; each invalid input names its problem.
+#include "part_reader.h"
+
+#include <gtest/gtest.h>
+
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <BRepBuilderAPI_MakeVertex.hxx>
@@ -17,8 +21,6 @@
 #include <TopoDS_Compound.hxx>
 #include <TopoDS_Shell.hxx>
 #include <TopoDS_Solid.hxx>
-#include <gtest/gtest.h>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -26,7 +28,6 @@
 
 #include "common/error.h"
 #include "occt_shape.h"
-#include "part_reader.h"
 
 namespace parafab::occ {
 namespace {
@@ -34,11 +35,12 @@ namespace {
 std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name; }
 
 // A file in a per-test temporary folder.
-class TempFiles : public ::testing::Test {
+class PartReaderFiles : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           ("parafab_part_reader_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+           ("parafab_part_reader_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     std::filesystem::create_directories(dir_);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
@@ -75,9 +77,9 @@ std::string to_brep_string(const TopoDS_Shape& shape) {
 TopoDS_Shape box(double x0 = 0) { return BRepPrimAPI_MakeBox(gp_Pnt(x0, 0, 0), 10, 20, 30).Shape(); }
 
 TEST(PartReader, ReadsEverySampleAsOneValidSolid) {
-  const std::vector<std::pair<std::string, int>> faces = {{"box", 6},        {"cylinder", 3}, {"l_bracket", 12},
-                                                          {"wrench", 21},    {"ring", 4},     {"half_torus", 3},
-                                                          {"wheel", 24},     {"housing", 42}};
+  const std::vector<std::pair<std::string, int>> faces = {{"box", 6},     {"cylinder", 3}, {"l_bracket", 12},
+                                                          {"wrench", 21}, {"ring", 4},     {"half_torus", 3},
+                                                          {"wheel", 24},  {"housing", 42}};
   for (const auto& [name, count] : faces) {
     SCOPED_TRACE(name);
     const auto part = read_part(sample(name + ".step"));
@@ -118,7 +120,7 @@ TEST(PartReader, FaceAndEdgeIndicesFollowTopExpMapShapes) {
   }
 }
 
-TEST_F(TempFiles, ReadsBrepFilesAndStrings) {
+TEST_F(PartReaderFiles, ReadsBrepFilesAndStrings) {
   const auto from_file = read_part(write_brep("box.brep", box()));
   EXPECT_EQ(from_file->face_count(), 6);
   // The format comes from the content: a BREP under another extension reads too.
@@ -129,7 +131,7 @@ TEST_F(TempFiles, ReadsBrepFilesAndStrings) {
   EXPECT_NEAR(part_info(*from_string).volume, 6000, 1e-9);
 }
 
-TEST_F(TempFiles, ChoosesOneOfSeveralSolids) {
+TEST_F(PartReaderFiles, ChoosesOneOfSeveralSolids) {
   TopoDS_Compound two;
   BRep_Builder b;
   b.MakeCompound(two);
@@ -163,7 +165,7 @@ TEST(PartReader, ChoosesAStepSolidByName) {
   expect_error([&] { read_part(path, by_name); }, {"no solid named 'middle_block'", "1 'right_block'"});
 }
 
-TEST_F(TempFiles, RejectsMissingEmptyAndForeignFiles) {
+TEST_F(PartReaderFiles, RejectsMissingEmptyAndForeignFiles) {
   expect_error([&] { read_part((dir_ / "nope.step").string()); }, {"not found", "nope.step"});
   expect_error([&] { read_part(dir_.string()); }, {"is a directory"});
   expect_error([&] { read_part(write("empty.step", "")); }, {"empty.step", "is empty"});
@@ -174,21 +176,26 @@ TEST_F(TempFiles, RejectsMissingEmptyAndForeignFiles) {
                {"fake.step", "neither STEP", "although its extension is .step"});
   expect_error([&] { read_part(write("broken.step", "ISO-10303-21;\nHEADER;\nthis is not step\n")); },
                {"broken.step"});
-  expect_error([&] { read_part(write("broken.brep", "DBRep_DrawableShape\n\nCASCADE Topology V1\nLocations 3\n")); },
-               {"broken.brep"});
+  expect_error(
+      [&] { read_part(write("broken.brep", "DBRep_DrawableShape\n\nCASCADE Topology V1\nLocations 3\n")); },
+      {"broken.brep"});
   expect_error([&] { read_part_from_brep_string(""); }, {"BRep string is empty"});
   expect_error([&] { read_part_from_brep_string("ISO-10303-21;"); }, {"not BREP text"});
 }
 
-TEST_F(TempFiles, RejectsAShapeWithoutSolid) {
+TEST_F(PartReaderFiles, RejectsAShapeWithoutSolid) {
   TopExp_Explorer face(box(), TopAbs_FACE);
   expect_error([&] { read_part(write_brep("face.brep", face.Current())); },
                {"face.brep", "no solid", "open shell", "4 edge(s) bound only one face"});
   TopExp_Explorer shell(box(), TopAbs_SHELL);
   expect_error([&] { read_part_from_brep_string(to_brep_string(shell.Current())); },
                {"no solid", "closed shell of 6 faces"});
-  expect_error([&] { read_part_from_brep_string(to_brep_string(BRepBuilderAPI_MakeEdge(gp_Pnt(0, 0, 0), gp_Pnt(1, 0, 0)).Shape())); },
-               {"no solid", "no faces"});
+  expect_error(
+      [&] {
+        read_part_from_brep_string(
+            to_brep_string(BRepBuilderAPI_MakeEdge(gp_Pnt(0, 0, 0), gp_Pnt(1, 0, 0)).Shape()));
+      },
+      {"no solid", "no faces"});
 }
 
 // A solid with one shell made of `faces`.
@@ -223,7 +230,8 @@ TEST(PartReader, RejectsOpenNonManifoldAndInvalidSolids) {
   TopExp::Vertices(edge, v0, v1);
   const gp_Pnt p0 = BRep_Tool::Pnt(v0), p1 = BRep_Tool::Pnt(v1);
   const gp_Vec out = gp_Vec(-1, -1, 0) * 5;  // away from the box at its x = 0 face
-  const TopoDS_Vertex w0 = BRepBuilderAPI_MakeVertex(p0.Translated(out)), w1 = BRepBuilderAPI_MakeVertex(p1.Translated(out));
+  const TopoDS_Vertex w0 = BRepBuilderAPI_MakeVertex(p0.Translated(out)),
+                      w1 = BRepBuilderAPI_MakeVertex(p1.Translated(out));
   BRepBuilderAPI_MakeWire wire(edge, BRepBuilderAPI_MakeEdge(v1, w1), BRepBuilderAPI_MakeEdge(w1, w0),
                                BRepBuilderAPI_MakeEdge(w0, v0));
   faces.push_back(BRepBuilderAPI_MakeFace(wire.Wire(), true).Face());
@@ -233,7 +241,8 @@ TEST(PartReader, RejectsOpenNonManifoldAndInvalidSolids) {
   // Closed and manifold, but one face turned inside out.
   faces = box_faces();
   faces[2].Reverse();
-  expect_error([&] { make_part(solid_of(faces), "flipped.brep"); }, {"flipped.brep", "invalid shape", "BRepCheck"});
+  expect_error([&] { make_part(solid_of(faces), "flipped.brep"); },
+               {"flipped.brep", "invalid shape", "BRepCheck"});
 }
 
 }  // namespace

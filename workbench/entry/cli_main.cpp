@@ -9,6 +9,7 @@
 #include "common/error.h"
 #include "occt_version.h"
 #include "part_json.h"
+#include "integrate_json.h"
 #include "strip_json.h"
 
 namespace {
@@ -64,6 +65,20 @@ int main(int argc, char** argv) {
   inspect->add_option("--solid", inspect_options.read.solid_index, "Index of the solid when the file holds several");
   inspect->add_option("--solid-name", inspect_options.read.solid_name, "Name of the solid (STEP product) to inspect");
   inspect->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* integrate = app.add_subcommand(
+      "integrate", "Volume, centre of mass and inertia of a part by cut-cell quadrature on a grid, beside OCCT's (JSON)");
+  parafab::entry::IntegrateOptions integrate_options;
+  std::string segments = "parabolic";
+  integrate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
+  integrate->add_option("--cells", integrate_options.integration.grid.cells_longest,
+                        "Cells along the longest side of the bounding box")->check(CLI::PositiveNumber);
+  integrate->add_option("--cell-size", integrate_options.integration.grid.cell_size,
+                        "Cell size in model units (overrides --cells)")->check(CLI::NonNegativeNumber);
+  integrate->add_option("--segments", segments, "Boundary curve segments: parabolic or linear")
+      ->check(CLI::IsMember({"parabolic", "linear"}));
+  integrate->add_option("--solid", integrate_options.read.solid_index, "Index of the solid when the file holds several");
+  integrate->add_flag("--non-negative", "Non-negative weights (NNLS fit) for the cut-cell rules");
+  integrate->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -76,6 +91,12 @@ int main(int argc, char** argv) {
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
     if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
+    if (*integrate) {
+      integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;
+      if (integrate->count("--non-negative"))
+        integrate_options.integration.rule.fit = parafab::xfem::WeightFit::NonNegative;
+      return emit(parafab::entry::integrate_part_json(in_path, integrate_options), out_path);
+    }
   } catch (const parafab::Error& e) {
     return fail(e.what(), "invalid_input", 2);
   } catch (const std::exception& e) {

@@ -16,11 +16,14 @@ json parameters(const occ::Primitive& p) {
   switch (p.type) {
     case T::plane: return {{"p", vec(p.location)}, {"n", vec(p.axis)}, {"x", vec(p.x_direction)}};
     case T::cylinder:
-    case T::sphere: return {{"c", vec(p.location)}, {"d", vec(p.axis)}, {"x", vec(p.x_direction)}, {"r", p.radius}};
     case T::cone:
-      return {{"c", vec(p.location)}, {"d", vec(p.axis)}, {"x", vec(p.x_direction)}, {"r", p.radius}, {"a", p.semi_angle}};
-    case T::torus:
-      return {{"c", vec(p.location)}, {"d", vec(p.axis)}, {"x", vec(p.x_direction)}, {"R", p.major_radius}, {"r", p.radius}};
+    case T::sphere:
+    case T::torus: {
+      json j = {{"c", vec(p.location)}, {"d", vec(p.axis)}, {"x", vec(p.x_direction)}, {"r", p.radius}};
+      if (p.type == T::cone) j["a"] = p.semi_angle;
+      if (p.type == T::torus) j["R"] = p.major_radius;
+      return j;
+    }
     case T::revolution: return {{"c", vec(p.location)}, {"d", vec(p.axis)}};
     case T::extrusion: return {{"d", vec(p.axis)}};
     case T::offset: return {{"offset", p.offset}};
@@ -31,8 +34,11 @@ json parameters(const occ::Primitive& p) {
 json nurbs(const occ::NurbsSurface& s) {
   json poles = json::array();
   for (const auto& q : s.poles) poles.push_back({q[0], q[1], q[2], q[3]});
-  return {{"degree", {s.degree_u, s.degree_v}}, {"count", {s.count_u, s.count_v}}, {"knots_u", s.knots_u},
-          {"knots_v", s.knots_v}, {"poles", poles}};
+  return {{"degree", {s.degree_u, s.degree_v}},
+          {"count", {s.count_u, s.count_v}},
+          {"knots_u", s.knots_u},
+          {"knots_v", s.knots_v},
+          {"poles", poles}};
 }
 
 json face(const occ::FaceInfo& f) {
@@ -42,9 +48,10 @@ json face(const occ::FaceInfo& f) {
     for (const auto& p : l.uv) uv.push_back({p.x(), p.y()});
     loops.push_back({{"outer", l.outer}, {"edges", l.edges}, {"uv", uv}});
   }
-  return {{"index", f.index}, {"type", occ::to_string(f.primitive.type)}, {"reversed", f.reversed},
-          {"area", f.area}, {"uv_bounds", f.uv_bounds}, {"parameters", parameters(f.primitive)},
-          {"nurbs", nurbs(f.nurbs)}, {"loops", loops}};
+  return {{"index", f.index},         {"type", occ::to_string(f.primitive.type)},
+          {"reversed", f.reversed},   {"area", f.area},
+          {"uv_bounds", f.uv_bounds}, {"parameters", parameters(f.primitive)},
+          {"nurbs", nurbs(f.nurbs)},  {"loops", loops}};
 }
 
 }  // namespace
@@ -56,13 +63,18 @@ json inspect_part_json(const std::string& path, const InspectOptions& options) {
   json faces = json::array(), edges = json::array(), relations = json::array();
   for (const auto& f : model.faces) faces.push_back(face(f));
   for (const auto& e : model.edges)
-    edges.push_back({{"index", e.index}, {"faces", e.faces}, {"seam", e.seam}, {"degenerated", e.degenerated},
-                     {"continuity", e.continuity}, {"max_angle_deg", e.max_angle_deg}, {"tangent", e.tangent}});
+    edges.push_back({{"index", e.index},
+                     {"faces", e.faces},
+                     {"seam", e.seam},
+                     {"degenerated", e.degenerated},
+                     {"continuity", e.continuity},
+                     {"max_angle_deg", e.max_angle_deg},
+                     {"tangent", e.tangent}});
   for (const auto& r : model.relations) {
     json samples = json::array();
     for (const auto& s : r.samples) samples.push_back({{s[0].x(), s[0].y()}, {s[1].x(), s[1].y()}});
-    json j = {{"kind", r.kind}, {"faces", r.faces}, {"edges", r.edges}, {"sign", r.sign},
-              {"equations", r.equations}, {"residuals", r.residuals}};
+    json j = {{"kind", r.kind}, {"faces", r.faces},         {"edges", r.edges},
+              {"sign", r.sign}, {"equations", r.equations}, {"residuals", r.residuals}};
     if (!samples.empty()) j["samples"] = samples;
     relations.push_back(j);
   }

@@ -1,0 +1,58 @@
+#include "integrate_json.h"
+
+#include "common/error.h"
+
+namespace parafab::entry {
+
+using nlohmann::json;
+
+namespace {
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+json properties(const xfem::MassProperties& p) {
+  json I = json::array();
+  for (int i = 0; i < 3; ++i) I.push_back(json::array({p.inertia(i, 0), p.inertia(i, 1), p.inertia(i, 2)}));
+  return {{"volume", p.volume}, {"center", vec(p.center)}, {"inertia", I}};
+}
+}  // namespace
+
+json integrate_part_json(const std::string& path, const IntegrateOptions& options) {
+  const auto part = occ::read_part(path, options.read);
+  const occ::PartInfo info = occ::part_info(*part);
+  const occ::IntegrationResult r = occ::integrate_part(*part, options.integration);
+  if (!r.done) PARAFAB_INPUT_ERROR("cannot cut " << path << " by the grid: " << r.message);
+  const occ::GridCut& g = r.cut;
+  json out;
+  out["part"] = {{"source", info.source}, {"name", info.name}, {"faces", info.face_count},
+                 {"bbox", {vec(info.bbox_min), vec(info.bbox_max)}}};
+  out["grid"] = {{"cells", g.cells},
+                 {"cell_size", g.cell_size.x()},
+                 {"box", {vec(g.grid.min), vec(g.grid.max)}},
+                 {"shifted_planes", g.shifted_planes},
+                 {"cut_cells", g.cut_cells.size()},
+                 {"subvolumes", g.subvolumes.size()},
+                 {"interior_cells", g.interior_cells.size()},
+                 {"connections", g.connections.size()},
+                 {"patches", g.patches},
+                 {"curve_segments", g.segments},
+                 {"segment_order", options.integration.grid.segment_order}};
+  out["rules"] = properties(r.by_rules);
+  if (options.integration.occt_reference) {
+    out["occt"] = properties(r.by_occt);
+    out["relative_errors"] = {{"volume", r.errors.volume},
+                              {"center", r.errors.center},
+                              {"inertia", r.errors.inertia},
+                              {"note", "center error relative to the grid diagonal"}};
+  }
+  out["diagnostics"] = {{"rule_points", r.rule_points},
+                        {"rules_not_ok", r.rules_not_ok},
+                        {"max_moment_residual", r.max_moment_residual},
+                        {"max_closure_defect", r.max_closure_defect}};
+  out["seconds"] = {{"cut", r.cut_seconds},
+                    {"split", g.split_seconds},
+                    {"extract", g.extract_seconds},
+                    {"rules", r.rule_seconds},
+                    {"occt", r.occt_seconds}};
+  return out;
+}
+
+}  // namespace parafab::entry
