@@ -155,7 +155,7 @@ std::vector<double> grid_planes(double lo, double h, int n, const std::vector<do
   std::vector<double> planes;
   for (int k = 1; k < n; ++k) {
     double x = lo + k * h;
-    for (int attempt = 0; attempt < 16; ++attempt) {
+    for (int attempt = 0; attempt < 16 && shift > 0; ++attempt) {
       const bool clash = std::any_of(avoid.begin(), avoid.end(),
                                      [&](double a) { return std::abs(a - x) <= shift * h; });
       if (!clash) break;

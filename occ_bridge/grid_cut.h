@@ -25,6 +25,7 @@ struct GridOptions {
   /// Grid planes within this distance (× cell size) of a vertex, or of a face's extreme
   /// coordinate (tangent or coincident face), are shifted deterministically by the same
   /// amount until clear (the thesis perturbs grid planes to avoid these corner cases).
+  /// 0 turns the shift off (planes may then pass through vertices or along faces).
   double perturbation = 1e-4;
   /// Boundary loops: parabolic (2) or linear (1) segments, refined until the deviation from
   /// the exact pcurve is below `segment_tolerance` × the face's uv extent.

@@ -4,6 +4,8 @@
 
 #include "common/error.h"
 #include "occt_version.h"
+#include "integrate_json.h"
+#include "part_json.h"
 #include "strip_json.h"
 
 namespace py = pybind11;
@@ -43,6 +45,40 @@ PYBIND11_MODULE(parafab, m) {
       "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
       "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
       "min_width, tolerance.");
+  m.def(
+      "inspect_part",
+      [](const std::string& path, int solid) {
+        parafab::entry::InspectOptions o;
+        o.read.solid_index = solid;
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::inspect_part_json(path, o);
+        }
+        return to_python(out);
+      },
+      py::arg("path"), py::arg("solid") = -1,
+      "Face model of a STEP/BREP part (same JSON as `parafab inspect`).");
+  m.def(
+      "integrate_part",
+      [](const std::string& path, int cells, double cell_size, const std::string& segments, int solid) {
+        parafab::entry::IntegrateOptions o;
+        o.read.solid_index = solid;
+        o.integration.grid.cells_longest = cells;
+        o.integration.grid.cell_size = cell_size;
+        if (segments != "parabolic" && segments != "linear")
+          throw parafab::Error("segments must be \"parabolic\" or \"linear\", got \"" + segments + "\"");
+        o.integration.grid.segment_order = segments == "linear" ? 1 : 2;
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::integrate_part_json(path, o);
+        }
+        return to_python(out);
+      },
+      py::arg("path"), py::arg("cells") = 8, py::arg("cell_size") = 0.0, py::arg("segments") = "parabolic",
+      py::arg("solid") = -1,
+      "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`).");
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
   m.attr("__version__") = "0.1.0";
 }
