@@ -25,4 +25,15 @@ PARAFAB_RESULTS="$out/strips" PARAFAB_DOCUMENT="$out/strips.FCStd" \
   >"$out/freecad.log" 2>&1 || { cat "$out/freecad.log"; exit 1; }
 grep -E '^strip |^wrote' "$out/freecad.log" || true
 test -s "$out/strips.FCStd"
-echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd"
+echo "== parts: parafab inspect + integrate on samples/parts/*.step (cut-cell quadrature vs OCCT)"
+mkdir -p "$out/parts"
+rm -f "$out"/parts/*.json
+for f in "$repo"/samples/parts/*.step; do
+  name=$(basename "$f" .step)
+  [ "$name" = two_blocks ] && continue  # holds two solids on purpose (tests of --solid)
+  "$build/workbench/entry/parafab" inspect "$f" -o "$out/parts/$name.inspect.json"
+  "$build/workbench/entry/parafab" integrate "$f" --cells 8 -o "$out/parts/$name.integrate.json"
+  /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); e=d['relative_errors']; g=d['grid']; s=d['seconds']
+print('part %-11s %3d cut cells %4d subvolumes  errors V %.1e c %.1e I %.1e  cut %.2f s rules %.2f s' % (sys.argv[2], g['cut_cells'], g['subvolumes'], e['volume'], e['center'], e['inertia'], s['cut'], s['rules']))" "$out/parts/$name.integrate.json" "$name"
+done
+echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd, parts/*.inspect.json, parts/*.integrate.json"

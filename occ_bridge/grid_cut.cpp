@@ -10,6 +10,7 @@
 #include <Geom2d_Curve.hxx>
 #include <Geom2d_Line.hxx>
 #include <Geom_Curve.hxx>
+#include <Geom_Line.hxx>
 #include <Geom_Surface.hxx>
 #include <Message_Report.hxx>
 #include <TopExp.hxx>
@@ -84,28 +85,27 @@ Vec2 eval2(const Handle(Geom2d_Curve)& c, double t) {
   return Vec2(p.X(), p.Y());
 }
 
-// Appends the pcurve from t0 to t1 (t1 < t0 for a reversed edge) as `order` polynomial
-// segments (without the first point, which the loop already holds), refined by doubling
-// until the interpolant deviates less than `tol` from the curve at interior test points.
-int append_pcurve(const Handle(Geom2d_Curve)& c, double t0, double t1, const GridOptions& o,
-                  double tol, std::vector<Vec2>& out) {
-  const bool straight = c->DynamicType() == STANDARD_TYPE(Geom2d_Line);
+// Appends the curve `at(t)` from t0 to t1 (t1 < t0 for a reversed edge) as `order`
+// polynomial segments (without the first point, which the caller already holds), refined by
+// doubling until the interpolant deviates less than `tol` from the curve at interior test
+// points. Returns the number of segments.
+template <class Vec, class Eval>
+int append_curve(const Eval& at, double t0, double t1, bool straight, const GridOptions& o,
+                 double tol, std::vector<Vec>& out) {
   int n = 1;
   const int order = o.segment_order;
-  auto point_at = [&](int k, int n_seg, double frac) {
-    return eval2(c, t0 + (t1 - t0) * (k + frac) / n_seg);
-  };
+  auto point_at = [&](int k, int n_seg, double frac) { return at(t0 + (t1 - t0) * (k + frac) / n_seg); };
   while (!straight && n < o.max_segments_per_edge) {
     double err = 0;
     for (int k = 0; k < n && err <= tol; ++k) {
-      const Vec2 p0 = point_at(k, n, 0), p1 = point_at(k, n, 1);
+      const Vec p0 = point_at(k, n, 0), p1 = point_at(k, n, 1);
       if (order == 1) {
         for (double f : {0.25, 0.5, 0.75})
           err = std::max(err, (point_at(k, n, f) - ((1 - f) * p0 + f * p1)).norm());
       } else {
-        const Vec2 pm = point_at(k, n, 0.5);
+        const Vec pm = point_at(k, n, 0.5);
         for (double f : {0.25, 0.75}) {  // Lagrange parabola through t = 0, 1/2, 1
-          const Vec2 q = 2 * (f - 0.5) * (f - 1) * p0 - 4 * f * (f - 1) * pm + 2 * f * (f - 0.5) * p1;
+          const Vec q = 2 * (f - 0.5) * (f - 1) * p0 - 4 * f * (f - 1) * pm + 2 * f * (f - 0.5) * p1;
           err = std::max(err, (point_at(k, n, f) - q).norm());
         }
       }
@@ -118,6 +118,12 @@ int append_pcurve(const Handle(Geom2d_Curve)& c, double t0, double t1, const Gri
     out.push_back(point_at(k, n, 1.0));
   }
   return n;
+}
+
+int append_pcurve(const Handle(Geom2d_Curve)& c, double t0, double t1, const GridOptions& o,
+                  double tol, std::vector<Vec2>& out) {
+  const bool straight = c->DynamicType() == STANDARD_TYPE(Geom2d_Line);
+  return append_curve<Vec2>([&](double t) { return eval2(c, t); }, t0, t1, straight, o, tol, out);
 }
 
 // Boundary loops of a face in its surface's natural (u, v), material on the left.
@@ -312,6 +318,31 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
       g.interior_cells.push_back(ijk);
       solid_id.Bind(solid, -1 - static_cast<int>(g.interior_cells.size() - 1));
       continue;
+    }
+    // Intersection curves of this subvolume: B-rep face ∩ grid plane, and B-rep face ∩ B-rep face.
+    TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
+    TopExp::MapShapesAndAncestors(solid, TopAbs_EDGE, TopAbs_FACE, edge_faces);
+    for (int e = 1; e <= edge_faces.Extent(); ++e) {
+      const TopoDS_Edge& edge = TopoDS::Edge(edge_faces.FindKey(e));
+      const TopTools_ListOfShape& faces = edge_faces(e);
+      if (faces.Extent() != 2 || BRep_Tool::Degenerated(edge) || faces.First().IsSame(faces.Last())) continue;
+      int sa = -1, sb = -1;
+      source.Find(faces.First(), sa);
+      source.Find(faces.Last(), sb);
+      if (sa < 0 && sb < 0) continue;  // a straight cell edge
+      double f, l;
+      Handle(Geom_Curve) c = BRep_Tool::Curve(edge, f, l);
+      if (c.IsNull()) continue;
+      CutCurve curve;
+      curve.subvolume = static_cast<int>(g.subvolumes.size());
+      curve.kind = (sa >= 0 && sb >= 0) ? CutCurve::FaceFace : CutCurve::FacePlane;
+      curve.sources = {sa, sb};
+      curve.order = o.segment_order;
+      curve.points.push_back(Vec3(c->Value(f).X(), c->Value(f).Y(), c->Value(f).Z()));
+      append_curve<Vec3>([&](double t) { const gp_Pnt p = c->Value(t); return Vec3(p.X(), p.Y(), p.Z()); },
+                         f, l, c->DynamicType() == STANDARD_TYPE(Geom_Line), o,
+                         o.segment_tolerance * h, curve.points);
+      g.curves.push_back(std::move(curve));
     }
     auto [it, fresh] = cut_cell_of.try_emplace(ijk, static_cast<int>(g.cut_cells.size()));
     if (fresh) g.cut_cells.push_back({ijk, {}});

@@ -41,6 +41,17 @@ struct CutCell {
   std::vector<int> subvolumes;  ///< indices into GridCut::subvolumes
 };
 
+/// An intersection curve inside a cut cell (an edge of a subvolume's boundary that is not a
+/// straight cell edge), sampled as polynomial segments like the boundary loops, in 3D.
+struct CutCurve {
+  enum Kind { FacePlane, FaceFace } kind = FacePlane;
+  int subvolume = -1;
+  /// The two faces meeting along it: B-rep face index ≥ 0, or −1 − axis for a grid plane.
+  std::array<int, 2> sources{-1, -1};
+  int order = 2;                  ///< segment order, as BoundaryLoop::order
+  std::vector<xfem::Vec3> points;
+};
+
 struct GridCut {
   bool done = false;
   std::string message;                     ///< why not done
@@ -54,6 +65,7 @@ struct GridCut {
   std::vector<xfem::Subvolume> subvolumes;        ///< of cut cells only
   std::vector<std::array<int, 2>> connections;    ///< subvolume pairs sharing a grid face
   std::vector<std::array<int, 2>> interior_connections;  ///< (subvolume, interior cell) pairs
+  std::vector<CutCurve> curves;                   ///< intersection curves of the subvolumes
   int patches = 0, segments = 0;
   double split_seconds = 0, extract_seconds = 0;
 

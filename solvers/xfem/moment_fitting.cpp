@@ -28,6 +28,36 @@ void legendre_basis(double x, int n, double* values, double* integrals) {
   }
 }
 
+void legendre_basis_rows(const double* x, int count, int stride, int n, double* values,
+                         double* integrals, double* work) {
+  if (n <= 0) return;
+  double* y = work;            // 2x − 1
+  double* pm = work + stride;  // P_{k−1}
+  double* p = pm + stride;     // P_k
+  for (int j = 0; j < count; ++j) {
+    y[j] = 2 * x[j] - 1;
+    values[j] = 1;
+    integrals[j] = x[j];
+    pm[j] = 1;
+    p[j] = y[j];
+  }
+  // The recurrence of legendre_basis, row by row (divisions as products: equal up to round-off).
+  for (int k = 1; k < n; ++k) {
+    const double a = 2 * k + 1, b = k, inv_c = 1.0 / (k + 1);
+    const double s = std::sqrt(2.0 * k + 1), inv_s2 = 1 / (2 * s);
+    double* v = values + static_cast<size_t>(k) * stride;
+    double* in = integrals + static_cast<size_t>(k) * stride;
+    for (int j = 0; j < count; ++j) {
+      const double pk = p[j], pk1 = pm[j];
+      const double pp = (a * y[j] * pk - b * pk1) * inv_c;
+      v[j] = s * pk;
+      in[j] = (pp - pk1) * inv_s2;
+      pm[j] = pk;
+      p[j] = pp;
+    }
+  }
+}
+
 namespace {
 
 FittingSystem build_system(int dimension, int degree, int q) {

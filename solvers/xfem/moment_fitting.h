@@ -19,6 +19,11 @@ namespace parafab::xfem {
 /// Normalized shifted Legendre polynomials L_k(x) = √(2k+1) P_k(2x − 1) (∫₀¹ L_j L_k = δ_jk)
 /// and antiderivatives I_k(x) = ∫₀ˣ L_k, written to values[0..n) and integrals[0..n).
 void legendre_basis(double x, int n, double* values, double* integrals);
+/// legendre_basis at the points x[0..count) at once (the same values, vectorizable): row k < n
+/// of `values` / `integrals`, starting at k·stride, receives L_k / I_k at the points.
+/// `work` holds 3·stride doubles; stride ≥ count.
+void legendre_basis_rows(const double* x, int count, int stride, int n, double* values,
+                         double* integrals, double* work);
 
 enum class WeightFit {
   MinimalNorm,  ///< w = Aᵀ(AAᵀ)⁻¹ b (thesis Eq. 6.11): exact moments, weights of either sign

@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -70,25 +71,59 @@ VolumeRule volume_rule(const Subvolume& sv, const VolumeRuleOptions& o) {
   const int nl = o.degree + 1;
   const double third = 1.0 / 3;
   const Vec3 area_scale(1 / (S.y() * S.z()), 1 / (S.x() * S.z()), 1 / (S.x() * S.y()));
+  // Basis i = (a, b, c): the flux integrand at point j is
+  //   ⅓(I_a L_b L_c dA_x + L_a I_b L_c dA_y + L_a L_b I_c dA_z)
+  //   = ⅓(U_ab L_c + V_ab I_c dA_z),  U_ab = I_a dA_x L_b + L_a I_b dA_y,  V_ab = L_a L_b,
+  // evaluated for all points at once (rows of length n), surfaces evaluated once per point.
+  std::vector<int> pair_of(m);  // index of (a, b) among the pairs of the basis
+  std::vector<std::array<int, 2>> pairs;
+  for (int i = 0; i < m; ++i) {
+    const auto& e = system.exponents[i];
+    auto it = std::find(pairs.begin(), pairs.end(), std::array<int, 2>{e[0], e[1]});
+    pair_of[i] = static_cast<int>(it - pairs.begin());
+    if (it == pairs.end()) pairs.push_back({e[0], e[1]});
+  }
+  const int np = static_cast<int>(pairs.size());
   auto flux = [&](const CutPatch& patch) -> UvIntegral {
     return [&, surface = patch.surface.get(),
             sign = static_cast<double>(patch.orientation)](const QuadratureRule2& q) {
       Eigen::VectorXd v = Eigen::VectorXd::Zero(m + 3);
-      Eigen::MatrixXd L(nl, 3), I(nl, 3);
+      const int n = static_cast<int>(q.points.size());
+      if (n == 0) return v;
+      using Rows = Eigen::Array<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+      thread_local Rows xi, dA, L, I, U, V;
+      thread_local std::vector<double> work;
+      xi.resize(3, n);
+      dA.resize(3, n);
+      L.resize(3 * nl, n);
+      I.resize(3 * nl, n);
+      U.resize(np, n);
+      V.resize(np, n);
+      work.resize(3 * static_cast<size_t>(n));
       Vec3 Y, Yu, Yv;
-      for (size_t j = 0; j < q.points.size(); ++j) {
+      for (int j = 0; j < n; ++j) {
         surface->evaluate(q.points[j].x(), q.points[j].y(), Y, Yu, Yv);
-        const Vec3 dA = (sign * q.weights[j]) * Yu.cross(Yv).cwiseProduct(area_scale);
-        const Vec3 xi = (Y - r.box.min).cwiseQuotient(S);
-        for (int d = 0; d < 3; ++d) legendre_basis(xi[d], nl, &L(0, d), &I(0, d));
-        for (int i = 0; i < m; ++i) {
-          const auto& e = system.exponents[i];
-          const double lx = L(e[0], 0), ly = L(e[1], 1), lz = L(e[2], 2);
-          v[i] += third * (I(e[0], 0) * ly * lz * dA.x() + lx * I(e[1], 1) * lz * dA.y() +
-                           lx * ly * I(e[2], 2) * dA.z());
+        const Vec3 a = (sign * q.weights[j]) * Yu.cross(Yv).cwiseProduct(area_scale);
+        const Vec3 x = (Y - r.box.min).cwiseQuotient(S);
+        for (int d = 0; d < 3; ++d) {
+          dA(d, j) = a[d];
+          xi(d, j) = x[d];
         }
-        v.tail<3>() += dA;
       }
+      for (int d = 0; d < 3; ++d) {
+        legendre_basis_rows(&xi(d, 0), n, n, nl, &L(d * nl, 0), &I(d * nl, 0), work.data());
+        I.middleRows(d * nl, nl).rowwise() *= dA.row(d);  // I_k dA_d
+      }
+      for (int k = 0; k < np; ++k) {
+        const int a = pairs[k][0], b = pairs[k][1];
+        U.row(k) = I.row(a) * L.row(nl + b) + L.row(a) * I.row(nl + b);
+        V.row(k) = L.row(a) * L.row(nl + b);
+      }
+      for (int i = 0; i < m; ++i) {
+        const int k = pair_of[i], c = system.exponents[i][2];
+        v[i] = third * (U.row(k) * L.row(2 * nl + c) + V.row(k) * I.row(2 * nl + c)).sum();
+      }
+      v.tail<3>() = dA.rowwise().sum().matrix();
       return v;
     };
   };

@@ -36,6 +36,38 @@ TEST(PartIntegration, FilletedBracketMatchesOcct) { expect_matches_occt("l_brack
 TEST(PartIntegration, RingMatchesOcct) { expect_matches_occt("ring.step", 6, 1e-7); }
 TEST(PartIntegration, HalfTorusMatchesOcct) { expect_matches_occt("half_torus.step", 6, 1e-7); }
 
+TEST(GridCut, IntersectionCurvesLieOnTheirPlanesInsideTheirCells) {
+  const auto part = read_part(sample("l_bracket.step"));
+  GridOptions o;
+  o.cells_longest = 5;
+  const GridCut g = cut_by_grid(*part, o);
+  ASSERT_TRUE(g.done) << g.message;
+  int face_plane = 0, face_face = 0;
+  for (const CutCurve& c : g.curves) {
+    const xfem::Box3& cell = g.subvolumes[c.subvolume].cell;
+    const double tol = 1e-7 * cell.size().maxCoeff();
+    for (const auto& p : c.points)
+      EXPECT_TRUE(((p - cell.min).array() >= -tol).all() && ((cell.max - p).array() >= -tol).all());
+    if (c.kind == CutCurve::FaceFace) {
+      ++face_face;
+      EXPECT_GE(c.sources[0], 0);
+      EXPECT_GE(c.sources[1], 0);
+      continue;
+    }
+    ++face_plane;
+    const int axis = -1 - std::min(c.sources[0], c.sources[1]);
+    ASSERT_GE(axis, 0);
+    ASSERT_LT(axis, 3);
+    for (const auto& p : c.points) {
+      double d = 1e300;
+      for (double x : g.planes[axis]) d = std::min(d, std::abs(p[axis] - x));
+      EXPECT_LT(d, 1e-9);
+    }
+  }
+  EXPECT_GT(face_plane, 0);
+  EXPECT_GT(face_face, 0);  // fillet–plane and plate edges inside cells
+}
+
 TEST(PartIntegration, EveryCutCellMatchesItsBoolean) {
   const auto part = read_part(sample("l_bracket.step"));
   IntegrationOptions o;
@@ -55,6 +87,11 @@ TEST(PartIntegration, EveryCutCellMatchesItsBoolean) {
     worst = std::max(worst, err);
   }
   std::printf("worst per-cell volume error / cell volume: %.2e over %zu cut cells\n", worst, r.cut.cut_cells.size());
+  // The per-cell Boolean route sums to the whole part too (cut cells + interior cells).
+  double total = 0;
+  for (const auto& cell : r.cut.cut_cells) total += occt_cell_properties(*part, r.cut.cell_box(cell.index)).properties.volume;
+  for (const auto& ijk : r.cut.interior_cells) total += r.cut.cell_box(ijk).volume();
+  EXPECT_NEAR(total, occt_mass_properties(*part).volume, 1e-9 * total);
   EXPECT_LT(worst, 1e-6);
 }
 

@@ -33,6 +33,7 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
                  {"interior_cells", g.interior_cells.size()},
                  {"connections", g.connections.size()},
                  {"patches", g.patches},
+                 {"curves", g.curves.size()},
                  {"curve_segments", g.segments},
                  {"segment_order", options.integration.grid.segment_order}};
   out["rules"] = properties(r.by_rules);
