@@ -3,6 +3,8 @@
 #include <BRepAlgoAPI_Splitter.hxx>
 #include <BRepBndLib.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_NurbsConvert.hxx>
+#include <Standard_Failure.hxx>
 #include <BRepTools.hxx>
 #include <BRepTools_WireExplorer.hxx>
 #include <BRep_Tool.hxx>
@@ -244,8 +246,22 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
 
   // Split the solid by all grid planes at once.
   const double big = 2.0 * (bb.max.cwiseAbs().maxCoeff() + bb.min.cwiseAbs().maxCoeff() + ext.norm());
+  // The solid that is cut, and its faces in face-model order.
+  TopoDS_Shape solid_to_cut = part.shape;
+  std::vector<TopoDS_Shape> faces_to_cut(part.face_count());
+  for (int i = 0; i < part.face_count(); ++i) faces_to_cut[i] = part.face(i);
+  if (o.nurbs) {
+    try {
+      BRepBuilderAPI_NurbsConvert convert(part.shape, true);
+      solid_to_cut = convert.Shape();
+      for (int i = 0; i < part.face_count(); ++i) faces_to_cut[i] = convert.ModifiedShape(part.face(i));
+    } catch (const Standard_Failure& e) {
+      g.message = std::string("conversion of the faces to NURBS failed: ") + e.GetMessageString();
+      return g;
+    }
+  }
   TopTools_ListOfShape args, tools;
-  args.Append(part.shape);
+  args.Append(solid_to_cut);
   std::vector<std::pair<TopoDS_Shape, int>> tool_faces;  // (face, axis)
   for (int a = 0; a < 3; ++a)
     for (double x : g.planes[a]) {
@@ -256,7 +272,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
       tools.Append(f);
       tool_faces.emplace_back(f, a);
     }
-  TopoDS_Shape pieces = part.shape;
+  TopoDS_Shape pieces = solid_to_cut;
   BRepAlgoAPI_Splitter splitter;
   if (!tools.IsEmpty()) {
     splitter.SetArguments(args);
@@ -277,12 +293,12 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
 
   // Where every face of the pieces came from: a B-rep face (index) or a grid plane (axis).
   TopTools_DataMapOfShapeInteger source;  // ≥ 0: B-rep face index; −1 − axis: grid plane
-  for (int i = 1; i <= part.faces.Extent(); ++i) {
-    const TopoDS_Shape& f = part.faces(i);
+  for (int i = 0; i < part.face_count(); ++i) {
+    const TopoDS_Shape& f = faces_to_cut[i];
     bool modified = false;
     if (!tools.IsEmpty())
-      for (const TopoDS_Shape& m : splitter.Modified(f)) source.Bind(m, i - 1), modified = true;
-    if (!modified) source.Bind(f, i - 1);
+      for (const TopoDS_Shape& m : splitter.Modified(f)) source.Bind(m, i), modified = true;
+    if (!modified) source.Bind(f, i);
   }
   for (const auto& [f, axis] : tool_faces)
     for (const TopoDS_Shape& m : splitter.Modified(f)) source.Bind(m, -1 - axis);

@@ -33,6 +33,10 @@ struct GridOptions {
   double segment_tolerance = 1e-8;
   int max_segments_per_edge = 4096;
   bool parallel = false;    ///< let OCCT's splitter use threads
+  /// Convert every face to NURBS (BRepBuilderAPI_NurbsConvert, as the face model does) before
+  /// cutting: patches of B-rep faces are then pieces of exactly the face model's NURBS, in
+  /// its (u, v), which shape derivatives with respect to control points need (§6.5.3).
+  bool nurbs = false;
 };
 
 /// One grid cell that the boundary cuts.

@@ -6,6 +6,8 @@
 
 #include "occt_mass_properties.h"
 #include "part_integration.h"
+#include "face_model.h"
+#include "nurbs_surface.h"
 #include "part_reader.h"
 
 namespace parafab::occ {
@@ -66,6 +68,37 @@ TEST(GridCut, IntersectionCurvesLieOnTheirPlanesInsideTheirCells) {
   }
   EXPECT_GT(face_plane, 0);
   EXPECT_GT(face_face, 0);  // fillet–plane and plate edges inside cells
+}
+
+TEST(GridCut, NurbsPatchesAreThePiecesOfTheFaceModelsNurbs) {
+  // With GridOptions::nurbs, every B-rep patch evaluates like its face-model NURBS at the same
+  // (u, v): the data later shape derivatives with respect to control points need.
+  const auto part = read_part(sample("l_bracket.step"));
+  const FaceModel model = build_face_model(*part);
+  IntegrationOptions o;
+  o.grid.cells_longest = 5;
+  o.grid.nurbs = true;
+  const IntegrationResult r = integrate_part(*part, o);
+  ASSERT_TRUE(r.done) << r.message;
+  // Rational reparameterized fillets make the area factor less smooth: ~1e-9 instead of 1e-12.
+  EXPECT_LT(r.errors.volume, 1e-8);
+  EXPECT_LT(r.errors.inertia, 1e-8);
+  int checked = 0;
+  for (const auto& sv : r.cut.subvolumes)
+    for (const auto& patch : sv.patches) {
+      if (patch.source_face < 0) continue;
+      for (const auto& loop : patch.loops)
+        for (size_t k = 0; k < loop.points.size(); k += 7) {
+          const xfem::Vec2 uv = loop.points[k];
+          xfem::Vec3 X, Xu, Xv, Y, Yu, Yv;
+          patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+          evaluate(model.faces[patch.source_face].nurbs, uv.x(), uv.y(), Y, Yu, Yv);
+          EXPECT_LT((X - Y).norm(), 1e-9 * 100);
+          EXPECT_LT((Xu - Yu).norm(), 1e-7 * (1 + Xu.norm()));
+          ++checked;
+        }
+    }
+  EXPECT_GT(checked, 100);
 }
 
 TEST(PartIntegration, EveryCutCellMatchesItsBoolean) {

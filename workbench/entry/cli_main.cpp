@@ -78,6 +78,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"parabolic", "linear"}));
   integrate->add_option("--solid", integrate_options.read.solid_index, "Index of the solid when the file holds several");
   integrate->add_flag("--non-negative", "Non-negative weights (NNLS fit) for the cut-cell rules");
+  integrate->add_flag("--nurbs", integrate_options.integration.grid.nurbs,
+                      "Convert faces to NURBS before cutting (patches then use the face model's NURBS)");
   integrate->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
