@@ -279,6 +279,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     splitter.SetTools(tools);
     splitter.SetRunParallel(o.parallel);
     splitter.SetNonDestructive(true);
+    splitter.SetUseOBB(true);  // oriented boxes prune more face pairs (l_bracket: −30 %)
     splitter.Build();
     if (splitter.HasErrors() || !splitter.IsDone()) {
       std::ostringstream os;
