@@ -1,0 +1,35 @@
+// The simulation grid of a part (thesis §6.4): grid cut, one element per uncut interior cell
+// (tensor Gauss rule) and per cut subvolume (moment-fitted rule), and which elements touch
+// through a grid face, ready for xfem::solve_linear.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "grid_cut.h"
+#include "xfem/linear_xfem.h"
+#include "xfem/volume_rules.h"
+
+namespace parafab::occ {
+
+struct PartShape;
+
+struct GridModelOptions {
+  GridOptions grid;
+  xfem::VolumeRuleOptions rule;
+  int interior_points = 2;  ///< Gauss points per direction in uncut cells (exact for hex8 stiffness)
+};
+
+struct GridModel {
+  bool done = false;
+  std::string message;
+  std::unique_ptr<GridCut> cut;             ///< owns the subvolumes the elements point to
+  std::vector<xfem::GridElement> elements;  ///< interior cells first, then cut subvolumes
+  std::vector<std::array<int, 2>> adjacent; ///< element pairs sharing a grid face
+  double cut_seconds = 0, rule_seconds = 0;
+};
+
+GridModel build_grid_model(const PartShape& part, const GridModelOptions& options = {});
+
+}  // namespace parafab::occ

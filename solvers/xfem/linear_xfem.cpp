@@ -1,0 +1,237 @@
+#include "xfem/linear_xfem.h"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseLU>
+#include <chrono>
+#include <numeric>
+
+#include "common/error.h"
+#include "xfem/area_rules.h"
+
+namespace parafab::xfem {
+
+namespace {
+
+using Mat24 = Eigen::Matrix<double, 24, 24>;
+using Vec24 = Eigen::Matrix<double, 24, 1>;
+using Mat6x24 = Eigen::Matrix<double, 6, 24>;
+using Mat3x24 = Eigen::Matrix<double, 3, 24>;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Trilinear shape functions on `box` at X: values N (8) and physical gradients G (8×3).
+void shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>& N, Eigen::Matrix<double, 8, 3>& G) {
+  const Vec3 h = box.size();
+  const Vec3 xi = (X - box.min).cwiseQuotient(h);
+  for (int k = 0; k < 8; ++k) {
+    const int bx = k & 1, by = (k >> 1) & 1, bz = (k >> 2) & 1;
+    const double fx = bx ? xi.x() : 1 - xi.x(), fy = by ? xi.y() : 1 - xi.y(), fz = bz ? xi.z() : 1 - xi.z();
+    const double sx = bx ? 1 : -1, sy = by ? 1 : -1, sz = bz ? 1 : -1;
+    N(k) = fx * fy * fz;
+    G(k, 0) = sx * fy * fz / h.x();
+    G(k, 1) = fx * sy * fz / h.y();
+    G(k, 2) = fx * fy * sz / h.z();
+  }
+}
+
+// Strain–displacement matrix, Voigt order (xx, yy, zz, xy, yz, xz) with engineering shears.
+Mat6x24 strain_matrix(const Eigen::Matrix<double, 8, 3>& G) {
+  Mat6x24 B = Mat6x24::Zero();
+  for (int k = 0; k < 8; ++k) {
+    const int c = 3 * k;
+    B(0, c) = G(k, 0);
+    B(1, c + 1) = G(k, 1);
+    B(2, c + 2) = G(k, 2);
+    B(3, c) = G(k, 1), B(3, c + 1) = G(k, 0);
+    B(4, c + 1) = G(k, 2), B(4, c + 2) = G(k, 1);
+    B(5, c) = G(k, 2), B(5, c + 2) = G(k, 0);
+  }
+  return B;
+}
+
+Mat3x24 value_matrix(const Eigen::Matrix<double, 8, 1>& N) {
+  Mat3x24 M = Mat3x24::Zero();
+  for (int k = 0; k < 8; ++k)
+    for (int d = 0; d < 3; ++d) M(d, 3 * k + d) = N(k);
+  return M;
+}
+
+Eigen::Matrix<double, 6, 6> elasticity(const ElasticMaterial& m) {
+  const double E = m.youngs_modulus, nu = m.poisson_ratio;
+  const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+  Eigen::Matrix<double, 6, 6> D = Eigen::Matrix<double, 6, 6>::Zero();
+  D.topLeftCorner<3, 3>().setConstant(lambda);
+  D.topLeftCorner<3, 3>().diagonal().array() += 2 * mu;
+  D.bottomRightCorner<3, 3>().diagonal().setConstant(mu);
+  return D;
+}
+
+// Traction operator: t = P(n) σ_voigt.
+Eigen::Matrix<double, 3, 6> traction_operator(const Vec3& n) {
+  Eigen::Matrix<double, 3, 6> P;
+  P << n.x(), 0, 0, n.y(), 0, n.z(),
+       0, n.y(), 0, n.x(), n.z(), 0,
+       0, 0, n.z(), 0, n.y(), n.x();
+  return P;
+}
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int find(int a) { return parent[a] == a ? a : parent[a] = find(parent[a]); }
+  void unite(int a, int b) { parent[find(a)] = find(b); }
+};
+
+}  // namespace
+
+Vec3 corner(const Box3& box, int k) {
+  return Vec3((k & 1) ? box.max.x() : box.min.x(), (k & 2) ? box.max.y() : box.min.y(),
+              (k & 4) ? box.max.z() : box.min.z());
+}
+
+std::vector<std::array<int, 8>> number_dof_nodes(const std::vector<GridElement>& elements,
+                                                 const std::vector<std::array<int, 2>>& adjacent,
+                                                 int& count) {
+  const int n = static_cast<int>(elements.size());
+  UnionFind uf(8 * n);
+  auto grid_node = [&](int e, int k) {
+    const auto& c = elements[e].cell;
+    return std::array<int, 3>{c[0] + (k & 1), c[1] + ((k >> 1) & 1), c[2] + ((k >> 2) & 1)};
+  };
+  for (const auto& [a, b] : adjacent) {
+    PARAFAB_VERIFY(a >= 0 && a < n && b >= 0 && b < n, "element pair (" << a << ", " << b << ") out of range");
+    for (int ka = 0; ka < 8; ++ka)
+      for (int kb = 0; kb < 8; ++kb)
+        if (grid_node(a, ka) == grid_node(b, kb)) uf.unite(8 * a + ka, 8 * b + kb);
+  }
+  std::vector<int> id(8 * n, -1);
+  std::vector<std::array<int, 8>> node(n);
+  count = 0;
+  for (int s = 0; s < 8 * n; ++s) {
+    const int r = uf.find(s);
+    if (id[r] < 0) id[r] = count++;
+    node[s / 8][s % 8] = id[r];
+  }
+  return node;
+}
+
+LinearSystem assemble_linear(const std::vector<GridElement>& elements,
+                             const std::vector<std::array<int, 8>>& node, int node_count,
+                             const ElasticMaterial& material,
+                             const std::vector<DirichletCondition>& dirichlet,
+                             const std::vector<TractionCondition>& tractions,
+                             const LinearXfemOptions& options) {
+  PARAFAB_VERIFY(material.youngs_modulus > 0, "material: E must be positive, got " << material.youngs_modulus);
+  PARAFAB_VERIFY(material.poisson_ratio > -1 && material.poisson_ratio < 0.5,
+                 "material: Poisson ratio must be in (-1, 0.5), got " << material.poisson_ratio);
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  const double beta = options.nitsche_beta > 0 ? options.nitsche_beta : 100.0;
+  const int ndof = 3 * node_count;
+  std::vector<Eigen::Triplet<double>> trip;
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(ndof);
+  SurfaceRuleOptions so;
+  so.area.degree = options.surface_degree;
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  for (size_t e = 0; e < elements.size(); ++e) {
+    const GridElement& el = elements[e];
+    Mat24 Ke = Mat24::Zero();
+    Vec24 fe = Vec24::Zero();
+    for (size_t q = 0; q < el.rule.points.size(); ++q) {
+      shape(el.box, el.rule.points[q], N, G);
+      const Mat6x24 B = strain_matrix(G);
+      Ke.noalias() += el.rule.weights[q] * B.transpose() * D * B;
+      if (material.density != 0 && options.gravity.squaredNorm() > 0)
+        fe.noalias() += el.rule.weights[q] * material.density * value_matrix(N).transpose() * options.gravity;
+    }
+    if (el.subvolume) {
+      const double h = el.box.size().minCoeff();
+      for (const CutPatch& patch : el.subvolume->patches) {
+        if (patch.source_face < 0) continue;
+        const DirichletCondition* dc = nullptr;
+        for (const auto& d : dirichlet) if (d.face == patch.source_face) dc = &d;
+        const TractionCondition* tc = nullptr;
+        for (const auto& t : tractions) if (t.face == patch.source_face) tc = &t;
+        if (!dc && !tc) continue;
+        const SurfaceRule sr = surface_rule(patch, so);
+        for (size_t q = 0; q < sr.points.size(); ++q) {
+          shape(el.box, sr.points[q], N, G);
+          const Mat3x24 Nm = value_matrix(N);
+          const double w = sr.weights[q];
+          if (tc) fe.noalias() += w * Nm.transpose() * tc->traction;
+          if (dc) {
+            const Eigen::Matrix<double, 3, 24> T = traction_operator(sr.normals[q]) * D * strain_matrix(G);
+            const Vec3 g = dc->offset + dc->gradient * sr.points[q];
+            const double penalty = beta * material.youngs_modulus / h;
+            Ke.noalias() += w * (penalty * Nm.transpose() * Nm - Nm.transpose() * T - T.transpose() * Nm);
+            fe.noalias() += w * (penalty * Nm.transpose() * g - T.transpose() * g);
+          }
+        }
+      }
+    }
+    for (int a = 0; a < 8; ++a)
+      for (int da = 0; da < 3; ++da) {
+        const int ra = 3 * node[e][a] + da;
+        f(ra) += fe(3 * a + da);
+        for (int b = 0; b < 8; ++b)
+          for (int db = 0; db < 3; ++db)
+            if (Ke(3 * a + da, 3 * b + db) != 0.0) trip.emplace_back(ra, 3 * node[e][b] + db, Ke(3 * a + da, 3 * b + db));
+      }
+  }
+  LinearSystem sys;
+  sys.K.resize(ndof, ndof);
+  sys.K.setFromTriplets(trip.begin(), trip.end());
+  sys.f = std::move(f);
+  return sys;
+}
+
+Vec3 LinearXfemResult::displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const {
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  shape(elements[e].box, X, N, G);
+  Vec3 d = Vec3::Zero();
+  for (int k = 0; k < 8; ++k) d += N(k) * u.segment<3>(3 * node[e][k]);
+  return d;
+}
+
+LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
+                              const std::vector<std::array<int, 2>>& adjacent,
+                              const ElasticMaterial& material,
+                              const std::vector<DirichletCondition>& dirichlet,
+                              const std::vector<TractionCondition>& tractions,
+                              const LinearXfemOptions& options) {
+  LinearXfemResult r;
+  auto t0 = std::chrono::steady_clock::now();
+  int count = 0;
+  r.node = number_dof_nodes(elements, adjacent, count);
+  r.dofs = 3 * count;
+  r.elements = static_cast<int>(elements.size());
+  for (const auto& e : elements) r.cut_elements += e.subvolume != nullptr;
+  const LinearSystem sys = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options);
+  r.assemble_seconds = seconds_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  llt.compute(sys.K);
+  if (llt.info() == Eigen::Success) {
+    r.u = llt.solve(sys.f);
+    r.solved = llt.info() == Eigen::Success;
+  }
+  if (!r.solved) {  // not positive definite: too small a Nitsche β, or no support
+    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+    lu.compute(sys.K);
+    if (lu.info() == Eigen::Success) {
+      r.u = lu.solve(sys.f);
+      r.solved = lu.info() == Eigen::Success;
+      r.message = "stiffness matrix not positive definite (Nitsche β too small, or too few supports); solved by LU";
+    } else {
+      r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
+    }
+  }
+  r.solve_seconds = seconds_since(t0);
+  if (r.solved) r.energy = 0.5 * r.u.dot(sys.K * r.u) - sys.f.dot(r.u);
+  return r;
+}
+
+}  // namespace parafab::xfem
