@@ -36,4 +36,11 @@ for f in "$repo"/samples/parts/*.step; do
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); e=d['relative_errors']; g=d['grid']; s=d['seconds']
 print('part %-11s %3d cut cells %4d subvolumes  errors V %.1e c %.1e I %.1e  cut %.2f s rules %.2f s' % (sys.argv[2], g['cut_cells'], g['subvolumes'], e['volume'], e['center'], e['inertia'], s['cut'], s['rules']))" "$out/parts/$name.integrate.json" "$name"
 done
-echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd, parts/*.inspect.json, parts/*.integrate.json"
+echo "== simulations: parafab simulate on samples/simulations/*.json (linear XFEM)"
+for f in "$repo"/samples/simulations/*.json; do
+  name=$(basename "$f" .json)
+  "$build/workbench/entry/parafab" simulate "$repo/samples/parts/$name.step" "$f" -o "$out/simulations/$name" >/dev/null
+  /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); s=d['seconds']
+print('simulation %-10s %6d dofs, max displacement %.4g, max von Mises %.4g, cut %.2f s rules %.2f s assemble %.2f s solve %.2f s' % (sys.argv[2], d['dofs'], d['max_displacement'], d['max_von_mises'], s['cut'], s['rules'], s['assemble'], s['solve']))" "$out/simulations/$name/result.json" "$name"
+done
+echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"

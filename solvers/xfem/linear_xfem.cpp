@@ -235,3 +235,23 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
 }
 
 }  // namespace parafab::xfem
+
+namespace parafab::xfem {
+
+Eigen::Matrix<double, 6, 1> stress_at(const LinearXfemResult& result, const std::vector<GridElement>& elements,
+                                      const ElasticMaterial& material, int e, const Vec3& X) {
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  shape(elements[e].box, X, N, G);
+  Vec24 ue;
+  for (int k = 0; k < 8; ++k) ue.segment<3>(3 * k) = result.u.segment<3>(3 * result.node[e][k]);
+  return elasticity(material) * strain_matrix(G) * ue;
+}
+
+double von_mises(const Eigen::Matrix<double, 6, 1>& s) {
+  return std::sqrt(0.5 * ((s(0) - s(1)) * (s(0) - s(1)) + (s(1) - s(2)) * (s(1) - s(2)) +
+                          (s(2) - s(0)) * (s(2) - s(0))) +
+                   3 * (s(3) * s(3) + s(4) * s(4) + s(5) * s(5)));
+}
+
+}  // namespace parafab::xfem

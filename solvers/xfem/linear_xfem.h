@@ -92,3 +92,13 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const LinearXfemOptions& options = {});
 
 }  // namespace parafab::xfem
+
+namespace parafab::xfem {
+
+/// Cauchy stress (Voigt xx, yy, zz, xy, yz, xz) of the solution at X in element e
+/// (small strain: σ = D ε).
+Eigen::Matrix<double, 6, 1> stress_at(const LinearXfemResult& result, const std::vector<GridElement>& elements,
+                                      const ElasticMaterial& material, int e, const Vec3& X);
+double von_mises(const Eigen::Matrix<double, 6, 1>& s);
+
+}  // namespace parafab::xfem

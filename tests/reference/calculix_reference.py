@@ -23,8 +23,9 @@ the job file)::
       "size": 250.0,                  # gmsh -clmax (mm)
       "size_min": 0.0,                # optional gmsh -clmin (mm)
       "element": "C3D10",             # "C3D10" (tet10, default) or "C3D4" (tet4)
-      "threads": 1                    # optional gmsh -nt
-    },
+      "threads": 1,                   # optional gmsh -nt
+      "fragment": false               # true: multi-solid STEP -> merge shared
+    },                                #   faces (OCC Coherence) => conforming
     "material": {
       "model": "linear",              # "linear" | "neo_hooke" | "mooney_rivlin"
       "E": 210000.0, "nu": 0.3,       # MPa, -
@@ -43,6 +44,8 @@ the job file)::
       {"name": "g",     "type": "gravity", "acceleration": [0, 0, -9810.0]}
     ],
     "probes": [[8000, 500, 500]],          # points for "displacement_at"
+    "probe_tol": 1e-3,                     # barycentric tolerance, else
+                                           #   nearest node is reported
     "line": {"from": [0, 500, 1000], "to": [8000, 500, 1000], "n": 17},
     "solver": {"timeout": 900, "threads": 2, "nlgeom": false,
                "increment": [0.1, 1.0]}    # NLGEOM: initial, total time
@@ -113,10 +116,18 @@ class ReferenceError(RuntimeError):
 # meshing
 # --------------------------------------------------------------------------
 def run_gmsh(step, workdir, size, element, size_min=None, threads=None,
-             timeout=900):
+             timeout=900, fragment=False):
     order = 2 if element == "C3D10" else 1
     out = os.path.join(workdir, "mesh.inp")
-    cmd = [GMSH, os.path.abspath(step), "-3", "-order", str(order),
+    src = os.path.abspath(step)
+    if fragment:
+        # multi-solid STEP: imprint/merge shared faces so the mesh conforms
+        src = os.path.join(workdir, "fragment.geo")
+        with open(src, "w") as f:
+            f.write('SetFactory("OpenCASCADE");\n'
+                    'Geometry.OCCTargetUnit = "MM";\n'
+                    'Merge "%s";\nCoherence;\n' % os.path.abspath(step))
+    cmd = [GMSH, src, "-3", "-order", str(order),
            "-clmax", repr(float(size)),
            "-setstring", "Geometry.OCCTargetUnit", "MM",
            "-format", "inp", "-o", out]
@@ -440,14 +451,19 @@ def write_deck(mesh, job, path):
     if bnd:
         out += ["*BOUNDARY"] + bnd
     if cl:
+        ftot = max(np.abs(v).max() for v in cl.values())
         out.append("*CLOAD")
         for i in sorted(cl):
             for d in range(3):
-                if cl[i][d] != 0.0:
+                if abs(cl[i][d]) > 1e-12 * ftot:
                     out.append("%d, %d, %.12g" % (nid[i], d + 1, cl[i][d]))
     if dl:
         out += ["*DLOAD"] + dl
     out += ["*NODE FILE", "U", "*EL FILE", "S"]
+    # .frd values have only 5 significant digits (E12.5); the .dat print
+    # (E13.6) is used for displacements when present.
+    if solver.get("dat_displacements", True):
+        out += ["*NODE PRINT, NSET=Nall", "U"]
     for bc in bcs:
         if bc["type"].lower() in ("fixed", "displacement"):
             out += ["*NODE PRINT, NSET=%s, TOTALS=ONLY" % bc["_set"], "RF"]
@@ -500,21 +516,44 @@ def parse_frd(path):
     return blocks
 
 
-def parse_dat_totals(path):
-    """'total force (fx,fy,fz) for set NAME and time t' blocks in the .dat."""
-    res, want = {}, None
+def parse_dat(path):
+    """Parse the .dat: returns (totals {SET: [fx,fy,fz]}, displacements
+    {node: [ux,uy,uz]}); later increments overwrite earlier ones.
+
+    Blocks look like
+     ' total force (fx,fy,fz) for set CLAMP and time  0.1000000E+01'
+     ' displacements (vx,vy,vz) for set NALL and time  0.1000000E+01'
+    followed by a blank line and whitespace separated numbers (E13.6 with a
+    leading blank, so split() is safe here, unlike the .frd).
+    """
+    tot, disp, mode, name = {}, {}, None, None
     if not os.path.exists(path):
-        return res
+        return tot, disp
     with open(path) as f:
         for line in f:
             m = re.search(r"total force \(fx,fy,fz\) for set (\S+)", line)
             if m:
-                want = m.group(1)
+                mode, name = "tot", m.group(1)
                 continue
-            if want and line.strip():
-                res[want] = [float(v) for v in line.split()[:3]]
-                want = None
-    return res
+            if re.search(r"displacements \(vx,vy,vz\) for set", line):
+                mode = "disp"
+                disp = {}
+                continue
+            if not line.strip():
+                continue
+            v = line.split()
+            if mode == "tot":
+                tot[name] = [float(x) for x in v[:3]]
+                mode = None
+            elif mode == "disp":
+                try:
+                    disp[int(v[0])] = [float(x) for x in v[1:4]]
+                except ValueError:
+                    mode = None
+            # any other block header ends the current block
+            if line[:1] == " " and v and v[0].isalpha():
+                mode = None
+    return tot, disp
 
 
 def von_mises(s):
@@ -539,6 +578,24 @@ def _versions():
     return v
 
 
+def make_box_step(path, size, origin=(0.0, 0.0, 0.0)):
+    """Write a box STEP (mm) with gmsh's OpenCASCADE kernel (for tests)."""
+    path = os.path.abspath(path)
+    d = tempfile.mkdtemp(prefix="ccxref_geo_")
+    try:
+        geo = os.path.join(d, "box.geo")
+        with open(geo, "w") as f:
+            f.write('SetFactory("OpenCASCADE");\nBox(1) = {%s};\n'
+                    % ", ".join(repr(float(v)) for v in (*origin, *size)))
+        p = subprocess.run([GMSH, geo, "-0", "-format", "step", "-o", path],
+                           capture_output=True, text=True, timeout=120)
+        if p.returncode != 0 or not os.path.exists(path):
+            raise ReferenceError("gmsh STEP export failed: " + p.stdout[-1000:])
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+    return path
+
+
 # --------------------------------------------------------------------------
 def run_job(job, base_dir=".", workdir=None, log=None):
     t0 = time.time()
@@ -549,6 +606,8 @@ def run_job(job, base_dir=".", workdir=None, log=None):
         step = job["step"]
         if not os.path.isabs(step):
             step = os.path.join(base_dir, step)
+        if not os.path.exists(step):
+            raise ReferenceError("STEP file not found: %s" % step)
         mcfg = job.get("mesh", {})
         etype = mcfg.get("element", "C3D10").upper()
         etype = {"TET10": "C3D10", "TET4": "C3D4"}.get(etype, etype)
@@ -558,7 +617,8 @@ def run_job(job, base_dir=".", workdir=None, log=None):
         timeout = float(scfg.get("timeout", 900))
 
         inp = run_gmsh(step, wd, mcfg["size"], etype, mcfg.get("size_min"),
-                       mcfg.get("threads"), timeout)
+                       mcfg.get("threads"), timeout,
+                       bool(mcfg.get("fragment", False)))
         mesh = Mesh(*parse_gmsh_inp(inp))
         t_mesh = time.time() - t0
         if log:
@@ -572,6 +632,8 @@ def run_job(job, base_dir=".", workdir=None, log=None):
         if log:
             log("ccx: %.2f s" % t_solve)
 
+        names = {bc["_set"].upper(): bc.get("name", bc["_set"])
+                 for bc in job.get("boundary_conditions", [])}
         blocks = parse_frd(frd)
         pos = {int(n): i for i, n in enumerate(mesh.node_ids)}
         U = np.zeros((len(mesh.xyz), 3))
@@ -584,15 +646,22 @@ def run_job(job, base_dir=".", workdir=None, log=None):
                 S[pos[n]] = v[:6]
         if "DISP" not in blocks:
             raise ReferenceError("no DISP block in %s" % frd)
+        totals, udat = parse_dat(os.path.join(wd, "job.dat"))
+        for n, v in udat.items():
+            if n in pos:
+                U[pos[n]] = v
         vm = von_mises(S)
         umag = np.linalg.norm(U, axis=1)
         imax, ivm = int(np.argmax(umag)), int(np.argmax(vm))
 
+        # barycentric tolerance: points on curved faces lie slightly outside
+        # the straight-sided corner tets; beyond it use the nearest node
+        probe_tol = float(job.get("probe_tol", 1e-3))
+
         def probe(p):
             p = np.asarray(p, float)
             e, L, lmin = mesh.locate(p)
-            tol = 1e-6
-            if lmin >= -tol:
+            if lmin >= -probe_tol:
                 return {"point": p.tolist(), "method": "interpolated",
                         "element": int(mesh.el_ids[e]),
                         "u": mesh.interpolate(e, L, U).tolist(),
@@ -620,7 +689,8 @@ def run_job(job, base_dir=".", workdir=None, log=None):
                           "node": int(mesh.node_ids[ivm]),
                           "position": mesh.xyz[ivm].tolist()},
             "selections": info,
-            "reactions": parse_dat_totals(os.path.join(wd, "job.dat")),
+            # ccx upper-cases set names in the .dat; map back to job names
+            "reactions": {names.get(k, k): v for k, v in totals.items()},
         }
         if mesh.n_flipped:
             res["flipped_elements"] = mesh.n_flipped

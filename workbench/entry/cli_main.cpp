@@ -10,6 +10,7 @@
 #include "occt_version.h"
 #include "part_json.h"
 #include "integrate_json.h"
+#include "simulate_json.h"
 #include "strip_json.h"
 
 namespace {
@@ -81,6 +82,11 @@ int main(int argc, char** argv) {
   integrate->add_flag("--nurbs", integrate_options.integration.grid.nurbs,
                       "Convert faces to NURBS before cutting (patches then use the face model's NURBS)");
   integrate->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* simulate = app.add_subcommand("simulate", "Linear elastic XFEM simulation of a part on a fixed grid (JSON job)");
+  std::string job_path, out_dir;
+  simulate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
+  simulate->add_option("job", job_path, "Job JSON: material, grid, supports, loads, gravity, probes")->required();
+  simulate->add_option("-o,--output", out_dir, "Folder for result.json and result.vtu");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -93,6 +99,8 @@ int main(int argc, char** argv) {
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
     if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
+    if (*simulate)
+      return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir), "");
     if (*integrate) {
       integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;
       if (integrate->count("--non-negative"))

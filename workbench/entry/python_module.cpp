@@ -6,6 +6,7 @@
 #include "occt_version.h"
 #include "integrate_json.h"
 #include "part_json.h"
+#include "simulate_json.h"
 #include "strip_json.h"
 
 namespace py = pybind11;
@@ -79,6 +80,20 @@ PYBIND11_MODULE(parafab, m) {
       py::arg("path"), py::arg("cells") = 8, py::arg("cell_size") = 0.0, py::arg("segments") = "parabolic",
       py::arg("solid") = -1,
       "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`).");
+  m.def(
+      "simulate",
+      [](const std::string& path, const py::dict& job, const std::string& out_dir) {
+        const nlohmann::json in = to_json(job);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::simulate_part_json(path, in, out_dir);
+        }
+        return to_python(out);
+      },
+      py::arg("path"), py::arg("job"), py::arg("out_dir") = "",
+      "Linear elastic XFEM simulation of a part (same job and result JSON as `parafab simulate`); "
+      "writes result.json and result.vtu into out_dir when given.");
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
   m.attr("__version__") = "0.1.0";
 }

@@ -1,0 +1,68 @@
+"""`parafab simulate` (CLI) and parafab.simulate (Python): a cantilever against beam theory,
+outputs written, and job errors that name the field (CLI: exit 2 and a JSON error)."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"))
+import parafab  # noqa: E402
+
+CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
+SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
+BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
+
+
+def run(part, job, out=None):
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+        json.dump(job, f)
+    try:
+        args = [CLI, "simulate", part, f.name] + (["-o", out] if out else [])
+        p = subprocess.run(args, capture_output=True, text=True, timeout=300)
+        return p.returncode, json.loads(p.stdout)
+    finally:
+        os.unlink(f.name)
+
+
+class Simulate(unittest.TestCase):
+    def test_bracket_sample_writes_outputs(self):
+        with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
+            job = json.load(f)
+        with tempfile.TemporaryDirectory() as d:
+            code, out = run(BRACKET, job, d)
+            self.assertEqual(code, 0, out)
+            self.assertTrue(os.path.getsize(os.path.join(d, "result.vtu")) > 1000)
+            with open(os.path.join(d, "result.json")) as f:
+                self.assertEqual(json.load(f)["dofs"], out["dofs"])
+        # The free end moves down; a cantilever estimate (base 52 × 40 × 8 mm beyond the
+        # upright) gives PL³/3EI = 0.065 mm, the upright's rotation adds to it.
+        tip = out["probes"][0]["displacement"][2]
+        self.assertLess(tip, -0.065)
+        self.assertGreater(tip, -0.2)
+        mod = parafab.simulate(BRACKET, job)
+        self.assertAlmostEqual(mod["probes"][0]["displacement"][2], tip, delta=1e-12)
+
+    def test_job_errors_name_the_field(self):
+        base = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 30]}]}
+        cases = [
+            ({"material": {"E": 210000}}, "supports"),
+            (dict(base, material={"E": -1}), "material.E"),
+            (dict(base, material={"E": 1, "nu": 0.5}), "material.nu"),
+            (dict(base, supports=[{"face": 99}]), "face 99 does not exist"),
+            (dict(base, supports=[{"point": [500, 500, 500]}]), "no face"),
+            (dict(base, loads=[{"face": 0}]), "loads[0] needs"),
+            (dict(base, grid={"cells": 100000}), "memory"),
+        ]
+        for job, expected in cases:
+            with self.subTest(expected):
+                code, out = run(BRACKET, job)
+                self.assertEqual(code, 2, out)
+                self.assertIn(expected, out["error"]["message"])
+                with self.assertRaises(parafab.Error):
+                    parafab.simulate(BRACKET, job)
+
+
+if __name__ == "__main__":
+    unittest.main()

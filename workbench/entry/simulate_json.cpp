@@ -1,0 +1,227 @@
+#include "simulate_json.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "common/error.h"
+#include "face_lookup.h"
+#include "grid_model.h"
+#include "part_reader.h"
+#include "xfem/mass_properties.h"
+
+namespace parafab::entry {
+
+using nlohmann::json;
+using xfem::Vec3;
+
+namespace {
+
+double number(const json& v, const std::string& path) {
+  if (!v.is_number()) PARAFAB_INPUT_ERROR(path << " must be a number, got " << v.dump());
+  return v.get<double>();
+}
+
+Vec3 vec3(const json& v, const std::string& path) {
+  if (!v.is_array() || v.size() != 3) PARAFAB_INPUT_ERROR(path << " must be [x, y, z], got " << v.dump());
+  return Vec3(number(v[0], path + "[0]"), number(v[1], path + "[1]"), number(v[2], path + "[2]"));
+}
+
+// A face named by index or by a point on it.
+int face_of(const occ::PartShape& part, const json& item, const std::string& path, double tol) {
+  if (item.contains("face")) {
+    if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
+    const int f = item["face"].get<int>();
+    occ::face_area(part, f);  // validates the index
+    return f;
+  }
+  if (item.contains("point")) return occ::face_at_point(part, vec3(item["point"], path + ".point"), tol);
+  PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
+}
+
+void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& elements,
+               const xfem::LinearXfemResult& r, const xfem::ElasticMaterial& mat) {
+  // Uncut cells as hexahedra; cut subvolumes as their quadrature points (VTK_VERTEX), each
+  // with displacement and von Mises stress.
+  std::vector<Vec3> pts, disp;
+  std::vector<double> vm;
+  std::vector<std::array<int, 8>> hexes;
+  std::vector<int> vertices;
+  static const int vtk_order[8] = {0, 1, 3, 2, 4, 5, 7, 6};
+  for (size_t e = 0; e < elements.size(); ++e) {
+    const auto& el = elements[e];
+    if (!el.subvolume) {
+      std::array<int, 8> h{};
+      for (int k = 0; k < 8; ++k) {
+        const Vec3 X = xfem::corner(el.box, vtk_order[k]);
+        h[k] = static_cast<int>(pts.size());
+        pts.push_back(X);
+        disp.push_back(r.displacement(elements, static_cast<int>(e), X));
+        vm.push_back(xfem::von_mises(xfem::stress_at(r, elements, mat, static_cast<int>(e), X)));
+      }
+      hexes.push_back(h);
+    } else {
+      for (const Vec3& X : el.rule.points) {
+        vertices.push_back(static_cast<int>(pts.size()));
+        pts.push_back(X);
+        disp.push_back(r.displacement(elements, static_cast<int>(e), X));
+        vm.push_back(xfem::von_mises(xfem::stress_at(r, elements, mat, static_cast<int>(e), X)));
+      }
+    }
+  }
+  std::ofstream f(path);
+  if (!f) PARAFAB_INPUT_ERROR("cannot write " << path);
+  const size_t ncells = hexes.size() + vertices.size();
+  f << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+    << "<UnstructuredGrid><Piece NumberOfPoints=\"" << pts.size() << "\" NumberOfCells=\"" << ncells << "\">\n"
+    << "<PointData Vectors=\"displacement\" Scalars=\"von_mises\">\n"
+    << "<DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (const auto& d : disp) f << d.x() << ' ' << d.y() << ' ' << d.z() << '\n';
+  f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
+  for (double v : vm) f << v << '\n';
+  f << "</DataArray>\n</PointData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (const auto& p : pts) f << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
+  for (const auto& h : hexes) {
+    for (int k : h) f << k << ' ';
+    f << '\n';
+  }
+  for (int v : vertices) f << v << '\n';
+  f << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
+  int off = 0;
+  for (size_t i = 0; i < hexes.size(); ++i) f << (off += 8) << '\n';
+  for (size_t i = 0; i < vertices.size(); ++i) f << (off += 1) << '\n';
+  f << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+  for (size_t i = 0; i < hexes.size(); ++i) f << "12\n";
+  for (size_t i = 0; i < vertices.size(); ++i) f << "1\n";
+  f << "</DataArray>\n</Cells>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
+}
+
+}  // namespace
+
+json simulate_part_json(const std::string& part_path, const json& job, const std::string& out_dir) {
+  if (!job.is_object()) PARAFAB_INPUT_ERROR("the job must be a JSON object");
+  occ::ReadOptions ro;
+  if (job.contains("solid")) ro.solid_index = static_cast<int>(number(job["solid"], "solid"));
+  const auto part = occ::read_part(part_path, ro);
+  const occ::PartInfo info = occ::part_info(*part);
+  const double diag = (info.bbox_max - info.bbox_min).norm();
+  const double tol = 1e-3 * diag;
+
+  if (!job.contains("material")) PARAFAB_INPUT_ERROR("missing material {E, nu[, density]}");
+  const json& m = job["material"];
+  xfem::ElasticMaterial mat;
+  mat.youngs_modulus = number(m.value("E", json()), "material.E");
+  mat.poisson_ratio = number(m.value("nu", json(0.3)), "material.nu");
+  mat.density = number(m.value("density", json(0.0)), "material.density");
+  if (!(mat.youngs_modulus > 0)) PARAFAB_INPUT_ERROR("material.E must be positive, got " << mat.youngs_modulus);
+  if (!(mat.poisson_ratio > -1 && mat.poisson_ratio < 0.5))
+    PARAFAB_INPUT_ERROR("material.nu must be in (-1, 0.5), got " << mat.poisson_ratio);
+
+  occ::GridModelOptions go;
+  const json grid = job.value("grid", json::object());
+  go.grid.cells_longest = static_cast<int>(number(grid.value("cells", json(16)), "grid.cells"));
+  go.grid.cell_size = number(grid.value("cell_size", json(0.0)), "grid.cell_size");
+  if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
+
+  std::vector<xfem::DirichletCondition> dirichlet;
+  const json supports = job.value("supports", json::array());
+  if (!supports.is_array() || supports.empty())
+    PARAFAB_INPUT_ERROR("supports must list at least one face ({\"face\": i} or {\"point\": [x,y,z]}), "
+                        "or the part floats freely");
+  for (size_t i = 0; i < supports.size(); ++i) {
+    const std::string path = "supports[" + std::to_string(i) + "]";
+    xfem::DirichletCondition d;
+    d.face = face_of(*part, supports[i], path, tol);
+    if (supports[i].contains("displacement")) d.offset = vec3(supports[i]["displacement"], path + ".displacement");
+    dirichlet.push_back(d);
+  }
+  std::vector<xfem::TractionCondition> tractions;
+  const json loads = job.value("loads", json::array());
+  for (size_t i = 0; i < loads.size(); ++i) {
+    const std::string path = "loads[" + std::to_string(i) + "]";
+    xfem::TractionCondition t;
+    t.face = face_of(*part, loads[i], path, tol);
+    if (loads[i].contains("traction")) t.traction = vec3(loads[i]["traction"], path + ".traction");
+    else if (loads[i].contains("force")) t.traction = vec3(loads[i]["force"], path + ".force") / occ::face_area(*part, t.face);
+    else PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
+    tractions.push_back(t);
+  }
+  xfem::LinearXfemOptions fo;
+  if (job.contains("gravity")) fo.gravity = vec3(job["gravity"], "gravity");
+  if (job.contains("nitsche_beta")) fo.nitsche_beta = number(job["nitsche_beta"], "nitsche_beta");
+
+  // Estimate before running: DOFs from the cell count, factor memory from a 3D fill model.
+  const Vec3 ext = info.bbox_max - info.bbox_min;
+  const double h = go.grid.cell_size > 0 ? go.grid.cell_size : ext.maxCoeff() / go.grid.cells_longest;
+  const double nodes = (std::ceil(ext.x() / h) + 1) * (std::ceil(ext.y() / h) + 1) * (std::ceil(ext.z() / h) + 1);
+  const double dofs = 3 * nodes * 1.2;  // enriched copies at cut cells
+  const double factor_mb = 8.0 * dofs * 40.0 * std::cbrt(dofs) / 1e6;  // nested-dissection fill ~ n^{4/3}
+  const double physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
+  if (factor_mb > 0.7 * physical_mb)
+    PARAFAB_INPUT_ERROR("this grid needs about " << factor_mb << " MB for the factorization (" << dofs
+                                                 << " unknowns), more than 70% of the " << physical_mb
+                                                 << " MB of memory: use fewer cells");
+
+  const occ::GridModel model = occ::build_grid_model(*part, go);
+  if (!model.done) PARAFAB_INPUT_ERROR("cannot cut " << part_path << " by the grid: " << model.message);
+  const xfem::LinearXfemResult r = xfem::solve_linear(model.elements, model.adjacent, mat, dirichlet, tractions, fo);
+  if (!r.solved) PARAFAB_INPUT_ERROR("the simulation could not be solved: " << r.message);
+
+  double umax = 0, vmmax = 0;
+  xfem::MassAccumulator acc;
+  for (size_t e = 0; e < model.elements.size(); ++e) {
+    const auto& el = model.elements[e];
+    acc.add(el.rule.points, el.rule.weights);
+    for (const Vec3& X : el.rule.points) {
+      umax = std::max(umax, r.displacement(model.elements, static_cast<int>(e), X).norm());
+      vmmax = std::max(vmmax, xfem::von_mises(xfem::stress_at(r, model.elements, mat, static_cast<int>(e), X)));
+    }
+  }
+  json probes = json::array();
+  if (job.contains("probes"))
+    for (size_t i = 0; i < job["probes"].size(); ++i) {
+      const Vec3 X = vec3(job["probes"][i], "probes[" + std::to_string(i) + "]");
+      int best = -1;  // the element whose rule point is nearest (it holds X's subvolume)
+      double best_d = 1e300;
+      for (size_t e = 0; e < model.elements.size(); ++e) {
+        const auto& b = model.elements[e].box;
+        if (((X - b.min).array() < -1e-9 * diag).any() || ((b.max - X).array() < -1e-9 * diag).any()) continue;
+        for (const Vec3& P : model.elements[e].rule.points)
+          if ((P - X).norm() < best_d) best_d = (P - X).norm(), best = static_cast<int>(e);
+      }
+      if (best < 0) PARAFAB_INPUT_ERROR("probes[" << i << "] lies outside the grid");
+      const Vec3 u = r.displacement(model.elements, best, X);
+      const auto s = xfem::stress_at(r, model.elements, mat, best, X);
+      probes.push_back({{"point", {X.x(), X.y(), X.z()}}, {"displacement", {u.x(), u.y(), u.z()}},
+                        {"von_mises", xfem::von_mises(s)},
+                        {"stress", {s(0), s(1), s(2), s(3), s(4), s(5)}}});
+    }
+  const xfem::MassProperties mp = acc.result();
+  json out{{"part", part_path},
+           {"grid", {{"cells", model.cut->cells}, {"cell_size", model.cut->cell_size.x()},
+                     {"cut_cells", model.cut->cut_cells.size()}, {"subvolumes", model.cut->subvolumes.size()},
+                     {"interior_cells", model.cut->interior_cells.size()}}},
+           {"dofs", r.dofs},
+           {"estimate", {{"unknowns", dofs}, {"factor_mb", factor_mb}}},
+           {"max_displacement", umax},
+           {"max_von_mises", vmmax},
+           {"energy", r.energy},
+           {"mass_properties", {{"volume", mp.volume}, {"mass", mp.volume * mat.density},
+                                {"center", {mp.center.x(), mp.center.y(), mp.center.z()}}}},
+           {"probes", probes},
+           {"message", r.message},
+           {"seconds", {{"cut", model.cut_seconds}, {"rules", model.rule_seconds},
+                        {"assemble", r.assemble_seconds}, {"solve", r.solve_seconds}}},
+           {"units", "those of the part and material (e.g. mm, N, MPa)"}};
+  if (!out_dir.empty()) {
+    std::filesystem::create_directories(out_dir);
+    write_vtu(out_dir + "/result.vtu", model.elements, r, mat);
+    std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
+    out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu"};
+  }
+  return out;
+}
+
+}  // namespace parafab::entry
