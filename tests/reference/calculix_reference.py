@@ -10,6 +10,10 @@ Usage
 -----
     /usr/bin/python3 calculix_reference.py job.json [-o result.json]
                                            [--workdir DIR] [--quiet]
+    # same part + job as the XFEM simulator (`parafab simulate PART JOB`):
+    /usr/bin/python3 calculix_reference.py samples/simulations/l_bracket.json \
+        --parafab samples/parts/l_bracket.step --size 2 [--element C3D4]
+    (--print-job shows the translated job; see from_parafab_job)
 
 Units: the model is in mm, so use the consistent set mm / N / MPa / t/mm^3 / s
 (steel: E = 210000 MPa, density = 7.85e-9 t/mm^3, g = 9810 mm/s^2).
@@ -56,11 +60,17 @@ pick nodes on the boundary surface of the volume mesh unless
 "boundary_only": false is given inside the selector.
   {"plane": {"axis": "x"|"y"|"z", "value": v, "tol": t}}     |x_axis - v| <= t
   {"box": {"min": [x,y,z], "max": [x,y,z]}}                   inclusive box
-  {"surface": [tag, ...]}    gmsh B-rep surface tags (ELSET SurfaceN of gmsh)
+  {"surface": [tag, ...]}    gmsh B-rep surface tags (ELSET SurfaceN of gmsh;
+                             = parafab/OCCT face index + 1)
+  {"point": [x, y, z], "tol": t}   the whole B-rep face nearest the point
+                             (like parafab's {"point"}); default tol
+                             1e-3 * diagonal + size / 4 (chord sagitta)
   {"nodes": [id, ...]}       explicit mesh node ids
 Default tol is 1e-6 * bounding-box diagonal (at least 1e-6 mm).
 
-Loads: "consistent" distributes the total force as a uniform traction
+Loads: "force" is a total force; "traction": [tx, ty, tz] (per area) is
+turned into force = traction * area of the selected faces. "consistent"
+distributes the total force as a uniform traction
 F / A over the boundary triangles whose nodes all lie in the selection
 (A = their area) and integrates it with the element shape functions
 (tri6: corners get 0, midside nodes A_tri/3; tri3: A_tri/3 per corner),
@@ -72,14 +82,33 @@ Result JSON::
   {"status": "ok", "element_type": "C3D10", "nodes": n, "elements": m,
    "mesh_seconds": t, "solve_seconds": t, "total_seconds": t,
    "max_displacement": {"magnitude", "vector", "node", "position"},
-   "displacement_at": [{"point", "u", "method": "interpolated"|"nearest_node",
+   "displacement_at": [{"point", "u", "stress" [xx,yy,zz,xy,yz,zx],
+                        "von_mises", "method": "interpolated"|"nearest_node",
                         "element"|"node", "distance"}],
    "von_mises": {"max", "node", "position"},       # nodal (extrapolated,
                                                    # averaged) ccx stresses
-   "selections": {name: {"nodes", "faces", "area"}},
+   "selections": {name: {"nodes", "faces", "area", "picked", "force",
+                         "distribution"}},
    "reactions": {name: [Fx, Fy, Fz]},               # for fixed/displacement
-   "line": {"points", "s", "u", "von_mises"},       # if "line" given
+   "line": {"points", "s", "u", "von_mises", "method"}, # if "line" given
+   "ccx_warnings": [...],                            # if any
    "workdir": path or null, "versions": {...}}
+Errors: {"status": "error", "error": message} and exit status 1.
+
+Notes / pitfalls
+  * gmsh's INP export contains every entity: T3D* line and CPS* surface
+    elements besides the C3D4/C3D10 volume (when no physical groups exist);
+    only volume elements go into the deck (surface ones give the B-rep tags).
+    gmsh already writes C3D10 in Abaqus node order with positive volume.
+  * .frd records are fixed width (I10 + E12.5, no separators when values
+    are negative) and carry 5 digits; displacements are read from the .dat.
+  * ccx's RF (reactions) omits loads applied directly on constrained nodes
+    (e.g. gravity on the clamped face nodes).
+  * Stresses are ccx's extrapolated + averaged nodal values; von Mises max is
+    mesh dependent at re-entrant edges / clamped edges (singular).
+  * multi-solid STEP: set mesh.fragment, otherwise solids are not connected
+    (ccx solves without complaint; we refuse coincident nodes).
+  * Hyperelastic models run *STEP, NLGEOM; stresses are then Cauchy.
 """
 
 import argparse
@@ -148,8 +177,9 @@ def run_gmsh(step, workdir, size, element, size_min=None, threads=None,
 def parse_gmsh_inp(path):
     """Parse gmsh's Abaqus .inp: nodes, volume elements, surface ELSETs.
 
-    Returns (node_ids, coords, vol_type, vol_conn(node ids), surf_sets) where
-    surf_sets maps gmsh surface tag -> set of node ids.
+    Returns (node_ids, coords, vol_type, vol_conn(node ids), surf) where
+    surf maps gmsh surface tag -> list of its triangles (node ids; CPS3 or
+    CPS6, corners first then midsides of edges 0-1, 1-2, 2-0).
     """
     ids, xyz = [], []
     vols = {"C3D4": [], "C3D10": []}
@@ -172,7 +202,7 @@ def parse_gmsh_inp(path):
                         mode, cur = "vol", vols[et]
                     elif es and es.group(1).startswith("SURFACE"):
                         tag = int(re.sub(r"\D", "", es.group(1)) or -1)
-                        mode, cur = "surf", surf.setdefault(tag, set())
+                        mode, cur = "surf", surf.setdefault(tag, [])
                 continue
             if mode is None or not line.strip():
                 continue
@@ -188,7 +218,7 @@ def parse_gmsh_inp(path):
                     cur.append(pending)
                     pending = []
             elif mode == "surf":
-                cur.update(int(v) for v in vals[1:])
+                cur.append([int(v) for v in vals[1:]])
     if vols["C3D10"] and vols["C3D4"]:
         raise ReferenceError("mixed tet4/tet10 mesh")
     etype = "C3D10" if vols["C3D10"] else "C3D4"
@@ -211,14 +241,21 @@ class Mesh:
         remap = np.full(int(ids.max()) + 1, -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
         self.conn = remap[conn[:, 1:]]            # 0-based into self.xyz
-        self.surf_sets = {}
-        for t, s in surf_sets.items():
-            r = remap[np.fromiter(s, dtype=np.int64)]
+        self.surf_sets, self.surf_tris = {}, {}
+        for t, tris in surf_sets.items():
+            r = remap[np.array(tris, dtype=np.int64)]
+            self.surf_tris[t] = r[np.all(r >= 0, axis=1)]
             self.surf_sets[t] = np.unique(r[r >= 0])
         self._fix_orientation()
         self._boundary()
         lo, hi = self.xyz.min(0), self.xyz.max(0)
         self.diag = float(np.linalg.norm(hi - lo))
+        # coincident nodes = solids meshed independently (multi-solid STEP
+        # without "fragment"): ccx then solves silently with garbage
+        q = np.round((self.xyz - lo) / max(1e-6 * self.diag, 1e-9))
+        self.n_duplicate = int(len(q) - len(np.unique(q, axis=0)))
+        self.point_tol = 1e-3 * self.diag     # "point" selector; see run_job
+        self.point_picks = []
 
     def _fix_orientation(self):
         X = self.xyz[self.conn[:, :4]]
@@ -273,6 +310,17 @@ class Mesh:
                                          % (t, sorted(self.surf_sets)))
                 m[self.surf_sets[int(t)]] = True
             boundary_only = False
+        elif "point" in sel:
+            t, d = self.surface_at(sel["point"])
+            tol = float(sel.get("tol", self.point_tol))
+            if d > tol:
+                raise ReferenceError(
+                    "no gmsh surface within %g of point %s (nearest: surface "
+                    "%d at %g)" % (tol, sel["point"], t, d))
+            m[self.surf_sets[t]] = True
+            self.point_picks.append({"point": list(sel["point"]),
+                                     "surface": int(t), "distance": d})
+            boundary_only = False
         elif "nodes" in sel:
             pos = {int(n): i for i, n in enumerate(self.node_ids)}
             m[[pos[int(n)] for n in sel["nodes"]]] = True
@@ -282,6 +330,26 @@ class Mesh:
         if boundary_only:
             m &= self.bnodes
         return m
+
+    def surface_at(self, p):
+        """(gmsh surface tag, distance) of the B-rep face nearest to p,
+        measured to the straight-sided surface triangles."""
+        best = (None, np.inf)
+        for t, tris in self.surf_tris.items():
+            if len(tris):
+                d = point_triangle_distance(np.asarray(p, float),
+                                            self.xyz[tris[:, :3]]).min()
+                if d < best[1]:
+                    best = (t, float(d))
+        if best[0] is None:
+            raise ReferenceError("mesh has no surface elements")
+        return best
+
+    def surface_areas(self):
+        out = {}
+        for t, tris in self.surf_tris.items():
+            out[t] = self.face_shape_integrals(tris)[2] if len(tris) else 0.0
+        return out
 
     def faces_in(self, mask):
         return self.bfaces[np.all(mask[self.bfaces], axis=1)]
@@ -343,6 +411,38 @@ class Mesh:
         return N @ field[self.conn[e]]
 
 
+def point_triangle_distance(p, T):
+    """Distance from point p to each triangle T[k] = (a, b, c) (vectorised,
+    Ericson, Real-Time Collision Detection 5.1.5)."""
+    a, b, c = T[:, 0], T[:, 1], T[:, 2]
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
+    bp = p - b
+    d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
+    cp = p - c
+    d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        den = va + vb + vc
+        v, w = vb / den, vc / den                        # interior
+        q = a + ab * v[:, None] + ac * w[:, None]
+        # edge regions
+        e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        t = d1 / (d1 - d3)
+        q = np.where(e_ab[:, None], a + ab * t[:, None], q)
+        e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        t = d2 / (d2 - d6)
+        q = np.where(e_ac[:, None], a + ac * t[:, None], q)
+        e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        q = np.where(e_bc[:, None], b + (c - b) * t[:, None], q)
+    # vertex regions
+    q = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, q)
+    q = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, q)
+    q = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, q)
+    return np.linalg.norm(p - q, axis=1)
+
+
 # --------------------------------------------------------------------------
 # CalculiX deck
 # --------------------------------------------------------------------------
@@ -358,7 +458,7 @@ def write_deck(mesh, job, path):
     E, nu = float(mat.get("E", 210000.0)), float(mat.get("nu", 0.3))
     solver = job.get("solver", {})
     bcs = job.get("boundary_conditions", [])
-    selections, loads, info = {}, [], {}
+    selections, info = {}, {}
     out = ["*HEADING", "ParaFab CalculiX reference (generated)", "*NODE"]
     out += ["%d, %.12g, %.12g, %.12g" % (n, *x)
             for n, x in zip(mesh.node_ids, mesh.xyz)]
@@ -375,7 +475,9 @@ def write_deck(mesh, job, path):
         bc["_set"] = name
         if t == "gravity":
             continue
+        mesh.point_picks = []
         m = mesh.select(bc["select"])
+        picks = list(mesh.point_picks)
         if not m.any():
             raise ReferenceError("selection of %r is empty" % name)
         faces = mesh.faces_in(m)
@@ -383,6 +485,8 @@ def write_deck(mesh, job, path):
         info[name] = {"nodes": int(m.sum()), "faces": int(len(faces)),
                       "area": (mesh.face_shape_integrals(faces)[2]
                                if len(faces) else 0.0)}
+        if picks:
+            info[name]["picked"] = picks
         out.append("*NSET, NSET=%s" % name)
         out.append(_ids(nid[m]))
 
@@ -425,9 +529,15 @@ def write_deck(mesh, job, path):
                 if v is not None:
                     bnd.append("%s, %d, %d, %.12g" % (name, d + 1, d + 1, v))
         elif t == "load":
-            F = np.asarray(bc["force"], float)
             m = selections[name]
             faces = mesh.faces_in(m)
+            if "traction" in bc:        # per unit area -> total force
+                F = np.asarray(bc["traction"], float) * info[name]["area"]
+                if not len(faces):
+                    raise ReferenceError("traction on %r: no faces" % name)
+            else:
+                F = np.asarray(bc["force"], float)
+            info[name]["force"] = F.tolist()
             dist = bc.get("distribution", "consistent").lower()
             if dist in ("consistent", "area") and len(faces):
                 nodes, wts, area = mesh.face_shape_integrals(faces)
@@ -620,6 +730,15 @@ def run_job(job, base_dir=".", workdir=None, log=None):
                        mcfg.get("threads"), timeout,
                        bool(mcfg.get("fragment", False)))
         mesh = Mesh(*parse_gmsh_inp(inp))
+        # "point" picks measure to straight-sided triangles: allow the chord
+        # sagitta of curved faces
+        mesh.point_tol = float(job.get("point_tol",
+                                       1e-3 * mesh.diag + 0.25 * mcfg["size"]))
+        if mesh.n_duplicate and not mcfg.get("allow_duplicate_nodes"):
+            raise ReferenceError(
+                "%d coincident mesh nodes: the STEP has several solids that "
+                "were meshed independently; set mesh.fragment = true"
+                % mesh.n_duplicate)
         t_mesh = time.time() - t0
         if log:
             log("mesh: %d nodes, %d %s elements (%.2f s)"
@@ -628,6 +747,8 @@ def run_job(job, base_dir=".", workdir=None, log=None):
         info = write_deck(mesh, job, os.path.join(wd, "job.inp"))
         t1 = time.time()
         frd, ccx_log = run_ccx(wd, "job", timeout, scfg.get("threads"))
+        warnings = [ln.strip() for ln in ccx_log.splitlines()
+                    if "WARNING" in ln.upper()][:20]
         t_solve = time.time() - t1
         if log:
             log("ccx: %.2f s" % t_solve)
@@ -651,6 +772,7 @@ def run_job(job, base_dir=".", workdir=None, log=None):
             if n in pos:
                 U[pos[n]] = v
         vm = von_mises(S)
+        SV = np.column_stack([S, vm])
         umag = np.linalg.norm(U, axis=1)
         imax, ivm = int(np.argmax(umag)), int(np.argmax(vm))
 
@@ -662,15 +784,18 @@ def run_job(job, base_dir=".", workdir=None, log=None):
             p = np.asarray(p, float)
             e, L, lmin = mesh.locate(p)
             if lmin >= -probe_tol:
+                sv = mesh.interpolate(e, L, SV)
                 return {"point": p.tolist(), "method": "interpolated",
                         "element": int(mesh.el_ids[e]),
                         "u": mesh.interpolate(e, L, U).tolist(),
-                        "von_mises": float(mesh.interpolate(e, L, vm))}
+                        "stress": sv[:6].tolist(),
+                        "von_mises": float(sv[6])}
             i = int(np.argmin(np.linalg.norm(mesh.xyz - p, axis=1)))
             return {"point": p.tolist(), "method": "nearest_node",
                     "node": int(mesh.node_ids[i]),
                     "distance": float(np.linalg.norm(mesh.xyz[i] - p)),
-                    "u": U[i].tolist(), "von_mises": float(vm[i])}
+                    "u": U[i].tolist(), "stress": S[i].tolist(),
+                    "von_mises": float(vm[i])}
 
         res = {
             "status": "ok",
@@ -692,6 +817,8 @@ def run_job(job, base_dir=".", workdir=None, log=None):
             # ccx upper-cases set names in the .dat; map back to job names
             "reactions": {names.get(k, k): v for k, v in totals.items()},
         }
+        if warnings:
+            res["ccx_warnings"] = warnings
         if mesh.n_flipped:
             res["flipped_elements"] = mesh.n_flipped
         if "line" in job:
@@ -714,17 +841,82 @@ def run_job(job, base_dir=".", workdir=None, log=None):
             shutil.rmtree(wd, ignore_errors=True)
 
 
+def from_parafab_job(pjob, step, size, element="C3D10"):
+    """Translate a `parafab simulate` job (samples/simulations/*.json) into a
+    reference job for the same STEP part.
+
+    supports[i] {"face": k | "point": p [, "displacement": d]} -> fixed /
+    displacement on that B-rep face; loads[i] {"face"|"point", "force" (total,
+    spread as uniform traction) | "traction"} -> load; gravity -> gravity
+    (only if material.density > 0, as in parafab); probes -> probes.
+    parafab face index k (OCCT TopExp order, 0-based) is gmsh surface tag
+    k + 1 (both come from OCCT's face map; checked by area on the samples).
+    """
+    if "solid" in pjob:
+        raise ReferenceError("parafab job selects a solid; not supported")
+
+    def sel(item, path):
+        if "face" in item:
+            return {"surface": [int(item["face"]) + 1]}
+        if "point" in item:
+            return {"point": list(item["point"])}
+        raise ReferenceError(path + " needs face or point")
+
+    m = pjob.get("material", {})
+    job = {"step": os.path.abspath(step),
+           "mesh": {"size": float(size), "element": element},
+           "material": {"E": m["E"], "nu": m.get("nu", 0.3)},
+           "boundary_conditions": [],
+           "probes": pjob.get("probes", [])}
+    if m.get("density"):
+        job["material"]["density"] = m["density"]
+    for i, sp in enumerate(pjob.get("supports", [])):
+        bc = {"name": "support%d" % i, "select": sel(sp, "supports[%d]" % i)}
+        if "displacement" in sp and any(sp["displacement"]):
+            bc.update(type="displacement", value=list(sp["displacement"]))
+        else:
+            bc["type"] = "fixed"
+        job["boundary_conditions"].append(bc)
+    for i, ld in enumerate(pjob.get("loads", [])):
+        bc = {"name": "load%d" % i, "type": "load",
+              "select": sel(ld, "loads[%d]" % i)}
+        if "traction" in ld:
+            bc["traction"] = list(ld["traction"])
+        else:
+            bc["force"] = list(ld["force"])
+        job["boundary_conditions"].append(bc)
+    if "gravity" in pjob and m.get("density"):
+        job["boundary_conditions"].append(
+            {"name": "gravity", "type": "gravity",
+             "acceleration": list(pjob["gravity"])})
+    return job
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("job", help="job JSON file")
+    ap.add_argument("job", help="job JSON file (this format, or a parafab "
+                    "simulate job with --parafab)")
     ap.add_argument("-o", "--output", help="result JSON (default stdout)")
     ap.add_argument("--workdir", help="keep gmsh/ccx files in this directory")
     ap.add_argument("--quiet", action="store_true")
+    ap.add_argument("--parafab", metavar="STEP",
+                    help="job is a `parafab simulate` job for this STEP part")
+    ap.add_argument("--size", type=float, help="mesh size (mm), --parafab")
+    ap.add_argument("--element", default="C3D10", help="C3D10|C3D4, --parafab")
+    ap.add_argument("--print-job", action="store_true",
+                    help="print the (translated) job and exit")
     a = ap.parse_args(argv)
     with open(a.job) as f:
         job = json.load(f)
     log = None if a.quiet else (lambda s: print(s, file=sys.stderr))
     try:
+        if a.parafab:
+            if not a.size:
+                ap.error("--parafab needs --size")
+            job = from_parafab_job(job, a.parafab, a.size, a.element)
+        if a.print_job:
+            print(json.dumps(job, indent=1))
+            return 0
         res = run_job(job, os.path.dirname(os.path.abspath(a.job)),
                       a.workdir, log)
     except (ReferenceError, subprocess.TimeoutExpired) as e:

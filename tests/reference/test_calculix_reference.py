@@ -156,6 +156,97 @@ class CantileverTest(unittest.TestCase):
                                1.0, delta=1e-3)
 
 
+
+def _geo_to_step(tmp, name, geo_body):
+    import subprocess
+    geo = os.path.join(tmp, name + ".geo")
+    with open(geo, "w") as f:
+        f.write('SetFactory("OpenCASCADE");\n' + geo_body)
+    step = os.path.join(tmp, name + ".step")
+    subprocess.run(["gmsh", geo, "-0", "-format", "step", "-o", step],
+                   check=True, capture_output=True)
+    return step
+
+
+@unittest.skipUnless(HAVE_TOOLS, "gmsh and/or ccx not installed")
+class GeometryVariantsTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="ccxref_test2_")
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def test_round_bar_curved_tet10(self):
+        """Curved B-rep faces: tet10 midside nodes on the cylinder."""
+        import math
+        r0 = 500.0
+        step = _geo_to_step(self.tmp, "cyl",
+                            "Cylinder(1) = {0,0,0, %g,0,0, %g};\n" % (L, r0))
+        job = cantilever_job(step, 250.0)
+        job["probes"] = [[L, 0.0, 0.0]]          # axis at y = z = 0
+        r = cr.run_job(job)
+        ref = F * L ** 3 / (3 * E * math.pi * r0 ** 4 / 4)     # 149.0 mm
+        uz = -r["displacement_at"][0]["u"][2]
+        self.assertEqual(r["displacement_at"][0]["method"], "interpolated")
+        self.assertAlmostEqual(uz / ref, 1.0, delta=0.03)
+        self.assertAlmostEqual(r["selections"]["tip"]["area"] /
+                               (math.pi * r0 ** 2), 1.0, delta=1e-3)
+        self.assertAlmostEqual(r["reactions"]["clamp"][2] / F, 1.0, places=6)
+
+    def test_multi_solid_needs_fragment(self):
+        step = _geo_to_step(self.tmp, "two",
+                            "Box(1) = {0,0,0, %g,%g,%g};\n"
+                            "Box(2) = {%g,0,0, %g,%g,%g};\n"
+                            % (L / 2, B, H, L / 2, L / 2, B, H))
+        job = cantilever_job(step, 250.0)
+        with self.assertRaises(cr.ReferenceError):
+            cr.run_job(job)
+        job["mesh"]["fragment"] = True
+        r = cr.run_job(job)
+        uz = -r["displacement_at"][0]["u"][2]
+        self.assertAlmostEqual(uz / EB, 1.0, delta=0.03)
+
+
+SAMPLES = os.path.join(HERE, "..", "..", "samples")
+
+
+@unittest.skipUnless(HAVE_TOOLS, "gmsh and/or ccx not installed")
+class ParafabJobTest(unittest.TestCase):
+    def test_l_bracket_sample_job(self):
+        """samples/simulations/l_bracket.json translated: faces picked by
+        point, force spread as traction, gravity, probes."""
+        import json
+        with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
+            pjob = json.load(f)
+        job = cr.from_parafab_job(
+            pjob, os.path.join(SAMPLES, "parts", "l_bracket.step"), 4.0)
+        r = cr.run_job(job)
+        sel = r["selections"]
+        self.assertAlmostEqual(sel["support0"]["area"], 40 * 38, delta=1e-6)
+        self.assertAlmostEqual(sel["load0"]["area"], 40 * 8, delta=1e-6)
+        # reaction = 500 N + self weight (~2.3 N, less the share on the wall)
+        self.assertTrue(501.5 < r["reactions"]["support0"][2] < 503.0,
+                        r["reactions"])
+        # converged tet10 value is about -0.111 mm (h = 1.5 mm: -0.1106)
+        uz = r["displacement_at"][0]["u"][2]
+        self.assertAlmostEqual(uz / -0.111, 1.0, delta=0.04)
+        # parafab face index k is gmsh surface k + 1
+        job2 = cr.from_parafab_job({"material": {"E": 210000.0},
+                                    "supports": [{"face": 4}],
+                                    "loads": [{"face": 3,
+                                               "force": [0, 0, -500]}],
+                                    "probes": pjob["probes"]},
+                                   os.path.join(SAMPLES, "parts",
+                                                "l_bracket.step"), 4.0)
+        r2 = cr.run_job(job2)
+        self.assertAlmostEqual(r2["selections"]["support0"]["area"], 1520.0,
+                               delta=1e-6)
+        self.assertAlmostEqual(r2["selections"]["load0"]["area"], 320.0,
+                               delta=1e-6)
+
+
 if __name__ == "__main__":
     prog = unittest.main(exit=False, verbosity=2 if "-v" in sys.argv else 1)
     sys.exit(0 if prog.result.wasSuccessful() else 1)
