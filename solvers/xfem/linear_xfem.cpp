@@ -1,6 +1,7 @@
 #include "xfem/linear_xfem.h"
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/Dense>
 #include <Eigen/SparseLU>
 #include <chrono>
 #include <numeric>
@@ -77,6 +78,45 @@ Eigen::Matrix<double, 3, 6> traction_operator(const Vec3& n) {
   return P;
 }
 
+// Wilson–Taylor incompatible modes φ_m = 1 − (2ξ_m − 1)², m = x, y, z (9 internal DOFs),
+// condensed statically: K ← K_uu − K_uaᵀ K_aa⁻¹ K_au. Their gradients are shifted to zero mean
+// over the element's rule (Taylor's correction), so constant strain is still reproduced on
+// any subvolume (patch test). Removes the bending locking of trilinear hexahedra.
+void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D,
+                            double min_fraction, Mat24& Ke) {
+  double volume = 0;
+  for (double w : el.rule.weights) volume += w;
+  if (!(volume > min_fraction * el.box.volume())) return;  // tiny pieces: K_aa near singular
+  const Vec3 h = el.box.size();
+  const size_t nq = el.rule.points.size();
+  std::vector<Vec3> grad(nq);  // (∂φ_x/∂x, ∂φ_y/∂y, ∂φ_z/∂z)
+  Vec3 mean = Vec3::Zero();
+  for (size_t q = 0; q < nq; ++q) {
+    const Vec3 xi = (el.rule.points[q] - el.box.min).cwiseQuotient(h);
+    grad[q] = Vec3(-4 * (2 * xi.x() - 1) / h.x(), -4 * (2 * xi.y() - 1) / h.y(), -4 * (2 * xi.z() - 1) / h.z());
+    mean += el.rule.weights[q] * grad[q];
+  }
+  mean /= volume;
+  Eigen::Matrix<double, 9, 9> Kaa = Eigen::Matrix<double, 9, 9>::Zero();
+  Eigen::Matrix<double, 9, 24> Kau = Eigen::Matrix<double, 9, 24>::Zero();
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  for (size_t q = 0; q < nq; ++q) {
+    shape(el.box, el.rule.points[q], N, G);
+    const Mat6x24 Bu = strain_matrix(G);
+    // Mode m of component c: displacement e_c φ_m; only ∂φ_m/∂x_m ≠ 0.
+    Eigen::Matrix<double, 8, 3> Gm = Eigen::Matrix<double, 8, 3>::Zero();  // rows 0..2 used
+    for (int m = 0; m < 3; ++m) Gm(m, m) = grad[q][m] - mean[m];
+    const Mat6x24 Bfull = strain_matrix(Gm);  // columns 3m + c: mode m, component c
+    const Eigen::Matrix<double, 6, 9> Ba = Bfull.leftCols<9>();
+    Kaa.noalias() += el.rule.weights[q] * Ba.transpose() * D * Ba;
+    Kau.noalias() += el.rule.weights[q] * Ba.transpose() * D * Bu;
+  }
+  const Eigen::LDLT<Eigen::Matrix<double, 9, 9>> ldlt(Kaa);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-10 * ldlt.vectorD().maxCoeff())) return;
+  Ke.noalias() -= Kau.transpose() * ldlt.solve(Kau);
+}
+
 struct UnionFind {
   std::vector<int> parent;
   explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
@@ -146,6 +186,7 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
       if (material.density != 0 && options.gravity.squaredNorm() > 0)
         fe.noalias() += el.rule.weights[q] * material.density * value_matrix(N).transpose() * options.gravity;
     }
+    if (options.incompatible_modes) add_incompatible_modes(el, D, options.incompatible_min_fraction, Ke);
     if (el.subvolume) {
       const double h = el.box.size().minCoeff();
       for (const CutPatch& patch : el.subvolume->patches) {

@@ -48,6 +48,10 @@ struct LinearXfemOptions {
   double nitsche_beta = 0;
   Vec3 gravity{0, 0, 0};  ///< acceleration; body force ρ·g
   int surface_degree = 5; ///< patch rules for Nitsche and traction integrals
+  /// Wilson–Taylor incompatible modes (statically condensed) against bending locking of the
+  /// trilinear hexahedra; off: plain hex8.
+  bool incompatible_modes = true;
+  double incompatible_min_fraction = 1e-3;  ///< not on elements with a smaller volume fraction
 };
 
 struct LinearXfemResult {

@@ -97,11 +97,11 @@ TEST(LinearXfem, CantileverApproachesEulerBernoulli) {
     const double tip = -sum / n;
     std::printf("cantilever h = %.0f: %d dofs, tip deflection %.2f mm (EB 87.7), assemble %.2f s, solve %.2f s\n",
                 h, r.dofs, tip, r.assemble_seconds, r.solve_seconds);
-    EXPECT_GT(tip, previous);  // trilinear hexahedra lock in bending; refinement relaxes it
+    EXPECT_GT(tip, previous);  // converges from below (stiff) as the grid is refined
     EXPECT_LT(tip, 87.7 * 1.03);
     previous = tip;
   }
-  EXPECT_GT(previous, 0.6 * 87.7);
+  EXPECT_GT(previous, 0.95 * 87.7);  // incompatible modes: 85.7 mm at h = 250 (plain hex8: 82.9)
 }
 
 }  // namespace
