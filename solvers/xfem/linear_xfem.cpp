@@ -162,7 +162,7 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
                              const ElasticMaterial& material,
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
-                             const LinearXfemOptions& options) {
+                             const LinearXfemOptions& options, bool include_bulk) {
   PARAFAB_VERIFY(material.youngs_modulus > 0, "material: E must be positive, got " << material.youngs_modulus);
   PARAFAB_VERIFY(material.poisson_ratio > -1 && material.poisson_ratio < 0.5,
                  "material: Poisson ratio must be in (-1, 0.5), got " << material.poisson_ratio);
@@ -181,12 +181,15 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
     Vec24 fe = Vec24::Zero();
     for (size_t q = 0; q < el.rule.points.size(); ++q) {
       shape(el.box, el.rule.points[q], N, G);
-      const Mat6x24 B = strain_matrix(G);
-      Ke.noalias() += el.rule.weights[q] * B.transpose() * D * B;
+      if (include_bulk) {
+        const Mat6x24 B = strain_matrix(G);
+        Ke.noalias() += el.rule.weights[q] * B.transpose() * D * B;
+      }
       if (material.density != 0 && options.gravity.squaredNorm() > 0)
         fe.noalias() += el.rule.weights[q] * material.density * value_matrix(N).transpose() * options.gravity;
     }
-    if (options.incompatible_modes) add_incompatible_modes(el, D, options.incompatible_min_fraction, Ke);
+    if (include_bulk && options.incompatible_modes)
+      add_incompatible_modes(el, D, options.incompatible_min_fraction, Ke);
     if (el.subvolume) {
       const double h = el.box.size().minCoeff();
       for (const CutPatch& patch : el.subvolume->patches) {
@@ -206,8 +209,9 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
             const Eigen::Matrix<double, 3, 24> T = traction_operator(sr.normals[q]) * D * strain_matrix(G);
             const Vec3 g = dc->offset + dc->gradient * sr.points[q];
             const double penalty = beta * material.youngs_modulus / h;
-            Ke.noalias() += w * (penalty * Nm.transpose() * Nm - Nm.transpose() * T - T.transpose() * Nm);
-            fe.noalias() += w * (penalty * Nm.transpose() * g - T.transpose() * g);
+            const Eigen::Matrix3d M = dc->components.asDiagonal();  // prescribed components
+            Ke.noalias() += w * (penalty * Nm.transpose() * M * Nm - Nm.transpose() * M * T - T.transpose() * M * Nm);
+            fe.noalias() += w * (penalty * Nm.transpose() * M * g - T.transpose() * M * g);
           }
         }
       }

@@ -35,6 +35,9 @@ struct DirichletCondition {
   int face = -1;
   Eigen::Matrix3d gradient = Eigen::Matrix3d::Zero();  ///< u(X) = offset + gradient·X
   Vec3 offset{0, 0, 0};
+  /// Which displacement components are prescribed (1) or free (0): e.g. (0, 0, 1) lets the
+  /// face slide in its plane z = const (a symmetry or roller condition).
+  Vec3 components{1, 1, 1};
 };
 
 /// Traction (force per area) on B-rep face `face`.
@@ -86,7 +89,7 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
                              const ElasticMaterial& material,
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
-                             const LinearXfemOptions& options);
+                             const LinearXfemOptions& options, bool include_bulk = true);
 
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<std::array<int, 2>>& adjacent,

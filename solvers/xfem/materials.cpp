@@ -1,0 +1,224 @@
+// Material laws Ψ(F), P = ∂Ψ/∂F, A = ∂P/∂F (see materials.h for the formulas and layout).
+//
+// Derivative building blocks (G = F⁻ᵀ, J = det F, C = FᵀF, B = FFᵀ, all 9×9 on
+// column-major vec, index (i, j) ↦ i + 3j):
+//     ∂J/∂F = J G,            ∂ ln J/∂F = G,           ∂G_ij/∂F_kl = −G_il G_kj,
+//     ∂I₁/∂F = 2F,            ∂I₂/∂F = 2(I₁ F − F C),
+//     ∂(F C)_ij/∂F_kl = δik C_lj + F_il F_kj + B_ik δjl.
+#include "xfem/materials.h"
+
+#include <Eigen/LU>
+#include <cmath>
+#include <limits>
+
+#include "common/error.h"
+
+namespace parafab::xfem {
+namespace {
+
+inline int ix(int i, int j) { return i + 3 * j; }
+
+/// K(i + 3j, k + 3l) = G_il G_kj, so that ∂vec(G)/∂vec(F) = −K for G = F⁻ᵀ. Symmetric.
+Mat9 inverse_transpose_kernel(const Mat3& G) {
+  Mat9 K;
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i)
+      for (int l = 0; l < 3; ++l)
+        for (int k = 0; k < 3; ++k) K(ix(i, j), ix(k, l)) = G(i, l) * G(k, j);
+  return K;
+}
+
+/// ∂vec(F C)/∂vec(F) with C = FᵀF (F C = F Fᵀ F).
+Mat9 fc_derivative(const Mat3& F) {
+  const Mat3 C = F.transpose() * F, B = F * F.transpose();
+  Mat9 D;
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i)
+      for (int l = 0; l < 3; ++l)
+        for (int k = 0; k < 3; ++k)
+          D(ix(i, j), ix(k, l)) =
+              (i == k ? C(l, j) : 0.0) + F(i, l) * F(k, j) + (j == l ? B(i, k) : 0.0);
+  return D;
+}
+
+/// J = det F, checked > 0 for stress/tangent evaluation.
+double checked_det(const Mat3& F, const char* model, const char* what) {
+  const double J = F.determinant();
+  PARAFAB_VERIFY(std::isfinite(J) && J > 0, model << ": " << what
+                                                   << " needs det F > 0 (inverted element), got J = "
+                                                   << J);
+  return J;
+}
+
+const double kInf = std::numeric_limits<double>::infinity();
+
+}  // namespace
+
+ElasticConstants ElasticConstants::from_young_poisson(double E, double nu, const std::string& model) {
+  PARAFAB_VERIFY(std::isfinite(E) && E > 0,
+                 "material '" << model << "': Young's modulus E must be > 0, got " << E);
+  PARAFAB_VERIFY(std::isfinite(nu) && nu > -1 && nu < 0.5,
+                 "material '" << model << "': Poisson's ratio nu must lie in (-1, 0.5), got " << nu);
+  ElasticConstants c;
+  c.E = E;
+  c.nu = nu;
+  c.mu = E / (2 * (1 + nu));
+  c.lambda = E * nu / ((1 + nu) * (1 - 2 * nu));
+  c.kappa = E / (3 * (1 - 2 * nu));
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------
+// LinearElastic
+
+LinearElastic::LinearElastic(double E, double nu)
+    : c_(ElasticConstants::from_young_poisson(E, nu, "linear")) {}
+
+double LinearElastic::energy(const Mat3& F) const {
+  const Mat3 H = F - Mat3::Identity();
+  const Mat3 eps = 0.5 * (H + H.transpose());
+  const double tr = eps.trace();
+  return c_.mu * eps.squaredNorm() + 0.5 * c_.lambda * tr * tr;
+}
+
+Mat3 LinearElastic::stress(const Mat3& F) const {
+  const Mat3 H = F - Mat3::Identity();
+  const Mat3 eps = 0.5 * (H + H.transpose());
+  return 2 * c_.mu * eps + c_.lambda * eps.trace() * Mat3::Identity();
+}
+
+Mat9 LinearElastic::tangent(const Mat3& /*F*/) const {
+  Mat9 A = Mat9::Zero();
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i) {
+      A(ix(i, j), ix(i, j)) += c_.mu;  // δik δjl
+      A(ix(i, j), ix(j, i)) += c_.mu;  // δil δjk
+    }
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) A(ix(i, i), ix(k, k)) += c_.lambda;  // δij δkl
+  return A;
+}
+
+// ---------------------------------------------------------------------------------------
+// NeoHookean (Bonet–Wood)
+
+NeoHookean::NeoHookean(double E, double nu)
+    : c_(ElasticConstants::from_young_poisson(E, nu, "neo_hooke")) {}
+
+double NeoHookean::energy(const Mat3& F) const {
+  const double J = F.determinant();
+  if (!(J > 0) || !std::isfinite(J)) return kInf;
+  const double lnJ = std::log(J);
+  return 0.5 * c_.mu * (F.squaredNorm() - 3) - c_.mu * lnJ + 0.5 * c_.lambda * lnJ * lnJ;
+}
+
+Mat3 NeoHookean::stress(const Mat3& F) const {
+  const double J = checked_det(F, "neo_hooke", "stress");
+  const Mat3 G = F.inverse().transpose();
+  return c_.mu * (F - G) + c_.lambda * std::log(J) * G;
+}
+
+Mat9 NeoHookean::tangent(const Mat3& F) const {
+  const double J = checked_det(F, "neo_hooke", "tangent");
+  const Mat3 G = F.inverse().transpose();
+  const Vec9 g = vec9(G);
+  return c_.mu * Mat9::Identity() + (c_.mu - c_.lambda * std::log(J)) * inverse_transpose_kernel(G) +
+         c_.lambda * g * g.transpose();
+}
+
+// ---------------------------------------------------------------------------------------
+// MooneyRivlin (CalculiX / Abaqus, isochoric invariants)
+
+MooneyRivlin::MooneyRivlin(double C10, double C01, double D1) : C10_(C10), C01_(C01), D1_(D1) {
+  PARAFAB_VERIFY(std::isfinite(D1) && D1 > 0,
+                 "material 'mooney_rivlin': D1 must be > 0 (compressible form), got " << D1);
+  PARAFAB_VERIFY(std::isfinite(C10) && std::isfinite(C01) && C10 + C01 > 0,
+                 "material 'mooney_rivlin': need finite C10, C01 with C10 + C01 > 0, got C10 = "
+                     << C10 << ", C01 = " << C01);
+}
+
+MooneyRivlin MooneyRivlin::from_young_poisson(double E, double nu, double ratio) {
+  const auto c = ElasticConstants::from_young_poisson(E, nu, "mooney_rivlin");
+  PARAFAB_VERIFY(std::isfinite(ratio) && ratio >= 0 && ratio <= 1,
+                 "material 'mooney_rivlin': ratio C01/(C10 + C01) must lie in [0, 1], got " << ratio);
+  return MooneyRivlin(0.5 * c.mu * (1 - ratio), 0.5 * c.mu * ratio, 2 / c.kappa);
+}
+
+NeoHookeanIsochoric NeoHookeanIsochoric::from_young_poisson(double E, double nu) {
+  const auto c = ElasticConstants::from_young_poisson(E, nu, "neo_hooke_isochoric");
+  return NeoHookeanIsochoric(0.5 * c.mu, 2 / c.kappa);
+}
+
+double MooneyRivlin::energy(const Mat3& F) const {
+  const double J = F.determinant();
+  if (!(J > 0) || !std::isfinite(J)) return kInf;
+  const Mat3 C = F.transpose() * F;
+  const double I1 = C.trace();
+  const double I2 = 0.5 * (I1 * I1 - C.squaredNorm());  // tr(C²) = C:C (C symmetric)
+  const double Jm23 = 1 / std::cbrt(J * J);               // J^{-2/3}
+  return C10_ * (Jm23 * I1 - 3) + C01_ * (Jm23 * Jm23 * I2 - 3) + (J - 1) * (J - 1) / D1_;
+}
+
+Mat3 MooneyRivlin::stress(const Mat3& F) const {
+  const double J = checked_det(F, name().c_str(), "stress");
+  const Mat3 G = F.inverse().transpose();
+  const Mat3 C = F.transpose() * F;
+  const double I1 = C.trace();
+  const double I2 = 0.5 * (I1 * I1 - C.squaredNorm());
+  const double Jm23 = 1 / std::cbrt(J * J);
+  const double Jm43 = Jm23 * Jm23;
+  const Mat3 dI1bar = Jm23 * (2 * F - (2.0 / 3.0) * I1 * G);
+  const Mat3 dI2bar = Jm43 * (2 * I1 * F - 2 * F * C - (4.0 / 3.0) * I2 * G);
+  return C10_ * dI1bar + C01_ * dI2bar + (2 / D1_) * (J - 1) * J * G;
+}
+
+Mat9 MooneyRivlin::tangent(const Mat3& F) const {
+  const double J = checked_det(F, name().c_str(), "tangent");
+  const Mat3 G = F.inverse().transpose();
+  const Mat3 C = F.transpose() * F;
+  const double I1 = C.trace();
+  const double I2 = 0.5 * (I1 * I1 - C.squaredNorm());
+  const double Jm23 = 1 / std::cbrt(J * J);
+  const double Jm43 = Jm23 * Jm23;
+  const Vec9 f = vec9(F), g = vec9(G);
+  const Mat9 K = inverse_transpose_kernel(G);  // ∂g/∂f = −K
+  const Mat9 I9 = Mat9::Identity();
+
+  // ∂²Ī₁/∂F² = J^{-2/3} [2 I − ⁴⁄₃ (f gᵀ + g fᵀ) + ⁴⁄₉ I₁ g gᵀ + ⅔ I₁ K].
+  const Mat9 H1 = Jm23 * (2 * I9 - (4.0 / 3.0) * (f * g.transpose() + g * f.transpose()) +
+                          (4.0 / 9.0) * I1 * g * g.transpose() + (2.0 / 3.0) * I1 * K);
+  Mat9 A = C10_ * H1;
+
+  if (C01_ != 0) {
+    // w = vec(2 I₁ F − 2 F C − ⁴⁄₃ I₂ G) = dI₂ − ⁴⁄₃ I₂ g, with dI₂ = vec(∂I₂/∂F).
+    // ∂²Ī₂/∂F² = J^{-4/3} [−⁴⁄₃ w gᵀ + 4 f fᵀ + 2 I₁ I − 2 ∂vec(FC)/∂f − ⁴⁄₃ g dI₂ᵀ + ⁴⁄₃ I₂ K].
+    const Vec9 dI2 = 2 * (I1 * f - vec9(F * C));
+    const Vec9 w = dI2 - (4.0 / 3.0) * I2 * g;
+    const Mat9 H2 = Jm43 * (-(4.0 / 3.0) * w * g.transpose() + 4 * f * f.transpose() + 2 * I1 * I9 -
+                            2 * fc_derivative(F) - (4.0 / 3.0) * g * dI2.transpose() +
+                            (4.0 / 3.0) * I2 * K);
+    A += C01_ * H2;
+  }
+
+  // Volumetric: P_vol = (2/D1)(J² − J) g ⇒ A_vol = (2/D1)[(2J − 1) J g gᵀ − (J² − J) K].
+  A += (2 / D1_) * ((2 * J - 1) * J * g * g.transpose() - (J * J - J) * K);
+  return A;
+}
+
+// ---------------------------------------------------------------------------------------
+
+std::unique_ptr<Material> make_material(const std::string& model, double E, double nu,
+                                        const MaterialOptions& options) {
+  if (model == "linear") return std::make_unique<LinearElastic>(E, nu);
+  if (model == "neo_hooke") return std::make_unique<NeoHookean>(E, nu);
+  if (model == "neo_hooke_isochoric")
+    return std::make_unique<NeoHookeanIsochoric>(NeoHookeanIsochoric::from_young_poisson(E, nu));
+  if (model == "mooney_rivlin")
+    return std::make_unique<MooneyRivlin>(
+        MooneyRivlin::from_young_poisson(E, nu, options.mooney_rivlin_ratio));
+  PARAFAB_INPUT_ERROR("unknown material model '"
+                      << model
+                      << "' (expected 'linear', 'neo_hooke', 'neo_hooke_isochoric' or 'mooney_rivlin')");
+}
+
+}  // namespace parafab::xfem

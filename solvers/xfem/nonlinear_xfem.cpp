@@ -1,0 +1,183 @@
+#include "xfem/nonlinear_xfem.h"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseLU>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "common/error.h"
+
+namespace parafab::xfem {
+
+namespace {
+
+// Trilinear gradients on a box (same convention as linear_xfem.cpp: corner bits x, y, z).
+Eigen::Matrix<double, 8, 3> gradients(const Box3& box, const Vec3& X) {
+  const Vec3 h = box.size();
+  const Vec3 xi = (X - box.min).cwiseQuotient(h);
+  Eigen::Matrix<double, 8, 3> G;
+  for (int k = 0; k < 8; ++k) {
+    const int bx = k & 1, by = (k >> 1) & 1, bz = (k >> 2) & 1;
+    const double fx = bx ? xi.x() : 1 - xi.x(), fy = by ? xi.y() : 1 - xi.y(), fz = bz ? xi.z() : 1 - xi.z();
+    G(k, 0) = (bx ? 1 : -1) * fy * fz / h.x();
+    G(k, 1) = fx * (by ? 1 : -1) * fz / h.y();
+    G(k, 2) = fx * fy * (bz ? 1 : -1) / h.z();
+  }
+  return G;
+}
+
+struct Evaluation {
+  double energy = 0;
+  Eigen::VectorXd gradient;
+  std::vector<Eigen::Triplet<double>> hessian;
+  bool finite = true;
+};
+
+// Bulk terms: Σ ∫ Ψ(F), its gradient and Hessian (vec(F) column-major: F(i, a) ↔ i + 3a).
+Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::vector<std::array<int, 8>>& node,
+                         const Material& material, const Eigen::VectorXd& u, bool with_hessian) {
+  Evaluation ev;
+  ev.gradient = Eigen::VectorXd::Zero(u.size());
+  for (size_t e = 0; e < elements.size(); ++e) {
+    const GridElement& el = elements[e];
+    Eigen::Matrix<double, 24, 1> ue;
+    for (int k = 0; k < 8; ++k) ue.segment<3>(3 * k) = u.segment<3>(3 * node[e][k]);
+    Eigen::Matrix<double, 24, 1> ge = Eigen::Matrix<double, 24, 1>::Zero();
+    Eigen::Matrix<double, 24, 24> He = Eigen::Matrix<double, 24, 24>::Zero();
+    for (size_t q = 0; q < el.rule.points.size(); ++q) {
+      const double w = el.rule.weights[q];
+      const Eigen::Matrix<double, 8, 3> G = gradients(el.box, el.rule.points[q]);
+      Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+      for (int k = 0; k < 8; ++k) F += ue.segment<3>(3 * k) * G.row(k);
+      const double psi = material.energy(F);
+      if (!std::isfinite(psi)) {
+        ev.finite = false;
+        return ev;
+      }
+      ev.energy += w * psi;
+      const Eigen::Matrix3d P = material.stress(F);
+      for (int k = 0; k < 8; ++k) ge.segment<3>(3 * k) += w * P * G.row(k).transpose();
+      if (with_hessian) {
+        const Eigen::Matrix<double, 9, 9> A = material.tangent(F);
+        // dF/du_(k,i) = e_i ⊗ ∇N_k → vec index i + 3a with weight G(k, a).
+        Eigen::Matrix<double, 9, 24> dF = Eigen::Matrix<double, 9, 24>::Zero();
+        for (int k = 0; k < 8; ++k)
+          for (int i = 0; i < 3; ++i)
+            for (int a = 0; a < 3; ++a) dF(i + 3 * a, 3 * k + i) = G(k, a);
+        He.noalias() += w * dF.transpose() * A * dF;
+      }
+    }
+    for (int a = 0; a < 8; ++a)
+      for (int da = 0; da < 3; ++da) {
+        const int ra = 3 * node[e][a] + da;
+        ev.gradient(ra) += ge(3 * a + da);
+        if (with_hessian)
+          for (int b = 0; b < 8; ++b)
+            for (int db = 0; db < 3; ++db) ev.hessian.emplace_back(ra, 3 * node[e][b] + db, He(3 * a + da, 3 * b + db));
+      }
+  }
+  return ev;
+}
+
+}  // namespace
+
+LinearXfemResult NonlinearXfemResult::as_linear() const {
+  LinearXfemResult r;
+  r.solved = converged;
+  r.u = u;
+  r.node = node;
+  r.dofs = dofs;
+  return r;
+}
+
+NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
+                                    const std::vector<std::array<int, 2>>& adjacent,
+                                    const Material& material, const ElasticMaterial& small_strain,
+                                    const std::vector<DirichletCondition>& dirichlet,
+                                    const std::vector<TractionCondition>& tractions,
+                                    const NonlinearXfemOptions& options) {
+  PARAFAB_VERIFY(options.load_steps >= 1, "load_steps must be >= 1, got " << options.load_steps);
+  const auto t0 = std::chrono::steady_clock::now();
+  NonlinearXfemResult r;
+  int count = 0;
+  r.node = number_dof_nodes(elements, adjacent, count);
+  r.dofs = 3 * count;
+  // Boundary and load terms are quadratic in u: ½uᵀK_b u − f_bᵀu (Nitsche, tractions, gravity).
+  const LinearSystem boundary = assemble_linear(elements, r.node, count, small_strain, dirichlet, tractions,
+                                                options.boundary, /*include_bulk=*/false);
+  r.u = Eigen::VectorXd::Zero(r.dofs);
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  bool analyzed = false;
+  for (int step = 1; step <= options.load_steps; ++step) {
+    const double lambda = static_cast<double>(step) / options.load_steps;
+    const Eigen::VectorXd f = lambda * boundary.f;
+    auto total = [&](const Eigen::VectorXd& x, bool hess, Evaluation& ev) {
+      ev = evaluate_bulk(elements, r.node, material, x, hess);
+      if (!ev.finite) return std::numeric_limits<double>::infinity();
+      const Eigen::VectorXd Kx = boundary.K * x;
+      ev.gradient += Kx - f;
+      return ev.energy + 0.5 * x.dot(Kx) - f.dot(x);
+    };
+    Evaluation ev;
+    double energy = total(r.u, true, ev);
+    const double scale = std::max(f.norm(), ev.gradient.norm());
+    bool step_done = false;
+    for (int it = 0; it < options.max_iterations; ++it) {
+      const double gnorm = ev.gradient.norm();
+      if (gnorm <= options.tolerance * std::max(scale, 1e-300)) {
+        step_done = true;
+        break;
+      }
+      Eigen::SparseMatrix<double> H(r.dofs, r.dofs);
+      H.setFromTriplets(ev.hessian.begin(), ev.hessian.end());
+      H += boundary.K;
+      if (!analyzed) llt.analyzePattern(H), analyzed = true;  // symbolic analysis reused
+      llt.factorize(H);
+      Eigen::VectorXd d;
+      if (llt.info() == Eigen::Success) {
+        d = -llt.solve(ev.gradient);
+      } else {  // indefinite (buckling, too small β): LU step, still checked by the line search
+        Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(H);
+        if (lu.info() != Eigen::Success) {
+          r.message = "Newton system singular at load step " + std::to_string(step);
+          r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          return r;
+        }
+        d = -lu.solve(ev.gradient);
+        if (d.dot(ev.gradient) > 0) d = -ev.gradient;  // not a descent direction
+      }
+      // Backtracking (Armijo) on the total energy; infinite energy (J ≤ 0) rejects a step.
+      double alpha = 1;
+      Evaluation trial;
+      double e_trial = total(r.u + d, false, trial);
+      const double slope = d.dot(ev.gradient);
+      while (!(e_trial <= energy + 1e-4 * alpha * slope) && alpha > 1e-10) {
+        alpha *= 0.5;
+        e_trial = total(r.u + alpha * d, false, trial);
+      }
+      if (!(e_trial <= energy + 1e-4 * alpha * slope) && std::abs(e_trial - energy) > 1e-14 * std::abs(energy)) {
+        r.message = "line search failed at load step " + std::to_string(step);
+        break;
+      }
+      r.u += alpha * d;
+      energy = total(r.u, true, ev);
+      ++r.iterations;
+      r.residuals.push_back(ev.gradient.norm());
+    }
+    if (!step_done) {
+      if (r.message.empty())
+        r.message = "Newton did not converge in " + std::to_string(options.max_iterations) +
+                    " iterations at load step " + std::to_string(step) + " (residual " +
+                    std::to_string(ev.gradient.norm()) + ")";
+      r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      return r;
+    }
+    r.energy = energy;
+  }
+  r.converged = true;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+}  // namespace parafab::xfem

@@ -1,0 +1,44 @@
+// Static equilibrium of hyperelastic parts on the cut grid (thesis §6.4.1, Eq. 6.17–6.18):
+// minimize Σ_e ∫ Ψ(F) dV + boundary terms − external work by Newton's method with a
+// backtracking line search on the energy, load stepping, and CHOLMOD for the Newton systems.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "xfem/linear_xfem.h"
+#include "xfem/materials.h"
+
+namespace parafab::xfem {
+
+struct NonlinearXfemOptions {
+  LinearXfemOptions boundary;  ///< Nitsche β, gravity, surface degree (incompatible modes unused)
+  int load_steps = 1;          ///< loads and prescribed displacements ramped in equal steps
+  int max_iterations = 50;     ///< Newton iterations per load step
+  double tolerance = 1e-9;     ///< ‖gradient‖ ≤ tolerance · max(‖external load‖, ‖initial gradient‖)
+};
+
+struct NonlinearXfemResult {
+  bool converged = false;
+  std::string message;
+  int dofs = 0, iterations = 0;
+  std::vector<double> residuals;         ///< ‖gradient‖ after every Newton step (all load steps)
+  Eigen::VectorXd u;
+  std::vector<std::array<int, 8>> node;
+  double energy = 0;
+  double seconds = 0;
+  /// The same interpolation as the linear result.
+  LinearXfemResult as_linear() const;
+};
+
+/// Boundary terms use linearized Nitsche (the consistency term with the small-strain stress
+/// of E, ν from `small_strain`): exact for linear problems, an O(strain²) inconsistency at
+/// Dirichlet faces under large strain, while the penalty keeps the condition enforced.
+NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
+                                    const std::vector<std::array<int, 2>>& adjacent,
+                                    const Material& material, const ElasticMaterial& small_strain,
+                                    const std::vector<DirichletCondition>& dirichlet,
+                                    const std::vector<TractionCondition>& tractions,
+                                    const NonlinearXfemOptions& options = {});
+
+}  // namespace parafab::xfem
