@@ -300,3 +300,17 @@ double von_mises(const Eigen::Matrix<double, 6, 1>& s) {
 }
 
 }  // namespace parafab::xfem
+
+namespace parafab::xfem {
+
+Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements,
+                                      int e, const Vec3& X) {
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  shape(elements[e].box, X, N, G);
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < 8; ++k) H += result.u.segment<3>(3 * result.node[e][k]) * G.row(k);
+  return H;
+}
+
+}  // namespace parafab::xfem

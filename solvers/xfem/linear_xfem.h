@@ -109,3 +109,11 @@ Eigen::Matrix<double, 6, 1> stress_at(const LinearXfemResult& result, const std:
 double von_mises(const Eigen::Matrix<double, 6, 1>& s);
 
 }  // namespace parafab::xfem
+
+namespace parafab::xfem {
+
+/// ∇u (∂u_i/∂X_j) of the solution at X in element e.
+Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements,
+                                      int e, const Vec3& X);
+
+}  // namespace parafab::xfem

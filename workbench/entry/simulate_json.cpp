@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <Eigen/Dense>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 
 #include "common/error.h"
@@ -10,6 +12,7 @@
 #include "grid_model.h"
 #include "part_reader.h"
 #include "xfem/mass_properties.h"
+#include "xfem/nonlinear_xfem.h"
 
 namespace parafab::entry {
 
@@ -17,6 +20,8 @@ using nlohmann::json;
 using xfem::Vec3;
 
 namespace {
+
+bool model_name_is_linear(const std::string& model) { return model == "linear"; }
 
 double number(const json& v, const std::string& path) {
   if (!v.is_number()) PARAFAB_INPUT_ERROR(path << " must be a number, got " << v.dump());
@@ -40,8 +45,10 @@ int face_of(const occ::PartShape& part, const json& item, const std::string& pat
   PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
 }
 
+using StressFn = std::function<Eigen::Matrix<double, 6, 1>(int, const Vec3&)>;
+
 void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& elements,
-               const xfem::LinearXfemResult& r, const xfem::ElasticMaterial& mat) {
+               const xfem::LinearXfemResult& r, const StressFn& stress) {
   // Uncut cells as hexahedra; cut subvolumes as their quadrature points (VTK_VERTEX), each
   // with displacement and von Mises stress.
   std::vector<Vec3> pts, disp;
@@ -58,7 +65,7 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
         h[k] = static_cast<int>(pts.size());
         pts.push_back(X);
         disp.push_back(r.displacement(elements, static_cast<int>(e), X));
-        vm.push_back(xfem::von_mises(xfem::stress_at(r, elements, mat, static_cast<int>(e), X)));
+        vm.push_back(xfem::von_mises(stress(static_cast<int>(e), X)));
       }
       hexes.push_back(h);
     } else {
@@ -66,7 +73,7 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
         vertices.push_back(static_cast<int>(pts.size()));
         pts.push_back(X);
         disp.push_back(r.displacement(elements, static_cast<int>(e), X));
-        vm.push_back(xfem::von_mises(xfem::stress_at(r, elements, mat, static_cast<int>(e), X)));
+        vm.push_back(xfem::von_mises(stress(static_cast<int>(e), X)));
       }
     }
   }
@@ -118,11 +125,14 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
   if (!(mat.youngs_modulus > 0)) PARAFAB_INPUT_ERROR("material.E must be positive, got " << mat.youngs_modulus);
   if (!(mat.poisson_ratio > -1 && mat.poisson_ratio < 0.5))
     PARAFAB_INPUT_ERROR("material.nu must be in (-1, 0.5), got " << mat.poisson_ratio);
+  // "linear" (small strain, one linear solve) or a hyperelastic law solved by Newton.
+  const std::string model = m.value("model", std::string("linear"));
+  const auto law = xfem::make_material(model, mat.youngs_modulus, mat.poisson_ratio);
 
   occ::GridModelOptions go;
-  const json grid = job.value("grid", json::object());
-  go.grid.cells_longest = static_cast<int>(number(grid.value("cells", json(16)), "grid.cells"));
-  go.grid.cell_size = number(grid.value("cell_size", json(0.0)), "grid.cell_size");
+  const json grid_job = job.value("grid", json::object());
+  go.grid.cells_longest = static_cast<int>(number(grid_job.value("cells", json(16)), "grid.cells"));
+  go.grid.cell_size = number(grid_job.value("cell_size", json(0.0)), "grid.cell_size");
   if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
 
   std::vector<xfem::DirichletCondition> dirichlet;
@@ -164,19 +174,44 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
                                                  << " unknowns), more than 70% of the " << physical_mb
                                                  << " MB of memory: use fewer cells");
 
-  const occ::GridModel model = occ::build_grid_model(*part, go);
-  if (!model.done) PARAFAB_INPUT_ERROR("cannot cut " << part_path << " by the grid: " << model.message);
-  const xfem::LinearXfemResult r = xfem::solve_linear(model.elements, model.adjacent, mat, dirichlet, tractions, fo);
+  const occ::GridModel grid = occ::build_grid_model(*part, go);
+  if (!grid.done) PARAFAB_INPUT_ERROR("cannot cut " << part_path << " by the grid: " << grid.message);
+  xfem::LinearXfemResult r;
+  json newton = nullptr;
+  StressFn stress;
+  if (model_name_is_linear(model)) {
+    r = xfem::solve_linear(grid.elements, grid.adjacent, mat, dirichlet, tractions, fo);
+    stress = [&](int e, const Vec3& X) { return xfem::stress_at(r, grid.elements, mat, e, X); };
+  } else {
+    xfem::NonlinearXfemOptions no;
+    no.boundary = fo;
+    no.load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
+    if (no.load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1");
+    const xfem::NonlinearXfemResult nr =
+        xfem::solve_nonlinear(grid.elements, grid.adjacent, *law, mat, dirichlet, tractions, no);
+    if (!nr.converged) PARAFAB_INPUT_ERROR("the hyperelastic simulation did not converge: " << nr.message);
+    r = nr.as_linear();
+    r.solve_seconds = nr.seconds;
+    r.energy = nr.energy;
+    newton = {{"iterations", nr.iterations}, {"residuals", nr.residuals}, {"load_steps", no.load_steps}};
+    stress = [&](int e, const Vec3& X) {  // Cauchy stress σ = P Fᵀ / J
+      const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + xfem::displacement_gradient(r, grid.elements, e, X);
+      const Eigen::Matrix3d sig = law->stress(F) * F.transpose() / F.determinant();
+      Eigen::Matrix<double, 6, 1> v;
+      v << sig(0, 0), sig(1, 1), sig(2, 2), sig(0, 1), sig(1, 2), sig(0, 2);
+      return v;
+    };
+  }
   if (!r.solved) PARAFAB_INPUT_ERROR("the simulation could not be solved: " << r.message);
 
   double umax = 0, vmmax = 0;
   xfem::MassAccumulator acc;
-  for (size_t e = 0; e < model.elements.size(); ++e) {
-    const auto& el = model.elements[e];
+  for (size_t e = 0; e < grid.elements.size(); ++e) {
+    const auto& el = grid.elements[e];
     acc.add(el.rule.points, el.rule.weights);
     for (const Vec3& X : el.rule.points) {
-      umax = std::max(umax, r.displacement(model.elements, static_cast<int>(e), X).norm());
-      vmmax = std::max(vmmax, xfem::von_mises(xfem::stress_at(r, model.elements, mat, static_cast<int>(e), X)));
+      umax = std::max(umax, r.displacement(grid.elements, static_cast<int>(e), X).norm());
+      vmmax = std::max(vmmax, xfem::von_mises(stress(static_cast<int>(e), X)));
     }
   }
   json probes = json::array();
@@ -185,39 +220,41 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
       const Vec3 X = vec3(job["probes"][i], "probes[" + std::to_string(i) + "]");
       int best = -1;  // the element whose rule point is nearest (it holds X's subvolume)
       double best_d = 1e300;
-      for (size_t e = 0; e < model.elements.size(); ++e) {
-        const auto& b = model.elements[e].box;
+      for (size_t e = 0; e < grid.elements.size(); ++e) {
+        const auto& b = grid.elements[e].box;
         if (((X - b.min).array() < -1e-9 * diag).any() || ((b.max - X).array() < -1e-9 * diag).any()) continue;
-        for (const Vec3& P : model.elements[e].rule.points)
+        for (const Vec3& P : grid.elements[e].rule.points)
           if ((P - X).norm() < best_d) best_d = (P - X).norm(), best = static_cast<int>(e);
       }
       if (best < 0) PARAFAB_INPUT_ERROR("probes[" << i << "] lies outside the grid");
-      const Vec3 u = r.displacement(model.elements, best, X);
-      const auto s = xfem::stress_at(r, model.elements, mat, best, X);
+      const Vec3 u = r.displacement(grid.elements, best, X);
+      const auto s = stress(best, X);
       probes.push_back({{"point", {X.x(), X.y(), X.z()}}, {"displacement", {u.x(), u.y(), u.z()}},
                         {"von_mises", xfem::von_mises(s)},
                         {"stress", {s(0), s(1), s(2), s(3), s(4), s(5)}}});
     }
   const xfem::MassProperties mp = acc.result();
   json out{{"part", part_path},
-           {"grid", {{"cells", model.cut->cells}, {"cell_size", model.cut->cell_size.x()},
-                     {"cut_cells", model.cut->cut_cells.size()}, {"subvolumes", model.cut->subvolumes.size()},
-                     {"interior_cells", model.cut->interior_cells.size()}}},
+           {"grid", {{"cells", grid.cut->cells}, {"cell_size", grid.cut->cell_size.x()},
+                     {"cut_cells", grid.cut->cut_cells.size()}, {"subvolumes", grid.cut->subvolumes.size()},
+                     {"interior_cells", grid.cut->interior_cells.size()}}},
            {"dofs", r.dofs},
            {"estimate", {{"unknowns", dofs}, {"factor_mb", factor_mb}}},
            {"max_displacement", umax},
            {"max_von_mises", vmmax},
            {"energy", r.energy},
+           {"material_model", model},
+           {"newton", newton},
            {"mass_properties", {{"volume", mp.volume}, {"mass", mp.volume * mat.density},
                                 {"center", {mp.center.x(), mp.center.y(), mp.center.z()}}}},
            {"probes", probes},
            {"message", r.message},
-           {"seconds", {{"cut", model.cut_seconds}, {"rules", model.rule_seconds},
+           {"seconds", {{"cut", grid.cut_seconds}, {"rules", grid.rule_seconds},
                         {"assemble", r.assemble_seconds}, {"solve", r.solve_seconds}}},
            {"units", "those of the part and material (e.g. mm, N, MPa)"}};
   if (!out_dir.empty()) {
     std::filesystem::create_directories(out_dir);
-    write_vtu(out_dir + "/result.vtu", model.elements, r, mat);
+    write_vtu(out_dir + "/result.vtu", grid.elements, r, stress);
     std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
     out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu"};
   }
