@@ -261,6 +261,7 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
   llt.compute(sys.K);
   if (llt.info() == Eigen::Success) {
     r.u = llt.solve(sys.f);
+    for (int k = 0; k < 2; ++k) r.u += llt.solve(sys.f - sys.K * r.u);  // iterative refinement
     r.solved = llt.info() == Eigen::Success;
   }
   if (!r.solved) {  // not positive definite: too small a Nitsche β, or no support

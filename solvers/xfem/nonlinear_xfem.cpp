@@ -137,6 +137,9 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
       Eigen::VectorXd d;
       if (llt.info() == Eigen::Success) {
         d = -llt.solve(ev.gradient);
+        // Iterative refinement: tiny cut cells make H ill-conditioned (no stabilization yet),
+        // and one triangular solve then leaves a linear residual that stalls Newton.
+        for (int k = 0; k < 3; ++k) d += llt.solve(-ev.gradient - H * d);
       } else {  // indefinite (buckling, too small β): LU step, still checked by the line search
         Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(H);
         if (lu.info() != Eigen::Success) {
@@ -152,11 +155,13 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
       Evaluation trial;
       double e_trial = total(r.u + d, false, trial);
       const double slope = d.dot(ev.gradient);
-      while (!(e_trial <= energy + 1e-4 * alpha * slope) && alpha > 1e-10) {
+      // Near the solution the energy changes below its round-off: take the full step then.
+      const bool roundoff = std::abs(e_trial - energy) <= 1e-12 * std::max(std::abs(energy), 1e-300);
+      while (!roundoff && !(e_trial <= energy + 1e-4 * alpha * slope) && alpha > 1e-10) {
         alpha *= 0.5;
         e_trial = total(r.u + alpha * d, false, trial);
       }
-      if (!(e_trial <= energy + 1e-4 * alpha * slope) && std::abs(e_trial - energy) > 1e-14 * std::abs(energy)) {
+      if (!roundoff && !(e_trial <= energy + 1e-4 * alpha * slope)) {
         r.message = "line search failed at load step " + std::to_string(step);
         break;
       }
@@ -164,6 +169,12 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
       energy = total(r.u, true, ev);
       ++r.iterations;
       r.residuals.push_back(ev.gradient.norm());
+      // A Newton step that no longer moves the solution: converged to round-off (the residual
+      // can stall above the tolerance where Nitsche penalties make the Hessian very stiff).
+      if (d.norm() <= 1e-10 * std::max(r.u.norm(), 1e-300)) {
+        step_done = true;
+        break;
+      }
     }
     if (!step_done) {
       if (r.message.empty())
