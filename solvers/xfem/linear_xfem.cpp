@@ -254,7 +254,12 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
   r.dofs = 3 * count;
   r.elements = static_cast<int>(elements.size());
   for (const auto& e : elements) r.cut_elements += e.subvolume != nullptr;
-  const LinearSystem sys = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options);
+  const LinearSystem full = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options);
+  const Eigen::SparseMatrix<double> T = aggregation_map(elements, adjacent, r.node, count, options.aggregation_fraction,
+                                                        &r.aggregated_nodes);
+  LinearSystem sys;
+  sys.K = T.transpose() * full.K * T;
+  sys.f = T.transpose() * full.f;
   r.assemble_seconds = seconds_since(t0);
   t0 = std::chrono::steady_clock::now();
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
@@ -276,8 +281,68 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
     }
   }
   r.solve_seconds = seconds_since(t0);
-  if (r.solved) r.energy = 0.5 * r.u.dot(sys.K * r.u) - sys.f.dot(r.u);
+  if (r.solved) {
+    r.energy = 0.5 * r.u.dot(sys.K * r.u) - sys.f.dot(r.u);
+    r.u = T * r.u;  // back to every DOF node (aggregated ones extrapolated)
+  }
   return r;
+}
+
+Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
+                                            const std::vector<std::array<int, 2>>& adjacent,
+                                            const std::vector<std::array<int, 8>>& node, int count,
+                                            double fraction, int* aggregated) {
+  // Small elements: volume fraction below `fraction`. A DOF node all of whose elements are
+  // small is "floating" (barely stiff): it follows the trilinear field of a normal neighbour.
+  const int n = static_cast<int>(elements.size());
+  std::vector<char> small(n, 0);
+  for (int e = 0; e < n; ++e) {
+    double v = 0;
+    for (double w : elements[e].rule.weights) v += w;
+    small[e] = fraction > 0 && v < fraction * elements[e].box.volume();
+  }
+  std::vector<char> supported(count, 0);
+  for (int e = 0; e < n; ++e)
+    if (!small[e]) for (int k : node[e]) supported[k] = 1;
+  std::vector<int> host(n, -1);  // the largest normal neighbour of every small element
+  std::vector<double> host_volume(n, 0);
+  for (const auto& [a, b] : adjacent)
+    for (const auto& [s, o] : {std::pair<int, int>{a, b}, std::pair<int, int>{b, a}}) {
+      if (!small[s] || small[o]) continue;
+      double v = 0;
+      for (double w : elements[o].rule.weights) v += w;
+      if (v > host_volume[s]) host_volume[s] = v, host[s] = o;
+    }
+  std::vector<int> reduced(count, -1);
+  int m = 0;
+  std::vector<std::pair<int, int>> floating;  // (DOF node, small element, corner) via index
+  std::vector<std::array<int, 2>> source(count, {-1, -1});
+  for (int e = 0; e < n; ++e)
+    if (small[e] && host[e] >= 0)
+      for (int k = 0; k < 8; ++k)
+        if (!supported[node[e][k]] && source[node[e][k]][0] < 0) source[node[e][k]] = {e, k};
+  for (int i = 0; i < count; ++i)
+    if (source[i][0] < 0) reduced[i] = m++;
+  std::vector<Eigen::Triplet<double>> trip;
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  int agg = 0;
+  for (int i = 0; i < count; ++i) {
+    if (reduced[i] >= 0) {
+      for (int d = 0; d < 3; ++d) trip.emplace_back(3 * i + d, 3 * reduced[i] + d, 1.0);
+      continue;
+    }
+    ++agg;
+    const auto [e, k] = source[i];
+    const int h = host[e];
+    shape(elements[h].box, corner(elements[e].box, k), N, G);  // extrapolation into the small cell
+    for (int j = 0; j < 8; ++j)
+      for (int d = 0; d < 3; ++d) trip.emplace_back(3 * i + d, 3 * reduced[node[h][j]] + d, N(j));
+  }
+  if (aggregated) *aggregated = agg;
+  Eigen::SparseMatrix<double> T(3 * count, 3 * m);
+  T.setFromTriplets(trip.begin(), trip.end());
+  return T;
 }
 
 }  // namespace parafab::xfem

@@ -55,6 +55,11 @@ struct LinearXfemOptions {
   /// trilinear hexahedra; off: plain hex8.
   bool incompatible_modes = true;
   double incompatible_min_fraction = 1e-3;  ///< not on elements with a smaller volume fraction
+  /// Small cut cells (the thesis is silent; cf. aggregated FEM, Badia et al. 2018): a DOF node
+  /// used only by elements whose volume fraction is below this follows the trilinear field of
+  /// the largest face-connected normal element (extrapolated), so conditioning stays bounded
+  /// as fractions go to 0. 0 turns it off.
+  double aggregation_fraction = 0.05;
 };
 
 struct LinearXfemResult {
@@ -65,6 +70,7 @@ struct LinearXfemResult {
   std::vector<std::array<int, 8>> node;  ///< per element: DOF node of each corner
   double assemble_seconds = 0, solve_seconds = 0;
   double energy = 0;                     ///< ½ uᵀKu − fᵀu at the solution
+  int aggregated_nodes = 0;              ///< DOF nodes tied to a neighbour (small cut cells)
 
   /// Displacement at X inside element e (trilinear interpolation of its DOF nodes).
   Vec3 displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const;
@@ -90,6 +96,13 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
                              const LinearXfemOptions& options, bool include_bulk = true);
+
+/// The map u = T u_reduced of cell aggregation (see LinearXfemOptions::aggregation_fraction):
+/// identity rows for ordinary DOF nodes, extrapolation rows for floating ones.
+Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
+                                            const std::vector<std::array<int, 2>>& adjacent,
+                                            const std::vector<std::array<int, 8>>& node, int count,
+                                            double fraction, int* aggregated = nullptr);
 
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<std::array<int, 2>>& adjacent,

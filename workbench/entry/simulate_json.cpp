@@ -244,6 +244,7 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
            {"max_von_mises", vmmax},
            {"energy", r.energy},
            {"material_model", model},
+           {"aggregated_nodes", r.aggregated_nodes},
            {"newton", newton},
            {"mass_properties", {{"volume", mp.volume}, {"mass", mp.volume * mat.density},
                                 {"center", {mp.center.x(), mp.center.y(), mp.center.z()}}}},
