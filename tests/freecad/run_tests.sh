@@ -1,5 +1,5 @@
 #!/bin/bash
-# Run the headless FreeCAD tests of the ParaFab workbench (test_strip_feature).
+# Run the headless FreeCAD tests of the ParaFab workbench (strip and analysis features).
 #
 # Usage: tests/freecad/run_tests.sh [BUILD_DIR]      (default: <repo>/build)
 #
@@ -28,8 +28,10 @@ trap 'rm -rf "$tmp_home"' EXIT
 
 echo "run_tests.sh: solver from $PARAFAB_MODULE_DIR, workbench from $PARAFAB_WB_DIR"
 status=0
-HOME=$tmp_home PYTHONPATH="$here${PYTHONPATH:+:$PYTHONPATH}" \
-    timeout "$timeout_s" freecadcmd -t test_strip_feature || status=$?
+for module in test_strip_feature test_analysis_feature; do
+    HOME=$tmp_home PYTHONPATH="$here${PYTHONPATH:+:$PYTHONPATH}" \
+        timeout "$timeout_s" freecadcmd -t "$module" || { status=$?; break; }
+done
 if [ "$status" -eq 124 ]; then
     echo "run_tests.sh: FAILED (timeout after ${timeout_s}s)" >&2
 elif [ "$status" -ne 0 ]; then

@@ -61,3 +61,39 @@ class StripCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_Strip", StripCommand())
+
+
+class AnalyzePartCommand(object):
+    """Analyze the selected solid: the selected faces are held fixed; loads (LoadedFaces,
+    Force), material and grid are set in the property editor, then the feature recomputes."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Analysis.svg"),
+            "MenuText": "Analyze part",
+            "ToolTip": "Linear or hyperelastic XFEM simulation of the selected solid on a fixed grid; "
+                       "selected faces are held fixed",
+        }
+
+    def IsActive(self):
+        sel = FreeCADGui.Selection.getSelectionEx()
+        return bool(sel) and hasattr(sel[0].Object, "Shape") and bool(sel[0].Object.Shape.Solids)
+
+    def Activated(self):
+        from . import analysis_feature
+        sel = FreeCADGui.Selection.getSelectionEx()[0]
+        faces = [n.split(".")[-1] for n in sel.SubElementNames if n.split(".")[-1].startswith("Face")]
+        doc = sel.Object.Document
+        doc.openTransaction("Analyze part")
+        try:
+            analysis_feature.make_analysis(sel.Object, faces)
+        except Exception as exc:
+            doc.abortTransaction()
+            FreeCAD.Console.PrintError("ParaFab: cannot create analysis: %s\n" % exc)
+            return
+        doc.commitTransaction()
+        FreeCAD.Console.PrintMessage(
+            "ParaFab: analysis created; set LoadedFaces and Force, then recompute\n")
+
+
+FreeCADGui.addCommand("ParaFab_AnalyzePart", AnalyzePartCommand())
