@@ -58,6 +58,23 @@ class Simulate(unittest.TestCase):
         job["material"]["model"] = "linear"
         self.assertLess(r["probes"][0]["displacement"][2], 0)
 
+    def test_nitsche_beta_too_small_is_reported_and_large_is_stable(self):
+        with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
+            job = json.load(f)
+        job["grid"] = {"cells": 12}
+        tip = {}
+        for beta in (0.1, 100, 1e3, 1e5):
+            job["nitsche_beta"] = beta
+            r = parafab.simulate(BRACKET, job)
+            tip[beta] = r["probes"][0]["displacement"][2]
+            if beta < 1:  # unstable Nitsche: indefinite matrix, reported, solved by LU
+                self.assertIn("not positive definite", r["message"])
+            else:
+                self.assertEqual(r["message"], "")
+        # Stable range: the clamp converges to strong enforcement, without locking here.
+        self.assertLess(abs(tip[100] - tip[1e5]) / abs(tip[1e5]), 0.01)
+        self.assertLess(abs(tip[1e3] - tip[1e5]) / abs(tip[1e5]), 0.001)
+
     def test_job_errors_name_the_field(self):
         base = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 30]}]}
         cases = [
