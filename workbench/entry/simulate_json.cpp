@@ -242,7 +242,7 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
            {"estimate", {{"unknowns", dofs}, {"factor_mb", factor_mb}}},
            {"max_displacement", umax},
            {"max_von_mises", vmmax},
-           {"energy", r.energy},
+           {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant
            {"material_model", model},
            {"aggregated_nodes", r.aggregated_nodes},
            {"newton", newton},
