@@ -19,9 +19,11 @@ import tempfile
 import FreeCAD
 import Part
 
+from . import feature_proxy
+
 TYPE = "ParaFab::Analysis"
 VERSION = 1
-_READ_ONLY, _OUTPUT = 1, 8
+_READ_ONLY, _OUTPUT = feature_proxy.READ_ONLY, feature_proxy.OUTPUT
 
 _PROPERTIES = (
     ("App::PropertyLink", "Part", "Analysis", "Solid to analyse", None, 0),
@@ -45,17 +47,6 @@ MODELS = ["linear", "neo_hooke", "neo_hooke_isochoric", "mooney_rivlin"]
 
 class AnalysisError(RuntimeError):
     """Raised from ``execute`` to put the feature in FreeCAD's error state."""
-
-
-def _ensure_properties(obj):
-    for ptype, name, group, tip, default, attr in _PROPERTIES:
-        if name in obj.PropertiesList:
-            continue
-        obj.addProperty(ptype, name, group, tip, attr)
-        if name == "Model":
-            obj.Model = MODELS
-        elif default is not None:
-            setattr(obj, name, default)
 
 
 def _face_indices(names, part_obj, what):
@@ -92,14 +83,13 @@ def build_job(obj):
     return job
 
 
-class AnalysisFeature(object):
+class AnalysisFeature(feature_proxy.FeatureProxy):
     """Proxy of the ``Analysis`` ``Part::FeaturePython``."""
 
-    def __init__(self, obj):
-        self.Type = TYPE
-        self.Version = VERSION
-        _ensure_properties(obj)
-        obj.Proxy = self
+    TYPE = TYPE
+    VERSION = VERSION
+    PROPERTIES = _PROPERTIES
+    ENUMERATIONS = {"Model": MODELS}
 
     def execute(self, obj):
         obj.Status = ""
@@ -120,20 +110,6 @@ class AnalysisFeature(object):
         obj.MaxVonMises = FreeCAD.Units.Quantity("%r MPa" % result["max_von_mises"])
         obj.Status = "solved: %s" % os.path.join(out_dir, "result.vtu")
         obj.Shape = obj.Part.Shape.copy()
-
-    def onDocumentRestored(self, obj):
-        _ensure_properties(obj)
-
-    def __getstate__(self):
-        return {"Type": TYPE, "Version": VERSION}
-
-    def __setstate__(self, state):
-        state = state or {}
-        self.Type = state.get("Type", TYPE)
-        self.Version = state.get("Version", VERSION)
-
-    dumps = __getstate__
-    loads = __setstate__
 
 
 def _default_output_dir(obj):

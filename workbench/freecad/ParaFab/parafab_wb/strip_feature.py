@@ -34,6 +34,7 @@ import Part
 from . import geometry
 from . import icon_path
 from . import shapes
+from . import feature_proxy
 
 #: Proxy type tag stored in documents.
 TYPE = "ParaFab::Strip"
@@ -74,16 +75,6 @@ _PROPERTIES = (
 
 class StripError(RuntimeError):
     """Raised from ``execute`` to put the feature in FreeCAD's error state."""
-
-
-def _ensure_properties(obj):
-    """Add the properties missing on ``obj`` (creation and old documents)."""
-    for ptype, name, group, tip, default, attr in _PROPERTIES:
-        if name in obj.PropertiesList:
-            continue
-        obj.addProperty(ptype, name, group, tip, attr)
-        if default is not None:
-            setattr(obj, name, default)
 
 
 def _solver():
@@ -144,14 +135,12 @@ def build_spec(obj, curve):
     }
 
 
-class StripFeature(object):
+class StripFeature(feature_proxy.FeatureProxy):
     """Proxy of the ``Strip`` ``Part::FeaturePython`` object."""
 
-    def __init__(self, obj):
-        self.Type = TYPE
-        self.Version = VERSION
-        _ensure_properties(obj)
-        obj.Proxy = self
+    TYPE = TYPE
+    VERSION = VERSION
+    PROPERTIES = _PROPERTIES
 
     # -- recompute ---------------------------------------------------------
 
@@ -186,28 +175,6 @@ class StripFeature(object):
         obj.Shape = shapes.strip_shape(result, curve.frame)
         obj.Feasible = True
         obj.Reason = ""
-
-    # -- persistence -------------------------------------------------------
-
-    def onDocumentRestored(self, obj):
-        """Upgrade documents saved by older versions (add new properties)."""
-        _ensure_properties(obj)
-        self.Type = TYPE
-        self.Version = VERSION
-
-    def __getstate__(self):
-        """JSON-friendly proxy state (FreeCAD 0.20 API)."""
-        return {"Type": TYPE, "Version": VERSION}
-
-    def __setstate__(self, state):
-        """Restore the proxy state saved by :meth:`__getstate__`."""
-        state = state or {}
-        self.Type = state.get("Type", TYPE)
-        self.Version = state.get("Version", VERSION)
-
-    # FreeCAD >= 0.21 names.
-    dumps = __getstate__
-    loads = __setstate__
 
 
 class ViewProviderStrip(object):

@@ -1,0 +1,62 @@
+"""Shared plumbing of ParaFab's ``Part::FeaturePython`` proxies: typed properties from a
+table, and proxy state that survives save/reload (FreeCAD 0.20 stores what
+``__getstate__`` returns as JSON; 0.21 calls ``dumps``/``loads``).
+"""
+
+#: Property status bits (App::PropertyType): read-only in the editor, and "output"
+#: (changing it does not touch the object).
+READ_ONLY = 1
+OUTPUT = 8
+
+
+def ensure_properties(obj, table, enumerations=None):
+    """Add the properties of ``table`` missing on ``obj`` (at creation, and on documents
+    saved by older versions). Rows: (type, name, group, tooltip, default, status bits);
+    ``enumerations`` maps enumeration property names to their choices."""
+    enumerations = enumerations or {}
+    for ptype, name, group, tip, default, attr in table:
+        if name in obj.PropertiesList:
+            continue
+        obj.addProperty(ptype, name, group, tip, attr)
+        if name in enumerations:
+            setattr(obj, name, enumerations[name])
+        elif default is not None:
+            setattr(obj, name, default)
+
+
+class FeatureProxy(object):
+    """Base proxy: subclasses set TYPE, VERSION, PROPERTIES (and ENUMERATIONS)."""
+
+    TYPE = ""
+    VERSION = 1
+    PROPERTIES = ()
+    ENUMERATIONS = None
+
+    def __init__(self, obj):
+        self.Type = self.TYPE
+        self.Version = self.VERSION
+        ensure_properties(obj, self.PROPERTIES, self.ENUMERATIONS)
+        obj.Proxy = self
+
+    def onDocumentRestored(self, obj):
+        """Upgrade documents saved by older versions (add new properties)."""
+        ensure_properties(obj, self.PROPERTIES, self.ENUMERATIONS)
+        self.Type = self.TYPE
+        self.Version = self.VERSION
+
+    def __getstate__(self):
+        """JSON-friendly proxy state."""
+        return {"Type": self.TYPE, "Version": self.VERSION}
+
+    def __setstate__(self, state):
+        """Restore the state saved by :meth:`__getstate__`."""
+        state = state or {}
+        self.Type = state.get("Type", self.TYPE)
+        self.Version = state.get("Version", self.VERSION)
+
+    # FreeCAD >= 0.21 names.
+    def dumps(self):
+        return self.__getstate__()
+
+    def loads(self, state):
+        return self.__setstate__(state)
