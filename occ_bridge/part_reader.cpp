@@ -3,10 +3,13 @@
 #include "part_reader.h"
 
 #include <BRepBndLib.hxx>
+#include <BRepBuilderAPI_Transform.hxx>
 #include <BRepCheck.hxx>
 #include <BRepCheck_Analyzer.hxx>
 #include <BRepCheck_Result.hxx>
 #include <BRepGProp.hxx>
+#include <gp_Ax1.hxx>
+#include <gp_Trsf.hxx>
 #include <BRepTools.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
@@ -394,6 +397,22 @@ PartInfo part_info(const PartShape& part) {
   info.volume = vprops.Mass();
   info.area = sprops.Mass();
   return info;
+}
+
+std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
+                                              const Eigen::Vector3d& axis, double degrees) {
+  PARAFAB_VERIFY(axis.norm() > 0, "rotation axis must not be zero");
+  gp_Trsf t;
+  t.SetRotation(gp_Ax1(gp_Pnt(center.x(), center.y(), center.z()), gp_Dir(axis.x(), axis.y(), axis.z())),
+                degrees * M_PI / 180.0);
+  auto out = std::make_shared<PartShape>(part);
+  out->shape = BRepBuilderAPI_Transform(part.shape, t, /*copy=*/true).Shape();
+  out->faces.Clear(), out->edges.Clear(), out->vertices.Clear();
+  TopExp::MapShapes(out->shape, TopAbs_FACE, out->faces);
+  TopExp::MapShapes(out->shape, TopAbs_EDGE, out->edges);
+  TopExp::MapShapes(out->shape, TopAbs_VERTEX, out->vertices);
+  PARAFAB_VERIFY(out->faces.Extent() == part.faces.Extent(), "rotation changed the face count");
+  return out;
 }
 
 }  // namespace parafab::occ

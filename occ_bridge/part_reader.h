@@ -31,6 +31,11 @@ std::shared_ptr<const PartShape> read_part(const std::string& path, const ReadOp
 std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& brep,
                                                             const ReadOptions& options = {});
 
+/// The part rotated by `degrees` about the axis through `center` with direction `axis` (for
+/// studies of a part at several orientations inside a fixed grid). Faces keep their indices.
+std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
+                                              const Eigen::Vector3d& axis, double degrees);
+
 /// Global facts about a part (units: those of the file, mm for STEP).
 struct PartInfo {
   std::string source, name;

@@ -111,7 +111,13 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
   if (!job.is_object()) PARAFAB_INPUT_ERROR("the job must be a JSON object");
   occ::ReadOptions ro;
   if (job.contains("solid")) ro.solid_index = static_cast<int>(number(job["solid"], "solid"));
-  const auto part = occ::read_part(part_path, ro);
+  auto part = occ::read_part(part_path, ro);
+  if (job.contains("rotate")) {  // {"axis": [..], "center": [..], "degrees": a}: the part inside the grid
+    const json& rot = job["rotate"];
+    part = occ::rotated_part(*part, vec3(rot.value("center", json::array({0, 0, 0})), "rotate.center"),
+                             vec3(rot.value("axis", json::array({0, 0, 1})), "rotate.axis"),
+                             number(rot.value("degrees", json(0.0)), "rotate.degrees"));
+  }
   const occ::PartInfo info = occ::part_info(*part);
   const double diag = (info.bbox_max - info.bbox_min).norm();
   const double tol = 1e-3 * diag;
