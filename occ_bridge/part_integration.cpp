@@ -13,6 +13,12 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }
 }  // namespace
 
+xfem::MassProperties cut_cell_properties(const IntegrationResult& result, const CutCell& cell) {
+  xfem::MassAccumulator acc;
+  for (int s : cell.subvolumes) acc.add(result.rules[s].rule.points, result.rules[s].rule.weights);
+  return acc.result();
+}
+
 MassPropertyErrors compare(const xfem::MassProperties& a, const xfem::MassProperties& ref,
                            double diagonal) {
   MassPropertyErrors e;

@@ -43,6 +43,9 @@ struct IntegrationResult {
   double cut_seconds = 0, rule_seconds = 0, occt_seconds = 0;
 };
 
+/// Mass properties of one cut cell from the rules of its subvolumes.
+xfem::MassProperties cut_cell_properties(const IntegrationResult& result, const CutCell& cell);
+
 MassPropertyErrors compare(const xfem::MassProperties& a, const xfem::MassProperties& ref,
                            double diagonal);
 

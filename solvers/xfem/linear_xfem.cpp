@@ -22,21 +22,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Trilinear shape functions on `box` at X: values N (8) and physical gradients G (8×3).
-void shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>& N, Eigen::Matrix<double, 8, 3>& G) {
-  const Vec3 h = box.size();
-  const Vec3 xi = (X - box.min).cwiseQuotient(h);
-  for (int k = 0; k < 8; ++k) {
-    const int bx = k & 1, by = (k >> 1) & 1, bz = (k >> 2) & 1;
-    const double fx = bx ? xi.x() : 1 - xi.x(), fy = by ? xi.y() : 1 - xi.y(), fz = bz ? xi.z() : 1 - xi.z();
-    const double sx = bx ? 1 : -1, sy = by ? 1 : -1, sz = bz ? 1 : -1;
-    N(k) = fx * fy * fz;
-    G(k, 0) = sx * fy * fz / h.x();
-    G(k, 1) = fx * sy * fz / h.y();
-    G(k, 2) = fx * fy * sz / h.z();
-  }
-}
-
 // Strain–displacement matrix, Voigt order (xx, yy, zz, xy, yz, xz) with engineering shears.
 Mat6x24 strain_matrix(const Eigen::Matrix<double, 8, 3>& G) {
   Mat6x24 B = Mat6x24::Zero();
@@ -102,7 +87,7 @@ void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6
   Eigen::Matrix<double, 8, 1> N;
   Eigen::Matrix<double, 8, 3> G;
   for (size_t q = 0; q < nq; ++q) {
-    shape(el.box, el.rule.points[q], N, G);
+    trilinear_shape(el.box, el.rule.points[q], N, G);
     const Mat6x24 Bu = strain_matrix(G);
     // Mode m of component c: displacement e_c φ_m; only ∂φ_m/∂x_m ≠ 0.
     Eigen::Matrix<double, 8, 3> Gm = Eigen::Matrix<double, 8, 3>::Zero();  // rows 0..2 used
@@ -125,6 +110,20 @@ struct UnionFind {
 };
 
 }  // namespace
+
+void trilinear_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>& N,
+                     Eigen::Matrix<double, 8, 3>& G) {
+  const Vec3 h = box.size();
+  const Vec3 xi = (X - box.min).cwiseQuotient(h);
+  for (int k = 0; k < 8; ++k) {
+    const int bx = k & 1, by = (k >> 1) & 1, bz = (k >> 2) & 1;
+    const double fx = bx ? xi.x() : 1 - xi.x(), fy = by ? xi.y() : 1 - xi.y(), fz = bz ? xi.z() : 1 - xi.z();
+    N(k) = fx * fy * fz;
+    G(k, 0) = (bx ? 1 : -1) * fy * fz / h.x();
+    G(k, 1) = fx * (by ? 1 : -1) * fz / h.y();
+    G(k, 2) = fx * fy * (bz ? 1 : -1) / h.z();
+  }
+}
 
 Vec3 corner(const Box3& box, int k) {
   return Vec3((k & 1) ? box.max.x() : box.min.x(), (k & 2) ? box.max.y() : box.min.y(),
@@ -180,7 +179,7 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
     Mat24 Ke = Mat24::Zero();
     Vec24 fe = Vec24::Zero();
     for (size_t q = 0; q < el.rule.points.size(); ++q) {
-      shape(el.box, el.rule.points[q], N, G);
+      trilinear_shape(el.box, el.rule.points[q], N, G);
       if (include_bulk) {
         const Mat6x24 B = strain_matrix(G);
         Ke.noalias() += el.rule.weights[q] * B.transpose() * D * B;
@@ -201,7 +200,7 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
         if (!dc && !tc) continue;
         const SurfaceRule sr = surface_rule(patch, so);
         for (size_t q = 0; q < sr.points.size(); ++q) {
-          shape(el.box, sr.points[q], N, G);
+          trilinear_shape(el.box, sr.points[q], N, G);
           const Mat3x24 Nm = value_matrix(N);
           const double w = sr.weights[q];
           if (tc) fe.noalias() += w * Nm.transpose() * tc->traction;
@@ -235,7 +234,7 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
 Vec3 LinearXfemResult::displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const {
   Eigen::Matrix<double, 8, 1> N;
   Eigen::Matrix<double, 8, 3> G;
-  shape(elements[e].box, X, N, G);
+  trilinear_shape(elements[e].box, X, N, G);
   Vec3 d = Vec3::Zero();
   for (int k = 0; k < 8; ++k) d += N(k) * u.segment<3>(3 * node[e][k]);
   return d;
@@ -335,7 +334,7 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
     ++agg;
     const auto [e, k] = source[i];
     const int h = host[e];
-    shape(elements[h].box, corner(elements[e].box, k), N, G);  // extrapolation into the small cell
+    trilinear_shape(elements[h].box, corner(elements[e].box, k), N, G);  // extrapolation into the small cell
     for (int j = 0; j < 8; ++j)
       for (int d = 0; d < 3; ++d) trip.emplace_back(3 * i + d, 3 * reduced[node[h][j]] + d, N(j));
   }
@@ -353,7 +352,7 @@ Eigen::Matrix<double, 6, 1> stress_at(const LinearXfemResult& result, const std:
                                       const ElasticMaterial& material, int e, const Vec3& X) {
   Eigen::Matrix<double, 8, 1> N;
   Eigen::Matrix<double, 8, 3> G;
-  shape(elements[e].box, X, N, G);
+  trilinear_shape(elements[e].box, X, N, G);
   Vec24 ue;
   for (int k = 0; k < 8; ++k) ue.segment<3>(3 * k) = result.u.segment<3>(3 * result.node[e][k]);
   return elasticity(material) * strain_matrix(G) * ue;
@@ -373,7 +372,7 @@ Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std:
                                       int e, const Vec3& X) {
   Eigen::Matrix<double, 8, 1> N;
   Eigen::Matrix<double, 8, 3> G;
-  shape(elements[e].box, X, N, G);
+  trilinear_shape(elements[e].box, X, N, G);
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   for (int k = 0; k < 8; ++k) H += result.u.segment<3>(3 * result.node[e][k]) * G.row(k);
   return H;

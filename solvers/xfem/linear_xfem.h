@@ -76,6 +76,11 @@ struct LinearXfemResult {
   Vec3 displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const;
 };
 
+/// Trilinear shape functions of the cell `box` at X (physical coordinates, not restricted to
+/// the box): values N and gradients G (8×3), corners numbered as in `corner`.
+void trilinear_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>& N,
+                     Eigen::Matrix<double, 8, 3>& G);
+
 /// Corner k of a cell box in the node order used everywhere: bit 0 → x, bit 1 → y, bit 2 → z.
 Vec3 corner(const Box3& box, int k);
 

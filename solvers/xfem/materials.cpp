@@ -149,24 +149,33 @@ NeoHookeanIsochoric NeoHookeanIsochoric::from_young_poisson(double E, double nu)
   return NeoHookeanIsochoric(0.5 * c.mu, 2 / c.kappa);
 }
 
+namespace {
+// Kinematics shared by the Mooney–Rivlin energy, stress and tangent (J > 0 checked by caller).
+struct Invariants {
+  Mat3 C;
+  double I1, I2, Jm23, Jm43;  // I₂ = ½(I₁² − C:C), J^{-2/3}, J^{-4/3}
+  Invariants(const Mat3& F, double J) : C(F.transpose() * F) {
+    I1 = C.trace();
+    I2 = 0.5 * (I1 * I1 - C.squaredNorm());  // tr(C²) = C:C (C symmetric)
+    Jm23 = 1 / std::cbrt(J * J);
+    Jm43 = Jm23 * Jm23;
+  }
+};
+}  // namespace
+
 double MooneyRivlin::energy(const Mat3& F) const {
   const double J = F.determinant();
   if (!(J > 0) || !std::isfinite(J)) return kInf;
-  const Mat3 C = F.transpose() * F;
-  const double I1 = C.trace();
-  const double I2 = 0.5 * (I1 * I1 - C.squaredNorm());  // tr(C²) = C:C (C symmetric)
-  const double Jm23 = 1 / std::cbrt(J * J);               // J^{-2/3}
-  return C10_ * (Jm23 * I1 - 3) + C01_ * (Jm23 * Jm23 * I2 - 3) + (J - 1) * (J - 1) / D1_;
+  const Invariants v(F, J);
+  return C10_ * (v.Jm23 * v.I1 - 3) + C01_ * (v.Jm43 * v.I2 - 3) + (J - 1) * (J - 1) / D1_;
 }
 
 Mat3 MooneyRivlin::stress(const Mat3& F) const {
   const double J = checked_det(F, name().c_str(), "stress");
   const Mat3 G = F.inverse().transpose();
-  const Mat3 C = F.transpose() * F;
-  const double I1 = C.trace();
-  const double I2 = 0.5 * (I1 * I1 - C.squaredNorm());
-  const double Jm23 = 1 / std::cbrt(J * J);
-  const double Jm43 = Jm23 * Jm23;
+  const Invariants v(F, J);
+  const Mat3& C = v.C;
+  const double I1 = v.I1, I2 = v.I2, Jm23 = v.Jm23, Jm43 = v.Jm43;
   const Mat3 dI1bar = Jm23 * (2 * F - (2.0 / 3.0) * I1 * G);
   const Mat3 dI2bar = Jm43 * (2 * I1 * F - 2 * F * C - (4.0 / 3.0) * I2 * G);
   return C10_ * dI1bar + C01_ * dI2bar + (2 / D1_) * (J - 1) * J * G;
@@ -175,11 +184,9 @@ Mat3 MooneyRivlin::stress(const Mat3& F) const {
 Mat9 MooneyRivlin::tangent(const Mat3& F) const {
   const double J = checked_det(F, name().c_str(), "tangent");
   const Mat3 G = F.inverse().transpose();
-  const Mat3 C = F.transpose() * F;
-  const double I1 = C.trace();
-  const double I2 = 0.5 * (I1 * I1 - C.squaredNorm());
-  const double Jm23 = 1 / std::cbrt(J * J);
-  const double Jm43 = Jm23 * Jm23;
+  const Invariants v(F, J);
+  const Mat3& C = v.C;
+  const double I1 = v.I1, I2 = v.I2, Jm23 = v.Jm23, Jm43 = v.Jm43;
   const Vec9 f = vec9(F), g = vec9(G);
   const Mat9 K = inverse_transpose_kernel(G);  // ∂g/∂f = −K
   const Mat9 I9 = Mat9::Identity();

@@ -12,21 +12,6 @@ namespace parafab::xfem {
 
 namespace {
 
-// Trilinear gradients on a box (same convention as linear_xfem.cpp: corner bits x, y, z).
-Eigen::Matrix<double, 8, 3> gradients(const Box3& box, const Vec3& X) {
-  const Vec3 h = box.size();
-  const Vec3 xi = (X - box.min).cwiseQuotient(h);
-  Eigen::Matrix<double, 8, 3> G;
-  for (int k = 0; k < 8; ++k) {
-    const int bx = k & 1, by = (k >> 1) & 1, bz = (k >> 2) & 1;
-    const double fx = bx ? xi.x() : 1 - xi.x(), fy = by ? xi.y() : 1 - xi.y(), fz = bz ? xi.z() : 1 - xi.z();
-    G(k, 0) = (bx ? 1 : -1) * fy * fz / h.x();
-    G(k, 1) = fx * (by ? 1 : -1) * fz / h.y();
-    G(k, 2) = fx * fy * (bz ? 1 : -1) / h.z();
-  }
-  return G;
-}
-
 struct Evaluation {
   double energy = 0;
   Eigen::VectorXd gradient;
@@ -47,7 +32,9 @@ Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::ve
     Eigen::Matrix<double, 24, 24> He = Eigen::Matrix<double, 24, 24>::Zero();
     for (size_t q = 0; q < el.rule.points.size(); ++q) {
       const double w = el.rule.weights[q];
-      const Eigen::Matrix<double, 8, 3> G = gradients(el.box, el.rule.points[q]);
+      Eigen::Matrix<double, 8, 1> N;
+      Eigen::Matrix<double, 8, 3> G;
+      trilinear_shape(el.box, el.rule.points[q], N, G);
       Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
       for (int k = 0; k < 8; ++k) F += ue.segment<3>(3 * k) * G.row(k);
       const double psi = material.energy(F);

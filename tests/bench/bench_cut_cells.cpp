@@ -84,9 +84,7 @@ RunResult run_rules(const occ::PartShape& part, const occ::IntegrationOptions& o
   rr.rule_seconds_per_cell = r.rule_seconds / std::max(1, rr.cells);
   for (const auto& cell : r.cut.cut_cells) {
     const xfem::Box3 box = r.cut.cell_box(cell.index);
-    xfem::MassAccumulator acc;
-    for (int s : cell.subvolumes) acc.add(r.rules[s].rule.points, r.rules[s].rule.weights);
-    const std::vector<double> mine = monomials(acc.result(), box);
+    const std::vector<double> mine = monomials(occ::cut_cell_properties(r, cell), box);
     const CellReference* ref = nullptr;
     for (const auto& c : refs)
       if ((c.box.min - box.min).norm() < 1e-9 * box.size().norm()) ref = &c;

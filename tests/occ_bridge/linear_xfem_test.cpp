@@ -18,6 +18,17 @@ namespace {
 
 std::string sample(const char* name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name; }
 
+// The planar end faces x = 0 (clamped) and x = max (loaded) of a beam-like box.
+std::pair<int, int> x_end_faces(const PartShape& part) {
+  int fixed = -1, loaded = -1;
+  for (const auto& f : build_face_model(part).faces)
+    if (f.primitive.type == SurfaceType::plane && std::abs(std::abs(f.primitive.axis.x()) - 1) < 1e-12)
+      (f.primitive.location.x() < 1 ? fixed : loaded) = f.index;
+  EXPECT_GE(fixed, 0);
+  EXPECT_GE(loaded, 0);
+  return {fixed, loaded};
+}
+
 TEST(LinearXfem, RigidBodyModesCarryNoEnergy) {
   const auto part = read_part(sample("l_bracket.step"));
   GridModelOptions o;
@@ -71,13 +82,7 @@ TEST(LinearXfem, PatchTestReproducesConstantStrainThroughCutCells) {
 TEST(LinearXfem, CantileverApproachesEulerBernoulli) {
   // 8000 × 1000 × 1000 mm, E = 210 GPa, ν = 0.3, 9 MN at the free end: EB tip deflection 87.7 mm.
   const auto part = make_part(BRepPrimAPI_MakeBox(8000, 1000, 1000).Shape(), "cantilever");
-  const FaceModel fm = build_face_model(*part);
-  int fixed = -1, loaded = -1;
-  for (const auto& f : fm.faces)
-    if (f.primitive.type == SurfaceType::plane && std::abs(std::abs(f.primitive.axis.x()) - 1) < 1e-12)
-      (f.primitive.location.x() < 1 ? fixed : loaded) = f.index;
-  ASSERT_GE(fixed, 0);
-  ASSERT_GE(loaded, 0);
+  const auto [fixed, loaded] = x_end_faces(*part);
   double previous = 0;
   for (double h : {500.0, 250.0}) {
     GridModelOptions o;
@@ -179,11 +184,7 @@ namespace {
 TEST(LinearXfem, PlateThinnerThanACellBendsLikeABeam) {
   const double L = 40, W = 10, t = 0.5, E = 70000, P = 0.5;
   const auto part = make_part(BRepPrimAPI_MakeBox(L, W, t).Shape(), "thin plate");
-  const FaceModel fm = build_face_model(*part);
-  int fixed = -1, loaded = -1;
-  for (const auto& f : fm.faces)
-    if (f.primitive.type == SurfaceType::plane && std::abs(std::abs(f.primitive.axis.x()) - 1) < 1e-12)
-      (f.primitive.location.x() < 1 ? fixed : loaded) = f.index;
+  const auto [fixed, loaded] = x_end_faces(*part);
   GridModelOptions o;
   o.grid.cell_size = 2.5;  // 5× the thickness
   const GridModel m = build_grid_model(*part, o);
