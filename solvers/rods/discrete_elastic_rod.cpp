@@ -364,6 +364,14 @@ DiscreteRodResult simulate_discrete_rod(const DiscreteRodModel& model,
     if (!(slope < 0)) d = -gf, shift = 1;  // fallback: steepest descent
     step.setZero(n);
     for (int a = 0; a < nf; ++a) step(dof_of[a]) = d(a);
+    // Round-off floor (stiff stretching): a full Newton step below 1e-13·L in every position
+    // and 1e-13 rad in every angle, with a small gradient, is convergence.
+    if (!shifted && out.gradient_norm <= 1e3 * options.gradient_tolerance &&
+        step.head(3 * (N + 1)).cwiseAbs().maxCoeff() <= 1e-13 * L &&
+        step.tail(N).cwiseAbs().maxCoeff() <= 1e-13) {
+      out.status = DiscreteRodStatus::Converged;
+      break;
+    }
     // Backtracking (Armijo) line search on the total energy.
     double alpha = 1;
     bool accepted = false;

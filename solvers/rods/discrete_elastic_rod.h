@@ -34,7 +34,9 @@ struct DiscreteRodModel {
 struct DiscreteRodOptions {
   int max_iterations = 100;
   /// Converged when max |∂E/∂q| over free DOFs ≤ tolerance · force scale, where the force
-  /// scale is max ‖E·I‖ / L² + total weight + Σ|nodal forces| (forces and moments alike).
+  /// scale is max ‖E·I‖ / L² + total weight + Σ|nodal forces| (forces and moments alike),
+  /// or when the gradient is within 1e3× that and the Newton step is at round-off level
+  /// (< 1e-13·L in positions and 1e-13 rad in angles).
   double gradient_tolerance = 1e-8;
 };
 
