@@ -78,10 +78,15 @@ double SpaceCurve::parameter_at(double s) const {
 }
 
 RodSample SpaceCurve::at_parameter(double t) const {
+  RodSample p = frenet_at_parameter(t);
+  p.s = arc_length_at(t);
+  return p;
+}
+
+RodSample SpaceCurve::frenet_at_parameter(double t) const {
   const auto d = derivatives_(t);
   RodSample p;
   p.t = t;
-  p.s = arc_length_at(t);
   p.point = d[0];
   const double v = d[1].norm();
   p.tangent = d[1] / v;
@@ -106,7 +111,7 @@ std::vector<RodSample> sample_at(const SpaceCurve& curve, const std::vector<doub
   std::vector<RodSample> out;
   out.reserve(s.size());
   for (double si : s) {
-    RodSample p = curve.at_parameter(curve.parameter_at(si));
+    RodSample p = curve.frenet_at_parameter(curve.parameter_at(si));
     p.s = std::clamp(si, 0.0, curve.length());
     out.push_back(p);
   }
@@ -136,7 +141,7 @@ void require_frenet_curve(const SpaceCurve& curve, const std::vector<RodSample>&
     if (!(samples[i].kappa <= samples[i - 1].kappa && samples[i].kappa <= samples[i + 1].kappa))
       continue;
     double lo = samples[i - 1].t, hi = samples[i + 1].t;
-    auto k = [&](double t) { return curve.at_parameter(t).kappa; };
+    auto k = [&](double t) { return curve.frenet_at_parameter(t).kappa; };
     double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo), f1 = k(x1), f2 = k(x2);
     for (int it = 0; it < 80 && hi - lo > 1e-14 * (std::abs(lo) + 1); ++it) {
       if (f1 < f2) hi = x2, x2 = x1, f2 = f1, x1 = hi - g * (hi - lo), f1 = k(x1);

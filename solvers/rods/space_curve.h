@@ -43,6 +43,8 @@ class SpaceCurve {
   /// Parameter t with arc_length_at(t) = s (safeguarded Newton), s clamped to [0, length].
   double parameter_at(double s) const;
   RodSample at_parameter(double t) const;
+  /// Frénet data at t without the arc length (s = 0): for callers that know s.
+  RodSample frenet_at_parameter(double t) const;
   RodSample at_arc_length(double s) const { return at_parameter(parameter_at(s)); }
 
  private:
