@@ -245,3 +245,42 @@ TEST(RodDesign, DualAndPrimalLpFormsAgree) {
 
 }  // namespace
 }  // namespace parafab
+
+namespace parafab {
+namespace {
+
+// Eq. 5.19: each w_reg's solution is optimal against the others' (no other complex has a
+// smaller max(|⟨T, h⟩|, w·|⟨N, h⟩|)), so w = 0 has the least twist couple.
+TEST(RodDesign, RegularizationTradesTwistForSmoothness) {
+  const SpaceCurve curve = rod_test::light_sculpture(0.2, 4 * M_PI / 3, 8 * M_PI / 3);
+  const auto samples = sample_by_arc_length(curve, 300);
+  const std::vector<double> weights{0.0, 0.3, 1.0, 3.0};
+  std::vector<double> tw(weights.size(), 0), nm(weights.size(), 0), R(weights.size());
+  const double L = curve.length();
+  for (size_t k = 0; k < weights.size(); ++k) {
+    LineComplexLpOptions o;
+    o.regularization_weight = weights[k];
+    const auto r = solve_line_complex_lp(samples, o);
+    ASSERT_TRUE(r.ok());
+    double mn = INFINITY;
+    for (const auto& p : samples) {
+      const Vec3 h = r.c.cross(p.point) + r.c_bar;
+      mn = std::min(mn, p.omega_n().dot(h));
+      tw[k] = std::max(tw[k], std::abs(p.tangent.dot(h)) / L);
+      nm[k] = std::max(nm[k], std::abs(p.normal.dot(h)) / L);
+    }
+    EXPECT_NEAR(mn, 1.0, 1e-9);  // normalization min ⟨ωn, h⟩ = 1
+    EXPECT_NEAR(r.twist_ratio, tw[k], 1e-9);
+    EXPECT_NEAR(r.R, std::max(tw[k], weights[k] * nm[k]), 1e-9);
+    R[k] = r.R;
+    std::printf("[w_reg %.1f] R %.4f, max|<T,h>|/L %.4f, max|<N,h>|/L %.4f\n", weights[k], r.R, tw[k], nm[k]);
+  }
+  for (size_t k = 0; k < weights.size(); ++k)
+    for (size_t j = 0; j < weights.size(); ++j)
+      EXPECT_LE(R[k], std::max(tw[j], weights[k] * nm[j]) * (1 + 1e-6)) << k << " vs " << j;
+  EXPECT_LT(tw[0], tw.back());  // regularization costs twist on this curve
+  EXPECT_LT(nm.back(), nm[0]);  // and buys a smoother twist couple
+}
+
+}  // namespace
+}  // namespace parafab
