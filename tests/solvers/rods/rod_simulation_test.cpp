@@ -151,3 +151,34 @@ TEST(RodSimulation, InvalidModelThrows) {
 
 }  // namespace
 }  // namespace parafab
+
+namespace parafab {
+namespace {
+
+TEST(RodDeadLoad, NonConvergenceAndInfeasibleLoadAreStatuses) {
+  const SpaceCurve curve = segment(0);
+  RodDesignOptions o = sculpture_options(true);
+  o.dead_load.max_iterations = 2;
+  const RodDesign a = design_rod(curve, 200, o);
+  EXPECT_EQ(a.status, RodDesignStatus::NotConverged);
+  ASSERT_EQ(a.fixed_point_history.size(), 2u);
+  EXPECT_GT(a.fixed_point_history[1], o.dead_load.tolerance);
+  EXPECT_NE(a.message.find("history"), std::string::npos) << a.message;
+  // 40× gravity: no section carries the load somewhere; the status names where.
+  o = sculpture_options(true);
+  o.loads.gravity = Vec3(0, 0, -9.81 * 40);
+  const RodDesign b = design_rod(curve, 200, o);
+  std::printf("[dead load] 40 g: %s: %s\n", to_string(b.status), b.message.c_str());
+  EXPECT_EQ(b.status, RodDesignStatus::LoadInfeasible);
+  EXPECT_NE(b.message.find(" s = "), std::string::npos);
+  // Invalid options throw.
+  o = sculpture_options(true);
+  o.dead_load.tolerance = 0;
+  EXPECT_THROW(design_rod(curve, 50, o), Error);
+  o = sculpture_options(true);
+  o.loads.point_loads.push_back({-1.0, Vec3(0, 0, -1)});
+  EXPECT_THROW(design_rod(curve, 50, o), Error);
+}
+
+}  // namespace
+}  // namespace parafab
