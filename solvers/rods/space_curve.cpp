@@ -26,6 +26,7 @@ SpaceCurve::SpaceCurve(CurveDerivatives derivatives, double t0, double t1, int t
                                            << table_intervals);
   table_t_.resize(table_intervals + 1);
   table_s_.assign(table_intervals + 1, 0.0);
+  table_v_.assign(table_intervals + 1, 0.0);
   double vmin = INFINITY, vmax = 0, tmin = t0;
   for (int i = 0; i <= table_intervals; ++i) {
     table_t_[i] = t0 + (t1 - t0) * i / table_intervals;
@@ -34,6 +35,7 @@ SpaceCurve::SpaceCurve(CurveDerivatives derivatives, double t0, double t1, int t
       if (!v.allFinite())
         PARAFAB_INPUT_ERROR("space curve: non-finite value at parameter t = " << table_t_[i]);
     const double v = d[1].norm();
+    table_v_[i] = v;
     vmax = std::max(vmax, v);
     if (v < vmin) vmin = v, tmin = table_t_[i];
   }
@@ -64,15 +66,35 @@ double SpaceCurve::parameter_at(double s) const {
   auto it = std::upper_bound(table_s_.begin(), table_s_.end(), s);
   size_t i = it == table_s_.begin() ? 0 : size_t(it - table_s_.begin()) - 1;
   if (i + 1 >= table_s_.size()) return t1_;
-  double lo = table_t_[i], hi = table_t_[i + 1];
-  double t = lo + (hi - lo) * (s - table_s_[i]) / std::max(1e-300, table_s_[i + 1] - table_s_[i]);
+  const double ta = table_t_[i], tb = table_t_[i + 1], h = tb - ta;
+  const double sa = table_s_[i], sb = table_s_[i + 1], va = table_v_[i], vb = table_v_[i + 1];
+  // Initial guess: invert the cubic Hermite interpolant of s(t) on the table interval.
+  auto hermite = [&](double x) {  // x ∈ [0, 1] → (s, ds/dx)
+    const double x2 = x * x, x3 = x2 * x;
+    const double s_ = (2 * x3 - 3 * x2 + 1) * sa + (x3 - 2 * x2 + x) * h * va + (-2 * x3 + 3 * x2) * sb +
+                      (x3 - x2) * h * vb;
+    const double d_ = (6 * x2 - 6 * x) * sa + (3 * x2 - 4 * x + 1) * h * va + (-6 * x2 + 6 * x) * sb +
+                      (3 * x2 - 2 * x) * h * vb;
+    return std::make_pair(s_, d_);
+  };
+  double x = (s - sa) / std::max(1e-300, sb - sa);
+  for (int k = 0; k < 8; ++k) {
+    const auto [sx, dx] = hermite(x);
+    if (!(dx > 0)) break;
+    const double xn = std::clamp(x - (sx - s) / dx, 0.0, 1.0);
+    if (std::abs(xn - x) < 1e-15) { x = xn; break; }
+    x = xn;
+  }
+  // Newton on the Gauss–Legendre arc length, safeguarded by bisection.
+  double lo = ta, hi = tb, t = ta + x * h;
   for (int k = 0; k < 50; ++k) {
-    const double f = table_s_[i] + integrate_speed(table_t_[i], t) - s;
+    const double f = sa + integrate_speed(ta, t) - s;
     if (f > 0) hi = t; else lo = t;
     double tn = t - f / speed(t);
-    if (!(tn > lo && tn < hi)) tn = 0.5 * (lo + hi);
-    if (std::abs(tn - t) <= 1e-15 * (std::abs(t) + 1)) { t = tn; break; }
+    if (!(tn >= lo && tn <= hi)) tn = 0.5 * (lo + hi);
+    const bool done = std::abs(tn - t) <= 1e-14 * (std::abs(t) + h);
     t = tn;
+    if (done) break;
   }
   return t;
 }

@@ -52,7 +52,7 @@ class SpaceCurve {
   double integrate_speed(double a, double b) const;
   CurveDerivatives derivatives_;
   double t0_, t1_;
-  std::vector<double> table_t_, table_s_;
+  std::vector<double> table_t_, table_s_, table_v_;  // parameter, arc length, speed
 };
 
 /// Samples at the arc lengths `s` (sorted, in [0, length]).
