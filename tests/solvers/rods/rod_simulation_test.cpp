@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <random>
 
+#include <Eigen/Eigenvalues>
+
 #include "common/error.h"
 #include "rod_test_curves.h"
 #include "rods/rod_design.h"
@@ -178,6 +180,61 @@ TEST(RodDeadLoad, NonConvergenceAndInfeasibleLoadAreStatuses) {
   o = sculpture_options(true);
   o.loads.point_loads.push_back({-1.0, Vec3(0, 0, -1)});
   EXPECT_THROW(design_rod(curve, 50, o), Error);
+}
+
+}  // namespace
+}  // namespace parafab
+
+namespace parafab {
+namespace {
+
+// Smallest eigenvalue of the Hessian over the free DOFs at the initial (target) state.
+double min_free_eigenvalue(const DiscreteRodModel& m) {
+  const int N = int(m.material_normal.size()), n = 3 * (N + 1) + N;
+  Eigen::VectorXd g;
+  Eigen::MatrixXd H;
+  discrete_rod_energy(m, Eigen::VectorXd::Zero(n), &g, &H);
+  std::vector<int> free;
+  for (int k = 6; k < 3 * (N - 1); ++k) free.push_back(k);
+  for (int j = 1; j <= N - 2; ++j) free.push_back(3 * (N + 1) + j);
+  Eigen::MatrixXd Hf(free.size(), free.size());
+  for (size_t a = 0; a < free.size(); ++a)
+    for (size_t b = 0; b < free.size(); ++b) Hf(a, b) = H(free[a], free[b]);
+  return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Hf).eigenvalues()(0) / Hf.diagonal().maxCoeff();
+}
+
+// The twist-free helix (1.5 turns, no loads) is an equilibrium for every t in I = I₁ + t·I₂,
+// but with the most circular section (t = t*) it is unstable: the Hessian at the target has
+// a negative eigenvalue and the simulated rod leaves it. Elongating the ellipse along the
+// bending axis (t = 4t*, thesis §5.6.3 / §5.7.3) makes it stable and it is reproduced.
+TEST(RodSimulation, HelixIsStableOnlyWithEllipseAlongBendingAxis) {
+  const SpaceCurve curve = rod_test::helix(0.1, 0.03, 3 * M_PI);
+  for (double factor : {1.0, 4.0}) {
+    RodDesignOptions o;
+    o.max_radius = 0.004;
+    o.geometry.circularity_factor = factor;
+    const RodDesign d = design_rod(curve, 400, o);
+    ASSERT_TRUE(d.ok());
+    std::vector<double> dev;
+    double lmin = 0;
+    for (int edges : {50, 100}) {
+      const DiscreteRodModel m = discrete_rod_model(d, curve, edges, o.material, o.loads, false);
+      lmin = min_free_eigenvalue(m);
+      const DiscreteRodResult r = simulate_discrete_rod(m);
+      dev.push_back(max_node_distance(r.nodes, m.nodes) / curve.length());
+      if (factor > 1) EXPECT_TRUE(r.ok()) << r.message;
+    }
+    std::printf("[helix sim] t = %.0f t*: min eigenvalue/max diagonal %.2e, deviation/L at 50/100 edges %.2e %.2e\n",
+                factor, lmin, dev[0], dev[1]);
+    if (factor == 1.0) {
+      EXPECT_LT(lmin, 0);
+      EXPECT_GT(dev[1], 0.01);
+    } else {
+      EXPECT_GT(lmin, 0);
+      EXPECT_LT(dev[0], 1e-4);  // floor: extension of the simulated rod (r = 4 mm)
+      EXPECT_LT(dev[1], 1e-4);
+    }
+  }
 }
 
 }  // namespace
