@@ -77,8 +77,20 @@ DeadLoadResult solve_dead_load(const std::vector<RodSample>& samples, const Vec3
   const size_t n = samples.size();
   const double rho = loads.dead_load ? material.density : 0.0;
   DeadLoadResult out;
+  std::vector<Vec3> external(n, Vec3::Zero());
+  if (loads.line_load)
+    for (size_t i = 0; i < n; ++i) {
+      external[i] = loads.line_load(samples[i].s);
+      if (!external[i].allFinite())
+        PARAFAB_INPUT_ERROR("loads: line_load(s) is not finite at s = " << samples[i].s);
+    }
+  auto total = [&](const std::vector<Vec3>& p) {
+    std::vector<Vec3> q(n);
+    for (size_t i = 0; i < n; ++i) q[i] = p[i] + external[i];
+    return q;
+  };
   std::vector<Vec3> p = weight_of(load_free, rho, loads.gravity), Q, M;
-  accumulate_loads(samples, p, loads.point_loads, Q, M);
+  accumulate_loads(samples, total(p), loads.point_loads, Q, M);
   out.c = c0, out.c_bar = c_bar0;
   if (options.shift_constants) {
     Vec3 qmin = Q[0], qmax = Q[0], mmin = M[0], mmax = M[0];
@@ -110,7 +122,7 @@ DeadLoadResult solve_dead_load(const std::vector<RodSample>& samples, const Vec3
       break;
     }
     if (!std::isfinite(diff)) break;
-    accumulate_loads(samples, p, loads.point_loads, Q, M);
+    accumulate_loads(samples, total(p), loads.point_loads, Q, M);
   }
   out.line_load = p;
   if (out.status == DeadLoadStatus::NotConverged) {

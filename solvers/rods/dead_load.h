@@ -3,10 +3,12 @@
 // derived from n' + q = 0, m' + γ'×n = 0 with q the applied force per length):
 //   F K k = (c − Q(s)) × γ(s) + c̄ − M(s),  Q = ∫₀ˢ q,  M = ∫₀ˢ γ × q.
 // (The thesis prints + signs, i.e. Q and M of −q; the forward simulation confirms this form.)
+// q = dead load + external line load + point loads (δ-distributions).
 // Algorithm of §5.8.2: shift (c, c̄) by the midrange of (Q₀, M₀) of the load-free geometry
 // (step 1), then iterate p_{i+1} = p(I(p_i)) until sup|p_{i+1} − p_i| < tolerance (step 2).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -23,7 +25,9 @@ struct RodLoads {
   bool dead_load = false;            ///< include the rod's own weight ρ·A·g
   Vec3 gravity{0, 0, -9.81};         ///< g [m/s²]
   std::vector<PointLoad> point_loads;
-  bool any() const { return dead_load || !point_loads.empty(); }
+  /// External line load q(s) [N/m] (fixed, e.g. wind or a cable along the rod); empty: none.
+  std::function<Vec3(double s)> line_load;
+  bool any() const { return dead_load || !point_loads.empty() || bool(line_load); }
 };
 
 struct DeadLoadOptions {
@@ -40,7 +44,7 @@ struct DeadLoadResult {
   DeadLoadStatus status = DeadLoadStatus::NotConverged;
   Vec3 c{0, 0, 0}, c_bar{0, 0, 0};  ///< shifted constants used in the iteration [N], [N·m]
   RodGeometryResult geometry;       ///< geometry of the last iterate
-  std::vector<Vec3> line_load;      ///< p of the last geometry [N/m]
+  std::vector<Vec3> line_load;      ///< dead load p of the last geometry [N/m] (without q)
   std::vector<Vec3> moment;         ///< h = (c − Q)×γ + c̄ − M of the last iterate [N·m]
   std::vector<double> history;      ///< sup|p_{i+1} − p_i| per iteration [N/m]
   int iterations = 0;

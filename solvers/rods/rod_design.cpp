@@ -127,6 +127,12 @@ DiscreteRodModel discrete_rod_model(const RodDesign& design, const SpaceCurve& c
     if (loads.dead_load) m.gravity = loads.gravity;
     for (const auto& f : loads.point_loads)
       m.nodal_forces.emplace_back(int(std::lround(f.s / L * edges)), f.force);
+    if (loads.line_load)
+      for (int j = 0; j < edges; ++j) {
+        const Vec3 f = loads.line_load(L * (j + 0.5) / edges) * m.rest_length[j];
+        m.nodal_forces.emplace_back(j, 0.5 * f);
+        m.nodal_forces.emplace_back(j + 1, 0.5 * f);
+      }
   }
   return m;
 }

@@ -55,7 +55,8 @@ RodDesign design_rod(const SpaceCurve& curve, int count, const RodDesignOptions&
 /// Discrete elastic rod of a design with `edges` edges, nodes equally spaced in arc length
 /// on `curve` (the target), per-edge E·I, μ·J, E·A, ρ·A and material normal interpolated
 /// linearly in s from the design's sections at the edge midpoints. With `with_loads`, the
-/// design's gravity (if dead_load) and point loads (at the nearest node) are applied.
+/// design's gravity (if dead_load), point loads (at the nearest node) and external line load
+/// (midpoint rule per edge, half to each node) are applied.
 DiscreteRodModel discrete_rod_model(const RodDesign& design, const SpaceCurve& curve, int edges,
                                     const RodMaterial& material, const RodLoads& loads,
                                     bool with_loads);

@@ -239,3 +239,28 @@ TEST(RodSimulation, HelixIsStableOnlyWithEllipseAlongBendingAxis) {
 
 }  // namespace
 }  // namespace parafab
+
+namespace parafab {
+namespace {
+
+// A fixed external line load (a sideways "wind" of up to 6.7 N/m, varying along the rod) together
+// with the dead load: carried by the design, and missed without it.
+TEST(RodSimulation, ExternalLineLoadIsCarried) {
+  const SpaceCurve curve = segment(1);
+  const double L = curve.length();
+  RodDesignOptions o = sculpture_options(true);
+  o.loads.line_load = [L](double s) { return Vec3(6.0 * std::sin(M_PI * s / L), 3.0, 0.0); };
+  const RodDesign d = design_rod(curve, 400, o);
+  ASSERT_TRUE(d.ok()) << d.message;
+  const double with = deviation(d, curve, 100, o.loads, o.material);
+  RodLoads calm = o.loads;
+  calm.line_load = nullptr;
+  const double without = deviation(d, curve, 100, calm, o.material);
+  std::printf("[line load] %d fixed-point iterations, deviation/L with the line load %.2e, without %.3f\n",
+              d.fixed_point_iterations, with, without);
+  EXPECT_LT(with, 1e-3);
+  EXPECT_GT(without, 0.02);
+}
+
+}  // namespace
+}  // namespace parafab
