@@ -1,5 +1,5 @@
-// Forward simulation of a Kirchhoff rod with the discrete elastic rod model of Bergou et al.
-// 2008 (centreline nodes, one material-frame angle per edge relative to a reference frame
+// Forward simulation of designed Kirchhoff rods (validation as in thesis §5.7.4, Fig. 5.15,
+// and §5.9): the discrete elastic rod model of Bergou et al. 2008 (centreline nodes, one material-frame angle per edge relative to a reference frame
 // that is parallel transported in time, anisotropic bending E·I per edge, twist μ·J,
 // stiff stretching E·A), clamped positions and frames at both ends, dead load and nodal point
 // loads. Static equilibrium by Newton's method with exact gradient and Hessian (second-order

@@ -111,6 +111,7 @@ int main(int argc, char** argv) {
                       {"geometry_seconds", median(tg)},
                       {"dead_load_seconds", median(td)},
                       {"dead_load_iterations", d.fixed_point_iterations},
+                      {"dead_load_seconds_per_iteration", median(td) / std::max(1, d.fixed_point_iterations)},
                       {"dead_load_history", d.fixed_point_history},
                       {"total_seconds", median(tt)},
                       {"twist_ratio", d.lp.twist_ratio},
