@@ -361,7 +361,7 @@ DiscreteRodResult simulate_discrete_rod(const DiscreteRodModel& model,
     if (shifted) ++out.hessian_shifts;
     d = -ldlt.solve(gf);
     const double slope = gf.dot(d);
-    if (!(slope < 0)) d = -gf, shift = 1;  // fallback: steepest descent
+    if (!(slope < 0)) d = -gf;  // fallback: steepest descent
     step.setZero(n);
     for (int a = 0; a < nf; ++a) step(dof_of[a]) = d(a);
     // Round-off floor (stiff stretching): a full Newton step below 1e-13·L in every position
