@@ -82,18 +82,27 @@ PYBIND11_MODULE(parafab, m) {
       "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`).");
   m.def(
       "simulate",
-      [](const std::string& path, const py::dict& job, const std::string& out_dir) {
+      [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress) {
         const nlohmann::json in = to_json(job);
+        parafab::entry::ProgressFn report;
+        if (!progress.is_none())
+          report = [&progress](const char* phase, double fraction) {
+            py::gil_scoped_acquire acquire;
+            const py::object keep_going = progress(phase, fraction);
+            return keep_going.is_none() || keep_going.cast<bool>();
+          };
         nlohmann::json out;
         {
           py::gil_scoped_release release;
-          out = parafab::entry::simulate_part_json(path, in, out_dir);
+          out = parafab::entry::simulate_part_json(path, in, out_dir, report);
         }
         return to_python(out);
       },
-      py::arg("path"), py::arg("job"), py::arg("out_dir") = "",
-      "Linear elastic XFEM simulation of a part (same job and result JSON as `parafab simulate`); "
-      "writes result.json and result.vtu into out_dir when given.");
+      py::arg("path"), py::arg("job"), py::arg("out_dir") = "", py::arg("progress") = py::none(),
+      "Linear elastic or hyperelastic XFEM simulation of a part (same job and result JSON as `parafab "
+      "simulate`); writes result.json, result.vtu and surface.vtu into out_dir when given. "
+      "progress(phase, fraction) is called at phase boundaries; returning False cancels the run "
+      "(parafab.Error 'simulation cancelled by the user').");
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
   m.attr("__version__") = "0.1.0";
 }

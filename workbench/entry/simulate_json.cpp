@@ -5,12 +5,14 @@
 #include <Eigen/Dense>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <fstream>
 
 #include "common/error.h"
 #include "face_lookup.h"
 #include "grid_model.h"
 #include "part_reader.h"
+#include "surface_mesh.h"
 #include "xfem/mass_properties.h"
 #include "xfem/nonlinear_xfem.h"
 
@@ -105,9 +107,79 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
   f << "</DataArray>\n</Cells>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
 }
 
+
+// The element holding point X: among the elements of X's grid cell (and of the neighbouring
+// cells when X lies on a cell face), the one with the rule point nearest to X.
+class ElementLocator {
+ public:
+  explicit ElementLocator(const occ::GridModel& grid) : grid_(grid) {
+    for (size_t e = 0; e < grid.elements.size(); ++e) by_cell_[grid.elements[e].cell].push_back(static_cast<int>(e));
+  }
+  int find(const Vec3& X) const {
+    const auto& cut = *grid_.cut;
+    std::array<int, 3> c{};
+    for (int a = 0; a < 3; ++a) {
+      const auto& pl = cut.planes[a];
+      c[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), X[a]) - pl.begin());
+    }
+    int best = -1;
+    double best_d = 1e300;
+    for (int di = -1; di <= 1; ++di)
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int dk = -1; dk <= 1; ++dk) {
+          const std::array<int, 3> n{c[0] + di, c[1] + dj, c[2] + dk};
+          auto it = by_cell_.find(n);
+          if (it == by_cell_.end()) continue;
+          for (int e : it->second) {
+            const auto& el = grid_.elements[e];
+            const Vec3 slack = 1e-6 * el.box.size();
+            if (((X - el.box.min + slack).array() < 0).any() || ((el.box.max + slack - X).array() < 0).any()) continue;
+            for (const Vec3& P : el.rule.points)
+              if ((P - X).norm() < best_d) best_d = (P - X).norm(), best = e;
+          }
+        }
+    return best;
+  }
+
+ private:
+  const occ::GridModel& grid_;
+  std::map<std::array<int, 3>, std::vector<int>> by_cell_;
+};
+
+// The part's B-rep faces triangulated, each vertex with its displacement and von Mises stress
+// (what FreeCAD shows as the deformed, coloured part; ParaView reads it as well).
+void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, const std::vector<Vec3>& disp,
+                       const std::vector<double>& vm) {
+  std::ofstream f(path);
+  if (!f) PARAFAB_INPUT_ERROR("cannot write " << path);
+  f << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+    << "<UnstructuredGrid><Piece NumberOfPoints=\"" << mesh.points.size() << "\" NumberOfCells=\""
+    << mesh.triangles.size() << "\">\n<PointData Vectors=\"displacement\" Scalars=\"von_mises\">\n"
+    << "<DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (const auto& d : disp) f << d.x() << ' ' << d.y() << ' ' << d.z() << '\n';
+  f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
+  for (double v : vm) f << v << '\n';
+  f << "</DataArray>\n</PointData>\n<CellData Scalars=\"face\">\n<DataArray type=\"Int32\" Name=\"face\" format=\"ascii\">\n";
+  for (int fi : mesh.triangle_face) f << fi << '\n';
+  f << "</DataArray>\n</CellData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (const auto& p : mesh.points) f << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
+  for (const auto& t : mesh.triangles) f << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
+  f << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) f << 3 * (i + 1) << '\n';
+  f << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) f << "5\n";
+  f << "</DataArray>\n</Cells>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
+}
+
 }  // namespace
 
-json simulate_part_json(const std::string& part_path, const json& job, const std::string& out_dir) {
+json simulate_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
+                        const ProgressFn& progress) {
+  auto report = [&](const char* phase, double fraction) {
+    if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
+  };
+  report("read", 0.0);
   if (!job.is_object()) PARAFAB_INPUT_ERROR("the job must be a JSON object");
   occ::ReadOptions ro;
   if (job.contains("solid")) ro.solid_index = static_cast<int>(number(job["solid"], "solid"));
@@ -180,11 +252,14 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
                                                  << " unknowns), more than 70% of the " << physical_mb
                                                  << " MB of memory: use fewer cells");
 
+  report("cut", 0.05);
   const occ::GridModel grid = occ::build_grid_model(*part, go);
+  report("assemble", 0.6);
   if (!grid.done) PARAFAB_INPUT_ERROR("cannot cut " << part_path << " by the grid: " << grid.message);
   xfem::LinearXfemResult r;
   json newton = nullptr;
   StressFn stress;
+  report(model_name_is_linear(model) ? "solve" : "newton", 0.65);
   if (model_name_is_linear(model)) {
     r = xfem::solve_linear(grid.elements, grid.adjacent, mat, dirichlet, tractions, fo);
     stress = [&](int e, const Vec3& X) { return xfem::stress_at(r, grid.elements, mat, e, X); };
@@ -209,6 +284,7 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
     };
   }
   if (!r.solved) PARAFAB_INPUT_ERROR("the simulation could not be solved: " << r.message);
+  report("results", 0.9);
 
   double umax = 0, vmmax = 0;
   xfem::MassAccumulator acc;
@@ -220,18 +296,12 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
       vmmax = std::max(vmmax, xfem::von_mises(stress(static_cast<int>(e), X)));
     }
   }
+  const ElementLocator locator(grid);
   json probes = json::array();
   if (job.contains("probes"))
     for (size_t i = 0; i < job["probes"].size(); ++i) {
       const Vec3 X = vec3(job["probes"][i], "probes[" + std::to_string(i) + "]");
-      int best = -1;  // the element whose rule point is nearest (it holds X's subvolume)
-      double best_d = 1e300;
-      for (size_t e = 0; e < grid.elements.size(); ++e) {
-        const auto& b = grid.elements[e].box;
-        if (((X - b.min).array() < -1e-9 * diag).any() || ((b.max - X).array() < -1e-9 * diag).any()) continue;
-        for (const Vec3& P : grid.elements[e].rule.points)
-          if ((P - X).norm() < best_d) best_d = (P - X).norm(), best = static_cast<int>(e);
-      }
+      const int best = locator.find(X);
       if (best < 0) PARAFAB_INPUT_ERROR("probes[" << i << "] lies outside the grid");
       const Vec3 u = r.displacement(grid.elements, best, X);
       const auto s = stress(best, X);
@@ -261,9 +331,23 @@ json simulate_part_json(const std::string& part_path, const json& job, const std
            {"units", "those of the part and material (e.g. mm, N, MPa)"}};
   if (!out_dir.empty()) {
     std::filesystem::create_directories(out_dir);
+    report("write", 0.95);
     write_vtu(out_dir + "/result.vtu", grid.elements, r, stress);
+    // The exact boundary, triangulated to a tenth of a cell and to edges of at most half a
+    // cell, with the fields at its vertices.
+    const double cell = grid.cut->cell_size.x();
+    const occ::SurfaceMesh mesh = occ::triangulate_part(*part, 0.1 * cell, 0.5 * cell);
+    std::vector<Vec3> sdisp(mesh.points.size(), Vec3::Zero());
+    std::vector<double> svm(mesh.points.size(), 0.0);
+    for (size_t i = 0; i < mesh.points.size(); ++i) {
+      const int e = locator.find(mesh.points[i]);
+      if (e < 0) continue;  // cannot happen for points of the part; keep zero rather than fail
+      sdisp[i] = r.displacement(grid.elements, e, mesh.points[i]);
+      svm[i] = xfem::von_mises(stress(e, mesh.points[i]));
+    }
+    write_surface_vtu(out_dir + "/surface.vtu", mesh, sdisp, svm);
+    out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu", out_dir + "/surface.vtu"};
     std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
-    out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu"};
   }
   return out;
 }
