@@ -14,6 +14,9 @@
 #include <Geom_Curve.hxx>
 #include <Geom_Line.hxx>
 #include <Geom_Surface.hxx>
+#include <BRepGProp.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <GProp_GProps.hxx>
 #include <Message_Report.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
@@ -25,6 +28,8 @@
 #include <gp_Pln.hxx>
 
 #include <algorithm>
+#include <climits>
+#include <set>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -206,6 +211,293 @@ std::array<int, 3> cell_of(const Vec3& p, const GridCut& g) {
   return ijk;
 }
 
+
+// Face origins: ≥ 0 a B-rep face; −1 − axis a grid plane inside a block; −4 − axis a block plane.
+int plane_source(int axis, bool block_plane) { return -1 - axis - (block_plane ? 3 : 0); }
+int axis_of_source(int src) { return (-1 - src) % 3; }
+bool is_block_plane(int src) { return src <= -4; }
+
+using PlaneList = std::vector<std::pair<int, double>>;  // (axis, coordinate)
+
+// Splits `shape` by the planes; `source` maps the faces of `shape` to their origin on entry and
+// the faces of the result on return. Empty result with `error` set if OCCT's splitter fails.
+TopoDS_Shape split_by_planes(const TopoDS_Shape& shape, const PlaneList& planes, bool block_planes,
+                             double big, bool parallel, TopTools_DataMapOfShapeInteger& source,
+                             std::string& error) {
+  if (planes.empty()) return shape;
+  TopTools_ListOfShape args, tools;
+  args.Append(shape);
+  std::vector<std::pair<TopoDS_Shape, int>> tool_faces;
+  for (const auto& [a, x] : planes) {
+    gp_Pnt p(0, 0, 0);
+    p.SetCoord(a + 1, x);
+    const TopoDS_Face f = BRepBuilderAPI_MakeFace(gp_Pln(p, gp_Dir(a == 0, a == 1, a == 2)), -big, big, -big, big).Face();
+    tools.Append(f);
+    tool_faces.emplace_back(f, plane_source(a, block_planes));
+  }
+  BRepAlgoAPI_Splitter splitter;
+  splitter.SetArguments(args);
+  splitter.SetTools(tools);
+  splitter.SetRunParallel(parallel);
+  splitter.SetNonDestructive(true);
+  splitter.SetUseOBB(true);  // oriented boxes prune more face pairs (l_bracket: −30 %)
+  splitter.Build();
+  if (splitter.HasErrors() || !splitter.IsDone()) {
+    std::ostringstream os;
+    splitter.GetReport()->Dump(os);
+    error = "OCCT's splitter failed to cut the part by the grid: " + os.str();
+    return TopoDS_Shape();
+  }
+  TopTools_DataMapOfShapeInteger out;
+  for (TopExp_Explorer ex(shape, TopAbs_FACE); ex.More(); ex.Next()) {
+    int src;
+    if (!source.Find(ex.Current(), src)) continue;
+    bool modified = false;
+    for (const TopoDS_Shape& m : splitter.Modified(ex.Current())) out.Bind(m, src), modified = true;
+    if (!modified) out.Bind(ex.Current(), src);
+  }
+  for (const auto& [f, src] : tool_faces)
+    for (const TopoDS_Shape& m : splitter.Modified(f)) out.Bind(m, src);
+  source = std::move(out);
+  return splitter.Shape();
+}
+
+// The grid, its planes and the two-level split, shared by cut_by_grid and recut_by_grid.
+class GridCutter {
+ public:
+  GridCutter(GridCut& g, const GridOptions& o, double big) : g_(g), o_(o), big_(big) {
+    m_ = g.block_cells > 0 ? g.block_cells : std::max({g.cells[0], g.cells[1], g.cells[2]});
+    for (int a = 0; a < 3; ++a) blocks_[a] = (g.cells[a] + m_ - 1) / m_;
+    for (size_t c = 0; c < g.cut_cells.size(); ++c) cut_cell_of_[g.cut_cells[c].index] = static_cast<int>(c);
+  }
+  int blocks() const { return blocks_[0] * blocks_[1] * blocks_[2]; }
+  std::array<int, 3> block_of_cell(const std::array<int, 3>& c) const { return {c[0] / m_, c[1] / m_, c[2] / m_}; }
+  Box3 block_box(const std::array<int, 3>& b) const {
+    std::array<int, 3> lo, hi;
+    for (int a = 0; a < 3; ++a) lo[a] = b[a] * m_, hi[a] = std::min(g_.cells[a], lo[a] + m_) - 1;
+    return Box3{g_.cell_box(lo).min, g_.cell_box(hi).max};
+  }
+
+  /// Splits `solid` (faces mapped to origins by `source`) into blocks, then every block piece
+  /// whose block passes `wanted` into cells, appending subvolumes, interior cells, curves,
+  /// connections inside blocks and block faces to the cut. False with g.message on failure.
+  template <class Wanted>
+  bool cut(const TopoDS_Shape& solid, TopTools_DataMapOfShapeInteger source, const Wanted& wanted) {
+    PlaneList block_planes;
+    for (int a = 0; a < 3; ++a)
+      for (int k = m_; k < g_.cells[a]; k += m_) block_planes.emplace_back(a, g_.planes[a][k - 1]);
+    const TopoDS_Shape blocks = split_by_planes(solid, block_planes, true, big_, o_.parallel, source, g_.message);
+    if (blocks.IsNull()) return false;
+    for (TopExp_Explorer ex(blocks, TopAbs_SOLID); ex.More(); ex.Next()) {
+      const TopoDS_Shape& piece = ex.Current();
+      const std::array<int, 3> b = block_of_cell(cell_of(representative_point(piece), g_));
+      if (!wanted(b)) continue;
+      bool brep = false;
+      for (TopExp_Explorer fx(piece, TopAbs_FACE); fx.More() && !brep; fx.Next()) {
+        int src = -1;
+        brep = source.Find(fx.Current(), src) && src >= 0;
+      }
+      if (!brep) {  // the whole block lies inside the part: interior cells, no splitting
+        add_interior_block(b);
+        continue;
+      }
+      ++g_.blocks_cut;
+      Bnd_Box pb;
+      BRepBndLib::Add(piece, pb);
+      double lo[3], hi[3];
+      pb.Get(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+      PlaneList inner;
+      for (int a = 0; a < 3; ++a)
+        for (int k = b[a] * m_ + 1; k < std::min(g_.cells[a], (b[a] + 1) * m_); ++k) {
+          const double x = g_.planes[a][k - 1];
+          if (x > lo[a] && x < hi[a]) inner.emplace_back(a, x);
+        }
+      TopTools_DataMapOfShapeInteger piece_source = source;
+      const TopoDS_Shape cells = split_by_planes(piece, inner, false, big_, o_.parallel, piece_source, g_.message);
+      if (cells.IsNull()) return false;
+      if (!extract(cells, piece_source)) return false;
+    }
+    return true;
+  }
+
+ private:
+  void add_block_face(int owner, const std::array<int, 3>& c, int axis, bool lower_side, const Vec3& centroid, double area) {
+    BlockFace f;
+    f.owner = owner;
+    f.upper = lower_side;  // a face on the cell's lower side: the owner lies above the plane
+    f.cell_face = {axis, lower_side ? c[axis] : c[axis] + 1, c[(axis + 1) % 3], c[(axis + 2) % 3]};
+    f.centroid = centroid;
+    f.area = area;
+    g_.block_faces.push_back(f);
+  }
+
+  void add_interior_block(const std::array<int, 3>& b) {
+    std::array<int, 3> lo, hi;
+    for (int a = 0; a < 3; ++a) lo[a] = b[a] * m_, hi[a] = std::min(g_.cells[a], lo[a] + m_);
+    for (int i = lo[0]; i < hi[0]; ++i)
+      for (int j = lo[1]; j < hi[1]; ++j)
+        for (int k = lo[2]; k < hi[2]; ++k) {
+          const std::array<int, 3> c{i, j, k};
+          g_.interior_cells.push_back(c);
+          const int owner = -static_cast<int>(g_.interior_cells.size());
+          const Box3 box = g_.cell_box(c);
+          for (int a = 0; a < 3; ++a) {
+            const Vec3 d = box.size();
+            const double area = d[(a + 1) % 3] * d[(a + 2) % 3];
+            Vec3 centre = 0.5 * (box.min + box.max);
+            if (c[a] == lo[a] && c[a] > 0) centre[a] = box.min[a], add_block_face(owner, c, a, true, centre, area);
+            centre = 0.5 * (box.min + box.max);
+            if (c[a] == hi[a] - 1 && c[a] + 1 < g_.cells[a]) centre[a] = box.max[a], add_block_face(owner, c, a, false, centre, area);
+          }
+        }
+  }
+
+  // Subvolumes and interior cells of one block piece split into cells.
+  bool extract(const TopoDS_Shape& pieces, const TopTools_DataMapOfShapeInteger& source) {
+    const double h = g_.cell_size.maxCoeff();
+    TopTools_IndexedDataMapOfShapeListOfShape face_solids;
+    TopExp::MapShapesAndAncestors(pieces, TopAbs_FACE, TopAbs_SOLID, face_solids);
+    TopTools_DataMapOfShapeInteger solid_id;  // piece → subvolume index, or −1 − cell for interior
+    std::vector<TopoDS_Shape> solids;
+    for (TopExp_Explorer ex(pieces, TopAbs_SOLID); ex.More(); ex.Next()) solids.push_back(ex.Current());
+    for (const TopoDS_Shape& solid : solids) {
+      const std::array<int, 3> ijk = cell_of(representative_point(solid), g_);
+      xfem::Subvolume sv;
+      sv.cell = g_.cell_box(ijk);
+      bool cut = false;
+      struct Pending { int axis; bool lower; Vec3 centroid; double area; };
+      std::vector<Pending> on_block_faces;
+      for (TopExp_Explorer fx(solid, TopAbs_FACE); fx.More(); fx.Next()) {
+        const TopoDS_Face& face = TopoDS::Face(fx.Current());
+        int src = -1;
+        if (!source.Find(face, src)) {
+          g_.message = "a face of the cut part has no known origin (neither B-rep face nor grid plane)";
+          return false;
+        }
+        if (is_block_plane(src)) {
+          GProp_GProps props;
+          BRepGProp::SurfaceProperties(face, props);
+          const gp_Pnt c = props.CentreOfMass();
+          const int a = axis_of_source(src);
+          const bool lower = std::abs(c.Coord(a + 1) - sv.cell.min[a]) < std::abs(c.Coord(a + 1) - sv.cell.max[a]);
+          on_block_faces.push_back({a, lower, Vec3(c.X(), c.Y(), c.Z()), props.Mass()});
+        }
+        xfem::CutPatch patch;
+        patch.surface = std::make_shared<OcctSurfaceMap>(BRep_Tool::Surface(face));
+        patch.loops = face_loops(face, o_, g_.segments);
+        patch.orientation = face.Orientation() == TopAbs_REVERSED ? -1 : 1;
+        patch.source_face = src >= 0 ? src : -1;
+        patch.grid_axis = src >= 0 ? -1 : axis_of_source(src);
+        cut |= src >= 0;
+        sv.patches.push_back(std::move(patch));
+      }
+      int owner;
+      if (!cut) {  // a whole cell inside the part: tensor Gauss rule later, no patches needed
+        g_.interior_cells.push_back(ijk);
+        owner = -static_cast<int>(g_.interior_cells.size());
+      } else {
+        owner = static_cast<int>(g_.subvolumes.size());
+        add_curves(solid, source, owner, h);
+        auto [it, fresh] = cut_cell_of_.try_emplace(ijk, static_cast<int>(g_.cut_cells.size()));
+        if (fresh) g_.cut_cells.push_back({ijk, {}});
+        g_.cut_cells[it->second].subvolumes.push_back(owner);
+        g_.patches += static_cast<int>(sv.patches.size());
+        g_.subvolumes.push_back(std::move(sv));
+      }
+      solid_id.Bind(solid, owner);
+      for (const Pending& p : on_block_faces) add_block_face(owner, ijk, p.axis, p.lower, p.centroid, p.area);
+    }
+    // Connectivity inside the block through shared grid faces.
+    for (int i = 1; i <= face_solids.Extent(); ++i) {
+      const TopTools_ListOfShape& owners = face_solids(i);
+      if (owners.Extent() != 2) continue;
+      const int a = solid_id.Find(owners.First()), b = solid_id.Find(owners.Last());
+      if (a >= 0 && b >= 0) g_.connections.push_back({std::min(a, b), std::max(a, b)});
+      else if (a >= 0 || b >= 0) g_.interior_connections.push_back({std::max(a, b), -1 - std::min(a, b)});
+    }
+    return true;
+  }
+
+  // Intersection curves of a subvolume: B-rep face ∩ grid plane, and B-rep face ∩ B-rep face.
+  void add_curves(const TopoDS_Shape& solid, const TopTools_DataMapOfShapeInteger& source, int subvolume, double h) {
+    TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
+    TopExp::MapShapesAndAncestors(solid, TopAbs_EDGE, TopAbs_FACE, edge_faces);
+    for (int e = 1; e <= edge_faces.Extent(); ++e) {
+      const TopoDS_Edge& edge = TopoDS::Edge(edge_faces.FindKey(e));
+      const TopTools_ListOfShape& faces = edge_faces(e);
+      if (faces.Extent() != 2 || BRep_Tool::Degenerated(edge) || faces.First().IsSame(faces.Last())) continue;
+      int sa = -1, sb = -1;
+      source.Find(faces.First(), sa);
+      source.Find(faces.Last(), sb);
+      if (sa < 0 && sb < 0) continue;  // a straight cell edge
+      double f, l;
+      Handle(Geom_Curve) c = BRep_Tool::Curve(edge, f, l);
+      if (c.IsNull()) continue;
+      CutCurve curve;
+      curve.subvolume = subvolume;
+      curve.kind = (sa >= 0 && sb >= 0) ? CutCurve::FaceFace : CutCurve::FacePlane;
+      curve.sources = {sa >= 0 ? sa : -1 - axis_of_source(sa), sb >= 0 ? sb : -1 - axis_of_source(sb)};
+      curve.order = o_.segment_order;
+      curve.points.push_back(Vec3(c->Value(f).X(), c->Value(f).Y(), c->Value(f).Z()));
+      append_curve<Vec3>([&](double t) { const gp_Pnt p = c->Value(t); return Vec3(p.X(), p.Y(), p.Z()); },
+                         f, l, c->DynamicType() == STANDARD_TYPE(Geom_Line), o_,
+                         o_.segment_tolerance * h, curve.points);
+      g_.curves.push_back(std::move(curve));
+    }
+  }
+
+  GridCut& g_;
+  const GridOptions& o_;
+  double big_;
+  int m_ = 1;
+  std::array<int, 3> blocks_{1, 1, 1};
+  std::map<std::array<int, 3>, int> cut_cell_of_;
+};
+
+// Connects pieces cut in different blocks: the two sides of a block face hold the same face
+// (same cell face, area and centroid). Only pairs with an entry at index ≥ first_new.
+void match_block_faces(GridCut& g, size_t first_new) {
+  const double h = g.cell_size.maxCoeff();
+  std::map<std::array<int, 4>, std::vector<int>> by_face;
+  for (size_t i = 0; i < g.block_faces.size(); ++i) by_face[g.block_faces[i].cell_face].push_back(static_cast<int>(i));
+  for (const auto& [key, list] : by_face)
+    for (int i : list)
+      for (int j : list) {
+        const BlockFace& lo = g.block_faces[i];
+        const BlockFace& up = g.block_faces[j];
+        if (lo.upper || !up.upper) continue;
+        if (static_cast<size_t>(std::max(i, j)) < first_new) continue;
+        if ((lo.centroid - up.centroid).norm() > 1e-6 * h || std::abs(lo.area - up.area) > 1e-6 * h * h) continue;
+        const int a = lo.owner, b = up.owner;
+        if (a >= 0 && b >= 0) g.connections.push_back({std::min(a, b), std::max(a, b)});
+        else if (a >= 0 || b >= 0) g.interior_connections.push_back({std::max(a, b), -1 - std::min(a, b)});
+      }
+}
+
+double big_size(const Box3& bb) {
+  return 2.0 * (bb.max.cwiseAbs().maxCoeff() + bb.min.cwiseAbs().maxCoeff() + bb.size().norm());
+}
+
+// The solid to cut and the origin of its faces (face-model indices), NURBS-converted on request.
+bool shape_to_cut(const PartShape& part, const GridOptions& o, TopoDS_Shape& solid,
+                  TopTools_DataMapOfShapeInteger& source, std::string& message) {
+  solid = part.shape;
+  std::vector<TopoDS_Shape> faces(part.face_count());
+  for (int i = 0; i < part.face_count(); ++i) faces[i] = part.face(i);
+  if (o.nurbs) {
+    try {
+      BRepBuilderAPI_NurbsConvert convert(part.shape, true);
+      solid = convert.Shape();
+      for (int i = 0; i < part.face_count(); ++i) faces[i] = convert.ModifiedShape(part.face(i));
+    } catch (const Standard_Failure& e) {
+      message = std::string("conversion of the faces to NURBS failed: ") + e.GetMessageString();
+      return false;
+    }
+  }
+  for (int i = 0; i < part.face_count(); ++i) source.Bind(faces[i], i);
+  return true;
+}
+
 }  // namespace
 
 GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
@@ -213,6 +505,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
   PARAFAB_VERIFY(o.cell_size >= 0, "grid: cell size must be >= 0, got " << o.cell_size);
   PARAFAB_VERIFY(o.segment_order == 1 || o.segment_order == 2,
                  "grid: segment order must be 1 or 2, got " << o.segment_order);
+  PARAFAB_VERIFY(o.block_cells >= 0, "grid: block_cells must be >= 0, got " << o.block_cells);
   GridCut g;
   const auto t0 = std::chrono::steady_clock::now();
   const Box3 bb = tight_box(part.shape);
@@ -243,140 +536,188 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     g.cell_size[a] = h;
     g.planes[a] = grid_planes(lo, h, g.cells[a], avoid[a], o.perturbation, g.shifted_planes);
   }
+  g.block_cells = o.block_cells;
+  TopoDS_Shape solid;
+  TopTools_DataMapOfShapeInteger source;
+  if (!shape_to_cut(part, o, solid, source, g.message)) return g;
+  GridCutter cutter(g, o, big_size(bb));
+  if (!cutter.cut(solid, source, [](const std::array<int, 3>&) { return true; })) return g;
+  match_block_faces(g, 0);
+  g.split_seconds = seconds_since(t0);  // splitting and extraction interleave per block
+  g.done = true;
+  return g;
+}
 
-  // Split the solid by all grid planes at once.
-  const double big = 2.0 * (bb.max.cwiseAbs().maxCoeff() + bb.min.cwiseAbs().maxCoeff() + ext.norm());
-  // The solid that is cut, and its faces in face-model order.
-  TopoDS_Shape solid_to_cut = part.shape;
-  std::vector<TopoDS_Shape> faces_to_cut(part.face_count());
-  for (int i = 0; i < part.face_count(); ++i) faces_to_cut[i] = part.face(i);
-  if (o.nurbs) {
-    try {
-      BRepBuilderAPI_NurbsConvert convert(part.shape, true);
-      solid_to_cut = convert.Shape();
-      for (int i = 0; i < part.face_count(); ++i) faces_to_cut[i] = convert.ModifiedShape(part.face(i));
-    } catch (const Standard_Failure& e) {
-      g.message = std::string("conversion of the faces to NURBS failed: ") + e.GetMessageString();
-      return g;
-    }
-  }
-  TopTools_ListOfShape args, tools;
-  args.Append(solid_to_cut);
-  std::vector<std::pair<TopoDS_Shape, int>> tool_faces;  // (face, axis)
-  for (int a = 0; a < 3; ++a)
-    for (double x : g.planes[a]) {
-      gp_Pnt p(0, 0, 0);
-      p.SetCoord(a + 1, x);
-      gp_Dir n(a == 0, a == 1, a == 2);
-      const TopoDS_Face f = BRepBuilderAPI_MakeFace(gp_Pln(p, n), -big, big, -big, big).Face();
-      tools.Append(f);
-      tool_faces.emplace_back(f, a);
-    }
-  TopoDS_Shape pieces = solid_to_cut;
-  BRepAlgoAPI_Splitter splitter;
-  if (!tools.IsEmpty()) {
-    splitter.SetArguments(args);
-    splitter.SetTools(tools);
-    splitter.SetRunParallel(o.parallel);
-    splitter.SetNonDestructive(true);
-    splitter.SetUseOBB(true);  // oriented boxes prune more face pairs (l_bracket: −30 %)
-    splitter.Build();
-    if (splitter.HasErrors() || !splitter.IsDone()) {
-      std::ostringstream os;
-      splitter.GetReport()->Dump(os);
-      g.message = "OCCT's splitter failed to cut the part by the grid: " + os.str();
-      return g;
-    }
-    pieces = splitter.Shape();
-  }
-  g.split_seconds = seconds_since(t0);
-  const auto t1 = std::chrono::steady_clock::now();
+namespace {
 
-  // Where every face of the pieces came from: a B-rep face (index) or a grid plane (axis).
-  TopTools_DataMapOfShapeInteger source;  // ≥ 0: B-rep face index; −1 − axis: grid plane
-  for (int i = 0; i < part.face_count(); ++i) {
-    const TopoDS_Shape& f = faces_to_cut[i];
-    bool modified = false;
-    if (!tools.IsEmpty())
-      for (const TopoDS_Shape& m : splitter.Modified(f)) source.Bind(m, i), modified = true;
-    if (!modified) source.Bind(f, i);
-  }
-  for (const auto& [f, axis] : tool_faces)
-    for (const TopoDS_Shape& m : splitter.Modified(f)) source.Bind(m, -1 - axis);
+// Change detection. A face whose surface has no old face on the same surface changes as a
+// whole; a face on an unchanged surface (a plate whose hole grows) changes only between its
+// old and new trimming edges, so only edges without an identical old edge mark it.
+struct EdgeSignature {
+  double length;
+  Vec3 centroid;
+  Box3 box;
+};
 
-  TopTools_IndexedDataMapOfShapeListOfShape face_solids;
-  TopExp::MapShapesAndAncestors(pieces, TopAbs_FACE, TopAbs_SOLID, face_solids);
-  TopTools_DataMapOfShapeInteger solid_id;  // piece → subvolume index, or −1 − cell for interior
-  std::map<std::array<int, 3>, int> cut_cell_of;
-  std::vector<TopoDS_Shape> solids;
-  for (TopExp_Explorer ex(pieces, TopAbs_SOLID); ex.More(); ex.Next()) solids.push_back(ex.Current());
-  for (const TopoDS_Shape& solid : solids) {
-    const std::array<int, 3> ijk = cell_of(representative_point(solid), g);
-    xfem::Subvolume sv;
-    sv.cell = g.cell_box(ijk);
-    bool cut = false;
-    for (TopExp_Explorer fx(solid, TopAbs_FACE); fx.More(); fx.Next()) {
-      const TopoDS_Face& face = TopoDS::Face(fx.Current());
-      int src = -1;
-      if (!source.Find(face, src)) {
-        g.message = "a face of the cut part has no known origin (neither B-rep face nor grid plane)";
-        return g;
+EdgeSignature edge_signature(const TopoDS_Shape& e) {
+  GProp_GProps props;
+  BRepGProp::LinearProperties(e, props);
+  const gp_Pnt c = props.CentreOfMass();
+  return {props.Mass(), Vec3(c.X(), c.Y(), c.Z()), tight_box(e)};
+}
+
+bool same_edge(const EdgeSignature& a, const EdgeSignature& b, double tol) {
+  return std::abs(a.length - b.length) <= tol && (a.centroid - b.centroid).norm() <= tol &&
+         (a.box.min - b.box.min).norm() <= tol && (a.box.max - b.box.max).norm() <= tol;
+}
+
+// Points of the face's underlying surface over its uv box (they need not lie on the face).
+std::vector<gp_Pnt> surface_samples(const TopoDS_Face& f) {
+  double u0, u1, v0, v1;
+  BRepTools::UVBounds(f, u0, u1, v0, v1);
+  const Handle(Geom_Surface) s = BRep_Tool::Surface(f);
+  std::vector<gp_Pnt> pts;
+  for (double a : {0.1, 0.5, 0.9})
+    for (double b : {0.1, 0.5, 0.9}) pts.push_back(s->Value(u0 + a * (u1 - u0), v0 + b * (v1 - v0)));
+  return pts;
+}
+
+// True if every sample lies on face g's underlying surface.
+bool on_surface_of(const std::vector<gp_Pnt>& samples, const TopoDS_Face& g, double tol) {
+  const Handle(Geom_Surface) s = BRep_Tool::Surface(g);
+  for (const gp_Pnt& p : samples) {
+    GeomAPI_ProjectPointOnSurf proj(p, s);
+    if (!proj.IsDone() || proj.NbPoints() == 0 || proj.LowerDistance() > tol) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape& old_part,
+                      const GridOptions& o, RecutReport* report) {
+  RecutReport local;
+  RecutReport& R = report ? *report : local;
+  R = RecutReport{};
+  const auto t0 = std::chrono::steady_clock::now();
+  PARAFAB_VERIFY(old.done, "recut: the old cut is not done");
+  const double h = old.cell_size.maxCoeff();
+  const double tol = 1e-7 * h;
+  const Box3 bb = tight_box(part.shape);
+  auto full_cut = [&](const std::string& why) {
+    R.full = true;
+    R.message = why;
+    GridOptions fo = o;
+    fo.anchored = true;
+    fo.origin = old.grid.min;
+    fo.cell_size = h;
+    return cut_by_grid(part, fo);
+  };
+  if (old.block_cells <= 0) return full_cut("the old cut has no blocks (block_cells = 0)");
+  if (((bb.min - old.grid.min).array() < -tol).any() || ((old.grid.max - bb.max).array() < -tol).any())
+    return full_cut("the changed part leaves the old grid");
+
+  // Changed regions: faces on a surface no old face lies on (and old ones gone), and edges
+  // without an identical old edge (and old ones gone); the dirty box holds them all.
+  Box3 dirty{Vec3::Constant(1e300), Vec3::Constant(-1e300)};
+  auto grow = [&](const Box3& b) { dirty.min = dirty.min.cwiseMin(b.min), dirty.max = dirty.max.cwiseMax(b.max); };
+  auto unmatched_faces = [&](const PartShape& from, const PartShape& to) {
+    for (int i = 0; i < from.face_count(); ++i) {
+      const Box3 fb = tight_box(from.face(i));
+      const std::vector<gp_Pnt> samples = surface_samples(from.face(i));
+      bool found = false;
+      for (int j = 0; j < to.face_count() && !found; ++j) {
+        const Box3 tb = tight_box(to.face(j));  // cheap reject: boxes must overlap
+        if (((fb.max - tb.min).array() < -tol).any() || ((tb.max - fb.min).array() < -tol).any()) continue;
+        found = on_surface_of(samples, to.face(j), tol);
       }
-      xfem::CutPatch patch;
-      patch.surface = std::make_shared<OcctSurfaceMap>(BRep_Tool::Surface(face));
-      patch.loops = face_loops(face, o, g.segments);
-      patch.orientation = face.Orientation() == TopAbs_REVERSED ? -1 : 1;
-      patch.source_face = src >= 0 ? src : -1;
-      patch.grid_axis = src >= 0 ? -1 : -1 - src;
-      cut |= src >= 0;
-      sv.patches.push_back(std::move(patch));
+      if (!found) ++R.changed_faces, grow(fb);
     }
-    if (!cut) {  // a whole cell inside the part: tensor Gauss rule later, no patches needed
-      g.interior_cells.push_back(ijk);
-      solid_id.Bind(solid, -1 - static_cast<int>(g.interior_cells.size() - 1));
+  };
+  unmatched_faces(part, old_part);
+  unmatched_faces(old_part, part);
+  std::vector<EdgeSignature> old_edges, new_edges;
+  for (int i = 0; i < old_part.edge_count(); ++i) old_edges.push_back(edge_signature(old_part.edge(i)));
+  for (int i = 0; i < part.edge_count(); ++i) new_edges.push_back(edge_signature(part.edge(i)));
+  std::vector<bool> old_matched(old_edges.size(), false);
+  for (const auto& n : new_edges) {
+    bool found = false;
+    for (size_t j = 0; j < old_edges.size() && !found; ++j)
+      if (!old_matched[j] && same_edge(n, old_edges[j], tol)) old_matched[j] = found = true;
+    if (!found) ++R.changed_edges, grow(n.box);
+  }
+  for (size_t j = 0; j < old_edges.size(); ++j)
+    if (!old_matched[j]) ++R.changed_edges, grow(old_edges[j].box);
+  const bool changed = R.changed_faces + R.changed_edges > 0;
+
+  GridCut g;
+  g.grid = old.grid;
+  g.cells = old.cells;
+  g.cell_size = old.cell_size;
+  g.planes = old.planes;
+  g.shifted_planes = old.shifted_planes;
+  g.block_cells = old.block_cells;
+  GridCutter blocks_of(g, o, big_size(old.grid));
+  R.blocks = blocks_of.blocks();
+  auto dirty_block = [&](const std::array<int, 3>& b) {
+    if (!changed) return false;
+    const Box3 box = blocks_of.block_box(b);
+    return !(((box.max - dirty.min).array() < -tol).any() || ((dirty.max - box.min).array() < -tol).any());
+  };
+  // Keep what lies in clean blocks.
+  std::vector<int> new_sv(old.subvolumes.size(), -1), new_interior(old.interior_cells.size(), -1);
+  std::set<std::array<int, 3>> recut_blocks;
+  for (const CutCell& c : old.cut_cells) {
+    const auto b = blocks_of.block_of_cell(c.index);
+    if (dirty_block(b)) {
+      recut_blocks.insert(b);
       continue;
     }
-    // Intersection curves of this subvolume: B-rep face ∩ grid plane, and B-rep face ∩ B-rep face.
-    TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
-    TopExp::MapShapesAndAncestors(solid, TopAbs_EDGE, TopAbs_FACE, edge_faces);
-    for (int e = 1; e <= edge_faces.Extent(); ++e) {
-      const TopoDS_Edge& edge = TopoDS::Edge(edge_faces.FindKey(e));
-      const TopTools_ListOfShape& faces = edge_faces(e);
-      if (faces.Extent() != 2 || BRep_Tool::Degenerated(edge) || faces.First().IsSame(faces.Last())) continue;
-      int sa = -1, sb = -1;
-      source.Find(faces.First(), sa);
-      source.Find(faces.Last(), sb);
-      if (sa < 0 && sb < 0) continue;  // a straight cell edge
-      double f, l;
-      Handle(Geom_Curve) c = BRep_Tool::Curve(edge, f, l);
-      if (c.IsNull()) continue;
-      CutCurve curve;
-      curve.subvolume = static_cast<int>(g.subvolumes.size());
-      curve.kind = (sa >= 0 && sb >= 0) ? CutCurve::FaceFace : CutCurve::FacePlane;
-      curve.sources = {sa, sb};
-      curve.order = o.segment_order;
-      curve.points.push_back(Vec3(c->Value(f).X(), c->Value(f).Y(), c->Value(f).Z()));
-      append_curve<Vec3>([&](double t) { const gp_Pnt p = c->Value(t); return Vec3(p.X(), p.Y(), p.Z()); },
-                         f, l, c->DynamicType() == STANDARD_TYPE(Geom_Line), o,
-                         o.segment_tolerance * h, curve.points);
-      g.curves.push_back(std::move(curve));
+    CutCell kept{c.index, {}};
+    for (int s : c.subvolumes) {
+      new_sv[s] = static_cast<int>(g.subvolumes.size());
+      kept.subvolumes.push_back(new_sv[s]);
+      g.subvolumes.push_back(old.subvolumes[s]);
+      R.kept_from.push_back(s);
     }
-    auto [it, fresh] = cut_cell_of.try_emplace(ijk, static_cast<int>(g.cut_cells.size()));
-    if (fresh) g.cut_cells.push_back({ijk, {}});
-    g.cut_cells[it->second].subvolumes.push_back(static_cast<int>(g.subvolumes.size()));
-    solid_id.Bind(solid, static_cast<int>(g.subvolumes.size()));
-    g.patches += static_cast<int>(sv.patches.size());
-    g.subvolumes.push_back(std::move(sv));
+    g.cut_cells.push_back(std::move(kept));
   }
-  // Connectivity through shared grid faces.
-  for (int i = 1; i <= face_solids.Extent(); ++i) {
-    const TopTools_ListOfShape& owners = face_solids(i);
-    if (owners.Extent() != 2) continue;
-    const int a = solid_id.Find(owners.First()), b = solid_id.Find(owners.Last());
-    if (a >= 0 && b >= 0) g.connections.push_back({std::min(a, b), std::max(a, b)});
-    else if (a >= 0 || b >= 0) g.interior_connections.push_back({std::max(a, b), -1 - std::min(a, b)});
+  for (size_t i = 0; i < old.interior_cells.size(); ++i)
+    if (!dirty_block(blocks_of.block_of_cell(old.interior_cells[i]))) {
+      new_interior[i] = static_cast<int>(g.interior_cells.size());
+      g.interior_cells.push_back(old.interior_cells[i]);
+    }
+  auto owner_of = [&](int owner) { return owner >= 0 ? new_sv[owner] : (new_interior[-1 - owner] < 0 ? INT_MIN : -1 - new_interior[-1 - owner]); };
+  for (const auto& [a, b] : old.connections)
+    if (new_sv[a] >= 0 && new_sv[b] >= 0) g.connections.push_back({new_sv[a], new_sv[b]});
+  for (const auto& [s, c] : old.interior_connections)
+    if (new_sv[s] >= 0 && new_interior[c] >= 0) g.interior_connections.push_back({new_sv[s], new_interior[c]});
+  for (const CutCurve& c : old.curves)
+    if (new_sv[c.subvolume] >= 0) {
+      g.curves.push_back(c);
+      g.curves.back().subvolume = new_sv[c.subvolume];
+    }
+  for (const BlockFace& f : old.block_faces) {
+    const int owner = owner_of(f.owner);
+    if (owner == INT_MIN || (f.owner >= 0 && owner < 0)) continue;
+    g.block_faces.push_back(f);
+    g.block_faces.back().owner = owner;
   }
-  g.extract_seconds = seconds_since(t1);
+  for (const auto& s : g.subvolumes) g.patches += static_cast<int>(s.patches.size());
+  R.subvolumes_kept = static_cast<int>(g.subvolumes.size());
+  const size_t first_new = g.block_faces.size();
+
+  // Split the changed part again, in the dirty blocks only.
+  TopoDS_Shape solid;
+  TopTools_DataMapOfShapeInteger source;
+  if (!shape_to_cut(part, o, solid, source, g.message)) return g;
+  GridCutter cutter(g, o, big_size(old.grid));
+  if (!cutter.cut(solid, source, dirty_block)) return g;
+  match_block_faces(g, first_new);
+  R.blocks_recut = g.blocks_cut;
+  R.subvolumes_new = static_cast<int>(g.subvolumes.size()) - R.subvolumes_kept;
+  R.kept_from.resize(g.subvolumes.size(), -1);
+  g.split_seconds = seconds_since(t0);
   g.done = true;
   return g;
 }

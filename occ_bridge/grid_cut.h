@@ -33,6 +33,13 @@ struct GridOptions {
   double segment_tolerance = 1e-8;
   int max_segments_per_edge = 4096;
   bool parallel = false;    ///< let OCCT's splitter use threads
+  /// Two-level cutting: the part is first split into blocks of `block_cells`³ cells by every
+  /// block_cells-th plane, then every block piece by its own planes; subvolumes meeting across
+  /// block faces are matched by their common face (cell face, area, centroid). OCCT's splitter
+  /// costs grow faster than linearly with the pieces it builds, so blocks of 8 cells cut the
+  /// 32-cell L-bracket about 2× faster than one global split; blocks also let a changed part
+  /// be re-cut block by block (recut_by_grid). 0: one global split.
+  int block_cells = 8;
   /// Convert every face to NURBS (BRepBuilderAPI_NurbsConvert, as the face model does) before
   /// cutting: patches of B-rep faces are then pieces of exactly the face model's NURBS, in
   /// its (u, v), which shape derivatives with respect to control points need (§6.5.3).
@@ -56,6 +63,16 @@ struct CutCurve {
   std::vector<xfem::Vec3> points;
 };
 
+/// A grid-plane face of a subvolume or interior cell on a block face: how pieces cut in
+/// different blocks are matched.
+struct BlockFace {
+  int owner = -1;                       ///< subvolume index ≥ 0, or −1 − interior cell index
+  std::array<int, 4> cell_face{0, 0, 0, 0};  ///< axis, plane index (1..cells−1), other two cell indices
+  bool upper = false;                   ///< the owner lies above the plane (cell index = plane index)
+  xfem::Vec3 centroid{0, 0, 0};
+  double area = 0;
+};
+
 struct GridCut {
   bool done = false;
   std::string message;                     ///< why not done
@@ -70,8 +87,11 @@ struct GridCut {
   std::vector<std::array<int, 2>> connections;    ///< subvolume pairs sharing a grid face
   std::vector<std::array<int, 2>> interior_connections;  ///< (subvolume, interior cell) pairs
   std::vector<CutCurve> curves;                   ///< intersection curves of the subvolumes
+  std::vector<BlockFace> block_faces;             ///< faces on block faces (for re-cutting)
+  int block_cells = 0;                            ///< cells per block edge (0: one block)
   int patches = 0, segments = 0;
   double split_seconds = 0, extract_seconds = 0;
+  int blocks_cut = 0;                             ///< blocks split at the second level
 
   xfem::Box3 cell_box(const std::array<int, 3>& ijk) const;
 };
@@ -79,5 +99,24 @@ struct GridCut {
 /// Cuts the part by the grid. Never throws for geometry the splitter cannot handle: that is
 /// `done == false` with a message. Throws parafab::Error for invalid options.
 GridCut cut_by_grid(const PartShape& part, const GridOptions& options = {});
+
+struct RecutReport {
+  bool full = false;           ///< the whole part was cut again (reason in `message`)
+  std::string message;
+  int changed_faces = 0;       ///< faces on a surface no face of the other part lies on (both ways)
+  int changed_edges = 0;       ///< edges without an identical edge in the other part (both ways)
+  int blocks = 0, blocks_recut = 0;
+  int subvolumes_kept = 0, subvolumes_new = 0;
+  std::vector<int> kept_from;  ///< for every subvolume of the new cut: its old index, or −1
+};
+
+/// Re-cuts `new_part` on the grid of `old` (cut from `old_part` with block_cells > 0): blocks
+/// that no change touches keep their subvolumes, connections and block faces; only the blocks
+/// inside the box around the changes are split again. Changes are faces whose surface moved
+/// (old and new) and edges that moved (a face on the same surface changes only between its
+/// old and new trimming edges). Falls back
+/// to a full cut on the same grid planes when the new part leaves the grid.
+GridCut recut_by_grid(const PartShape& new_part, const GridCut& old, const PartShape& old_part,
+                      const GridOptions& options, RecutReport* report = nullptr);
 
 }  // namespace parafab::occ

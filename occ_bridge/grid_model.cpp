@@ -3,18 +3,16 @@
 #include <chrono>
 #include <map>
 
+#include "common/error.h"
+
 namespace parafab::occ {
 
-GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
-  GridModel m;
-  auto t0 = std::chrono::steady_clock::now();
-  m.cut = std::make_unique<GridCut>(cut_by_grid(part, o.grid));
-  m.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!m.cut->done) {
-    m.message = m.cut->message;
-    return m;
-  }
-  t0 = std::chrono::steady_clock::now();
+namespace {
+
+// Elements and adjacency of m.cut; `reused(s)` is a rule to reuse for subvolume s, or null.
+template <class Reused>
+void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused) {
+  const auto t0 = std::chrono::steady_clock::now();
   const GridCut& g = *m.cut;
   std::map<std::array<int, 3>, int> interior;
   for (const auto& ijk : g.interior_cells) {
@@ -29,7 +27,8 @@ GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
   for (const auto& sv : g.subvolumes) {
     xfem::GridElement e;
     e.box = sv.cell;
-    e.rule = xfem::volume_rule(sv, o.rule).rule;
+    const xfem::QuadratureRule3* rule = reused(static_cast<int>(m.elements.size()) - first_cut);
+    e.rule = rule ? *rule : xfem::volume_rule(sv, o.rule).rule;
     e.subvolume = &sv;
     m.elements.push_back(std::move(e));
   }
@@ -48,6 +47,41 @@ GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
     m.adjacent.push_back({first_cut + s, interior.at(g.interior_cells[c])});
   m.rule_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   m.done = true;
+}
+
+}  // namespace
+
+GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
+  GridModel m;
+  const auto t0 = std::chrono::steady_clock::now();
+  m.cut = std::make_unique<GridCut>(cut_by_grid(part, o.grid));
+  m.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!m.cut->done) {
+    m.message = m.cut->message;
+    return m;
+  }
+  make_elements(m, o, [](int) -> const xfem::QuadratureRule3* { return nullptr; });
+  return m;
+}
+
+GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const PartShape& old_part,
+                             const GridModelOptions& o, RecutReport* report) {
+  PARAFAB_VERIFY(old.done, "rebuild_grid_model: the old model is not done");
+  RecutReport local;
+  RecutReport& r = report ? *report : local;
+  GridModel m;
+  const auto t0 = std::chrono::steady_clock::now();
+  m.cut = std::make_unique<GridCut>(recut_by_grid(part, *old.cut, old_part, o.grid, &r));
+  m.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!m.cut->done) {
+    m.message = m.cut->message;
+    return m;
+  }
+  const int old_first_cut = static_cast<int>(old.cut->interior_cells.size());
+  make_elements(m, o, [&](int s) -> const xfem::QuadratureRule3* {
+    if (r.full || s >= static_cast<int>(r.kept_from.size()) || r.kept_from[s] < 0) return nullptr;
+    return &old.elements[old_first_cut + r.kept_from[s]].rule;
+  });
   return m;
 }
 

@@ -32,4 +32,9 @@ struct GridModel {
 
 GridModel build_grid_model(const PartShape& part, const GridModelOptions& options = {});
 
+/// The model of `part`, a changed `old_part`, on the grid of `old`: only blocks around the
+/// changed faces are cut again and get new rules; the rest are reused (recut_by_grid).
+GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const PartShape& old_part,
+                             const GridModelOptions& options = {}, RecutReport* report = nullptr);
+
 }  // namespace parafab::occ

@@ -40,8 +40,9 @@ def cylinder():
     return Part.makeCylinder(15, 40)  # radius 15
 
 
-def l_bracket():
-    # L profile in xz: base 60 x 8, upright 8 x 50, extruded 40 along y; two bolt holes r=4.
+def l_bracket(hole_radius=4):
+    # L profile in xz: base 60 x 8, upright 8 x 50, extruded 40 along y; two bolt holes r=4
+    # (l_bracket_holes5: the same part after a parameter edit, holes r=5, for re-cutting).
     base = Part.makeBox(60, 40, 8)
     upright = Part.makeBox(8, 40, 50)
     s = base.fuse(upright).removeSplitter()
@@ -50,7 +51,7 @@ def l_bracket():
     s = s.makeFillet(5, inner)      # inner fillet radius 5
     s = s.makeFillet(12, outer)     # outer fillet radius 12
     for y in (12, 28):
-        s = s.cut(Part.makeCylinder(4, 20, V(40, y, -5), Z))
+        s = s.cut(Part.makeCylinder(hole_radius, 20, V(40, y, -5), Z))
     return s
 
 
@@ -116,17 +117,25 @@ def housing():
 
 
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
-         "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing}
+         "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
+         "l_bracket_holes5": lambda: l_bracket(5)}
+# PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
+only = [n for n in os.environ.get("PARAFAB_PARTS_ONLY", "").split(",") if n]
 
 out_dir = os.environ.get("PARAFAB_PARTS_DIR", os.path.join("samples", "parts"))
 os.makedirs(out_dir, exist_ok=True)
 for name, make in PARTS.items():
+    if only and name not in only:
+        continue
     shape = make()
     if not shape.isValid() or len(shape.Solids) != 1:
         raise RuntimeError("%s: invalid shape or not one solid (%d solids)" % (name, len(shape.Solids)))
     path = os.path.join(out_dir, name + ".step")
     shape.Solids[0].exportStep(path)
     print("%-11s %3d faces  volume %10.1f mm^3  -> %s" % (name, len(shape.Faces), shape.Volume, path))
+
+if only:
+    raise SystemExit(0)
 
 # Two named solids in one file (STEP products named by the objects' labels): for choosing a
 # solid by index or name.

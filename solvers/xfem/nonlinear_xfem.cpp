@@ -75,6 +75,7 @@ LinearXfemResult NonlinearXfemResult::as_linear() const {
   r.u = u;
   r.node = node;
   r.dofs = dofs;
+  r.aggregated_nodes = aggregated_nodes;
   return r;
 }
 
@@ -93,21 +94,36 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
   // Boundary and load terms are quadratic in u: ½uᵀK_b u − f_bᵀu (Nitsche, tractions, gravity).
   const LinearSystem boundary = assemble_linear(elements, r.node, count, small_strain, dirichlet, tractions,
                                                 options.boundary, /*include_bulk=*/false);
+  // Cell aggregation as in the linear solver: Newton runs on u = T u_r, so DOF nodes that only
+  // tiny cut cells touch follow their neighbours and the Hessian stays well conditioned.
+  const Eigen::SparseMatrix<double> T = aggregation_map(elements, adjacent, r.node, count,
+                                                        options.boundary.aggregation_fraction, &r.aggregated_nodes);
+  const Eigen::SparseMatrix<double> Tt = T.transpose();
+  const Eigen::SparseMatrix<double> K_boundary = Tt * boundary.K * T;
+  Eigen::VectorXd ur = Eigen::VectorXd::Zero(T.cols());
   r.u = Eigen::VectorXd::Zero(r.dofs);
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   bool analyzed = false;
   for (int step = 1; step <= options.load_steps; ++step) {
     const double lambda = static_cast<double>(step) / options.load_steps;
-    const Eigen::VectorXd f = lambda * boundary.f;
+    const Eigen::VectorXd f = lambda * (Tt * boundary.f);
+    // Energy of the reduced unknowns x (u = T x); gradient and Hessian reduced by T.
+    Eigen::SparseMatrix<double> H_bulk;
     auto total = [&](const Eigen::VectorXd& x, bool hess, Evaluation& ev) {
-      ev = evaluate_bulk(elements, r.node, material, x, hess);
+      ev = evaluate_bulk(elements, r.node, material, T * x, hess);
       if (!ev.finite) return std::numeric_limits<double>::infinity();
-      const Eigen::VectorXd Kx = boundary.K * x;
-      ev.gradient += Kx - f;
+      if (hess) {
+        Eigen::SparseMatrix<double> H(r.dofs, r.dofs);
+        H.setFromTriplets(ev.hessian.begin(), ev.hessian.end());
+        ev.hessian.clear();
+        H_bulk = Tt * H * T;
+      }
+      const Eigen::VectorXd Kx = K_boundary * x;
+      ev.gradient = Tt * ev.gradient + Kx - f;
       return ev.energy + 0.5 * x.dot(Kx) - f.dot(x);
     };
     Evaluation ev;
-    double energy = total(r.u, true, ev);
+    double energy = total(ur, true, ev);
     const double scale = std::max(f.norm(), ev.gradient.norm());
     bool step_done = false;
     for (int it = 0; it < options.max_iterations; ++it) {
@@ -116,9 +132,7 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
         step_done = true;
         break;
       }
-      Eigen::SparseMatrix<double> H(r.dofs, r.dofs);
-      H.setFromTriplets(ev.hessian.begin(), ev.hessian.end());
-      H += boundary.K;
+      const Eigen::SparseMatrix<double> H = H_bulk + K_boundary;
       if (!analyzed) llt.analyzePattern(H), analyzed = true;  // symbolic analysis reused
       llt.factorize(H);
       Eigen::VectorXd d;
@@ -140,29 +154,33 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
       // Backtracking (Armijo) on the total energy; infinite energy (J ≤ 0) rejects a step.
       double alpha = 1;
       Evaluation trial;
-      double e_trial = total(r.u + d, false, trial);
+      double e_trial = total(ur + d, false, trial);
       const double slope = d.dot(ev.gradient);
-      // Near the solution the energy changes below its round-off: take the full step then.
-      const bool roundoff = std::abs(e_trial - energy) <= 1e-12 * std::max(std::abs(energy), 1e-300);
+      // Near the solution the energy changes by less than the round-off of its sum over all
+      // quadrature points (cancelling bulk and load terms): there the full Newton step is taken
+      // when it reduces the residual instead.
+      const bool roundoff = std::abs(e_trial - energy) <= 1e-9 * std::max(std::abs(energy), 1e-300) &&
+                            trial.finite && trial.gradient.norm() < gnorm;
       while (!roundoff && !(e_trial <= energy + 1e-4 * alpha * slope) && alpha > 1e-10) {
         alpha *= 0.5;
-        e_trial = total(r.u + alpha * d, false, trial);
+        e_trial = total(ur + alpha * d, false, trial);
       }
       if (!roundoff && !(e_trial <= energy + 1e-4 * alpha * slope)) {
         r.message = "line search failed at load step " + std::to_string(step);
         break;
       }
-      r.u += alpha * d;
-      energy = total(r.u, true, ev);
+      ur += alpha * d;
+      energy = total(ur, true, ev);
       ++r.iterations;
       r.residuals.push_back(ev.gradient.norm());
       // A Newton step that no longer moves the solution: converged to round-off (the residual
       // can stall above the tolerance where Nitsche penalties make the Hessian very stiff).
-      if (d.norm() <= 1e-10 * std::max(r.u.norm(), 1e-300)) {
+      if (d.norm() <= 1e-10 * std::max(ur.norm(), 1e-300)) {
         step_done = true;
         break;
       }
     }
+    r.u = T * ur;
     if (!step_done) {
       if (r.message.empty())
         r.message = "Newton did not converge in " + std::to_string(options.max_iterations) +

@@ -22,6 +22,7 @@ struct NonlinearXfemResult {
   bool converged = false;
   std::string message;
   int dofs = 0, iterations = 0;
+  int aggregated_nodes = 0;  ///< DOF nodes tied to neighbours by cell aggregation (as LinearXfemResult)
   std::vector<double> residuals;         ///< ‖gradient‖ after every Newton step (all load steps)
   Eigen::VectorXd u;
   std::vector<std::array<int, 8>> node;

@@ -86,7 +86,10 @@ int main(int argc, char** argv) {
   std::string job_path, out_dir;
   simulate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
   simulate->add_option("job", job_path, "Job JSON: material, grid, supports, loads, gravity, probes")->required();
-  simulate->add_option("-o,--output", out_dir, "Folder for result.json and result.vtu");
+  simulate->add_option("-o,--output", out_dir, "Folder for result.json, result.vtu and surface.vtu");
+  bool show_progress = false;
+  simulate->add_flag("--progress", show_progress,
+                     "Print one JSON line per phase to stderr: {\"progress\": {\"phase\": ..., \"fraction\": ...}}");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -99,8 +102,15 @@ int main(int argc, char** argv) {
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
     if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
-    if (*simulate)
-      return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir), "");
+    if (*simulate) {
+      parafab::entry::ProgressFn progress;
+      if (show_progress)
+        progress = [](const char* phase, double fraction) {
+          std::cerr << json{{"progress", {{"phase", phase}, {"fraction", fraction}}}}.dump() << std::endl;
+          return true;
+        };
+      return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
+    }
     if (*integrate) {
       integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;
       if (integrate->count("--non-negative"))

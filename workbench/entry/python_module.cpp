@@ -12,6 +12,16 @@
 namespace py = pybind11;
 
 namespace {
+
+// progress(phase, fraction) from Python; returning False cancels the run.
+parafab::entry::ProgressFn progress_function(const py::object& progress) {
+  if (progress.is_none()) return {};
+  return [progress](const char* phase, double fraction) {
+    py::gil_scoped_acquire acquire;
+    const py::object keep_going = progress(phase, fraction);
+    return keep_going.is_none() || keep_going.cast<bool>();
+  };
+}
 // dict -> nlohmann::json through Python's own json module (exact for floats and ints).
 nlohmann::json to_json(const py::object& obj) {
   py::module_ json = py::module_::import("json");
@@ -82,18 +92,57 @@ PYBIND11_MODULE(parafab, m) {
       "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`).");
   m.def(
       "simulate",
-      [](const std::string& path, const py::dict& job, const std::string& out_dir) {
+      [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress) {
         const nlohmann::json in = to_json(job);
+        const auto report = progress_function(progress);
         nlohmann::json out;
         {
           py::gil_scoped_release release;
-          out = parafab::entry::simulate_part_json(path, in, out_dir);
+          out = parafab::entry::simulate_part_json(path, in, out_dir, report);
         }
         return to_python(out);
       },
-      py::arg("path"), py::arg("job"), py::arg("out_dir") = "",
-      "Linear elastic XFEM simulation of a part (same job and result JSON as `parafab simulate`); "
-      "writes result.json and result.vtu into out_dir when given.");
+      py::arg("path"), py::arg("job"), py::arg("out_dir") = "", py::arg("progress") = py::none(),
+      "Linear elastic or hyperelastic XFEM simulation of a part (same job and result JSON as `parafab "
+      "simulate`); writes result.json, result.vtu and surface.vtu into out_dir when given. "
+      "progress(phase, fraction) is called at phase boundaries; returning False cancels the run "
+      "(parafab.Error 'simulation cancelled by the user').");
+  // A simulation that keeps its grid: update(new_part) re-cuts only the blocks a change touches.
+  py::class_<parafab::entry::SimulationSession>(
+      m, "Simulation",
+      "Simulation(path, job): a part and a simulate job kept in memory. run(out_dir='', progress=None) "
+      "cuts and solves; update(path, out_dir='', progress=None) takes a changed part (e.g. after a "
+      "parameter edit), re-cuts only the grid blocks the change touches and solves again. Both return "
+      "the JSON of parafab.simulate; update's carries 'recut'.")
+      .def(py::init([](const std::string& path, const py::dict& job) {
+             return std::make_unique<parafab::entry::SimulationSession>(path, to_json(job));
+           }),
+           py::arg("path"), py::arg("job"))
+      .def(
+          "run",
+          [](parafab::entry::SimulationSession& s, const std::string& out_dir, const py::object& progress) {
+            const auto report = progress_function(progress);
+            nlohmann::json out;
+            {
+              py::gil_scoped_release release;
+              out = s.run(out_dir, report);
+            }
+            return to_python(out);
+          },
+          py::arg("out_dir") = "", py::arg("progress") = py::none())
+      .def(
+          "update",
+          [](parafab::entry::SimulationSession& s, const std::string& path, const std::string& out_dir,
+             const py::object& progress) {
+            const auto report = progress_function(progress);
+            nlohmann::json out;
+            {
+              py::gil_scoped_release release;
+              out = s.update(path, out_dir, report);
+            }
+            return to_python(out);
+          },
+          py::arg("path"), py::arg("out_dir") = "", py::arg("progress") = py::none());
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
   m.attr("__version__") = "0.1.0";
 }

@@ -3,14 +3,58 @@
 // result JSON and writes result.json and result.vtu there. Format in README ("Simulation").
 #pragma once
 
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <functional>
 #include <string>
+
+namespace parafab::occ {
+struct PartShape;
+struct GridModel;
+}  // namespace parafab::occ
 
 namespace parafab::entry {
 
+/// Called at phase boundaries with the phase ("read", "cut", "assemble", "solve", "newton",
+/// "results", "write") and the fraction of the run done; returning false cancels the run
+/// (simulate_part_json then throws parafab::Error "simulation cancelled by the user").
+using ProgressFn = std::function<bool(const char* phase, double fraction)>;
+
+/// A simulation that keeps its grid model, so that a changed part (a parameter edit that moves
+/// some faces) is re-cut only in the blocks the change touches (occ::rebuild_grid_model) and
+/// solved again. Faces named by point are looked up again on the new part; by index, the index
+/// is kept (CAD systems usually keep face order when only dimensions change).
+class SimulationSession {
+ public:
+  /// Reads the part and checks the job; throws parafab::Error like simulate_part_json.
+  SimulationSession(const std::string& part_path, const nlohmann::json& job);
+  ~SimulationSession();
+  /// Cuts, solves and reports (the result JSON of simulate_part_json).
+  nlohmann::json run(const std::string& out_dir, const ProgressFn& progress = {});
+  /// The same job on a changed part on the same grid; the result carries "recut" (changed
+  /// faces and edges, blocks re-cut, subvolumes kept and new). On invalid input the session
+  /// stays on its old part.
+  nlohmann::json update(const std::string& new_part_path, const std::string& out_dir,
+                        const ProgressFn& progress = {});
+
+ private:
+  struct Setup;
+  void load_part(const std::string& part_path);
+  std::unique_ptr<Setup> parse_job() const;
+  template <class Report>
+  nlohmann::json solve(const std::string& out_dir, const Report& report, const nlohmann::json& recut);
+
+  nlohmann::json job_;
+  std::string part_path_;
+  std::shared_ptr<const occ::PartShape> part_;
+  std::unique_ptr<Setup> setup_;
+  std::unique_ptr<occ::GridModel> model_;
+};
+
 /// Throws parafab::Error naming the offending job field for invalid input, or when the run
-/// would not fit in memory (with the estimate).
+/// would not fit in memory (with the estimate). Writes result.json, result.vtu (cells and
+/// cut-cell rule points) and surface.vtu (the triangulated B-rep with the fields) to out_dir.
 nlohmann::json simulate_part_json(const std::string& part_path, const nlohmann::json& job,
-                                  const std::string& out_dir);
+                                  const std::string& out_dir, const ProgressFn& progress = {});
 
 }  // namespace parafab::entry

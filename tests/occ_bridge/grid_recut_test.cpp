@@ -1,0 +1,166 @@
+// Two-level (block) cutting and re-cutting only the blocks a parameter change touches
+// (issue 4): both must give exactly the cut, the rules and the solution of one global split.
+#include <gtest/gtest.h>
+
+#include <BRepAlgoAPI_Cut.hxx>
+#include <BRepGProp.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCylinder.hxx>
+#include <GProp_GProps.hxx>
+#include <gp_Ax2.hxx>
+
+#include <algorithm>
+#include <set>
+
+#include "grid_model.h"
+#include "occt_shape.h"
+#include "part_reader.h"
+
+namespace parafab::occ {
+namespace {
+
+std::string sample(const char* name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name; }
+
+// A 100 × 60 × 12 plate with a through hole of radius r at (70, 30): the parameter change
+// moves only the hole's face.
+std::shared_ptr<const PartShape> plate_with_hole(double r) {
+  const TopoDS_Shape box = BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), 100, 60, 12).Shape();
+  const TopoDS_Shape hole = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(70, 30, -5), gp::DZ()), r, 22).Shape();
+  return make_part(BRepAlgoAPI_Cut(box, hole).Shape(), "plate with hole r=" + std::to_string(r));
+}
+
+double occt_volume(const PartShape& p) {
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(p.shape, props);
+  return props.Mass();
+}
+
+double model_volume(const GridModel& m) {
+  double v = 0;
+  for (const auto& e : m.elements)
+    for (double w : e.rule.weights) v += w;
+  return v;
+}
+
+// The cut as cell-level facts that do not depend on the order pieces were built in.
+struct CutSummary {
+  std::multiset<std::array<int, 3>> subvolume_cells, interior;
+  std::multiset<std::array<int, 6>> connections, interior_connections;
+};
+
+CutSummary summary(const GridCut& g) {
+  CutSummary s;
+  std::vector<std::array<int, 3>> cell_of(g.subvolumes.size());
+  for (const auto& c : g.cut_cells)
+    for (int sv : c.subvolumes) cell_of[sv] = c.index, s.subvolume_cells.insert(c.index);
+  for (const auto& c : g.interior_cells) s.interior.insert(c);
+  for (const auto& [a, b] : g.connections) {
+    auto p = cell_of[a], q = cell_of[b];
+    if (q < p) std::swap(p, q);
+    s.connections.insert({p[0], p[1], p[2], q[0], q[1], q[2]});
+  }
+  for (const auto& [a, c] : g.interior_connections) {
+    const auto p = cell_of[a], q = g.interior_cells[c];
+    s.interior_connections.insert({p[0], p[1], p[2], q[0], q[1], q[2]});
+  }
+  return s;
+}
+
+void expect_same_cut(const GridCut& a, const GridCut& b, const std::string& what) {
+  const CutSummary x = summary(a), y = summary(b);
+  EXPECT_EQ(x.subvolume_cells, y.subvolume_cells) << what;
+  EXPECT_EQ(x.interior, y.interior) << what;
+  EXPECT_EQ(x.connections, y.connections) << what;
+  EXPECT_EQ(x.interior_connections, y.interior_connections) << what;
+}
+
+double max_displacement(const GridModel& m) {
+  // Clamp the x = 0 face region by the nearest face: face 0 of a box-based part is x = 0.
+  xfem::ElasticMaterial mat{210000, 0.3, 7.85e-9};
+  xfem::LinearXfemOptions fo;
+  fo.gravity = xfem::Vec3(0, 0, -9810 * 1000);
+  const auto r = xfem::solve_linear(m.elements, m.adjacent, mat, {xfem::DirichletCondition{0}}, {}, fo);
+  EXPECT_TRUE(r.solved) << r.message;
+  double u = 0;
+  for (size_t e = 0; e < m.elements.size(); ++e)
+    for (const auto& X : m.elements[e].rule.points) u = std::max(u, r.displacement(m.elements, static_cast<int>(e), X).norm());
+  return u;
+}
+
+TEST(GridBlocks, BlocksGiveTheCutOfOneGlobalSplit) {
+  for (const char* name : {"l_bracket.step", "wrench.step", "ring.step", "housing.step", "wheel.step"}) {
+    const auto part = read_part(sample(name));
+    GridOptions global, blocks;
+    global.cells_longest = blocks.cells_longest = 12;
+    global.block_cells = 0;
+    blocks.block_cells = 3;  // many blocks, so many block faces to match
+    const GridCut a = cut_by_grid(*part, global), b = cut_by_grid(*part, blocks);
+    ASSERT_TRUE(a.done && b.done) << name << ": " << a.message << b.message;
+    EXPECT_GT(b.blocks_cut, 1) << name;
+    EXPECT_FALSE(b.block_faces.empty()) << name;
+    expect_same_cut(a, b, name);
+  }
+}
+
+TEST(GridBlocks, RecutOfAChangedHoleEqualsAFullCut) {
+  const auto before = plate_with_hole(8), after = plate_with_hole(9.5);
+  GridModelOptions o;
+  o.grid.cells_longest = 20;
+  o.grid.block_cells = 4;
+  o.grid.perturbation = 0;  // identical planes for the old and the fresh cut of the new part
+  const GridModel old_model = build_grid_model(*before, o);
+  ASSERT_TRUE(old_model.done) << old_model.message;
+  RecutReport report;
+  const GridModel recut = rebuild_grid_model(*after, old_model, *before, o, &report);
+  ASSERT_TRUE(recut.done) << recut.message;
+  EXPECT_FALSE(report.full) << report.message;
+  EXPECT_EQ(report.changed_faces, 2);  // the old and the new hole face
+  EXPECT_EQ(report.changed_edges, 6);  // their two circles and seam each
+  EXPECT_LT(report.blocks_recut, report.blocks / 3);
+  EXPECT_GT(report.subvolumes_kept, 3 * report.subvolumes_new);
+
+  const GridModel fresh = build_grid_model(*after, o);
+  ASSERT_TRUE(fresh.done) << fresh.message;
+  expect_same_cut(*fresh.cut, *recut.cut, "recut vs fresh");
+  EXPECT_NEAR(model_volume(recut), occt_volume(*after), 1e-9 * occt_volume(*after));
+  EXPECT_NEAR(model_volume(recut), model_volume(fresh), 1e-11 * model_volume(fresh));
+  const double u_recut = max_displacement(recut), u_fresh = max_displacement(fresh);
+  EXPECT_NEAR(u_recut, u_fresh, 1e-9 * u_fresh);
+  EXPECT_GT(std::abs(u_recut - max_displacement(old_model)), 1e-6 * u_fresh);  // the change matters
+}
+
+TEST(GridBlocks, AnUnchangedPartIsNotCutAgain) {
+  const auto part = plate_with_hole(8), same = plate_with_hole(8);
+  GridOptions o;
+  o.cells_longest = 10;
+  o.block_cells = 4;
+  const GridCut old = cut_by_grid(*part, o);
+  RecutReport report;
+  const GridCut again = recut_by_grid(*same, old, *part, o, &report);
+  ASSERT_TRUE(again.done) << again.message;
+  EXPECT_EQ(report.changed_faces, 0);
+  EXPECT_EQ(report.changed_edges, 0);
+  EXPECT_EQ(report.blocks_recut, 0);
+  EXPECT_EQ(report.subvolumes_new, 0);
+  expect_same_cut(old, again, "unchanged");
+}
+
+TEST(GridBlocks, APartThatLeavesTheGridIsCutAgainWhole) {
+  const auto part = plate_with_hole(8);
+  const TopoDS_Shape longer = BRepAlgoAPI_Cut(BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), 130, 60, 12).Shape(),
+                                              BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(70, 30, -5), gp::DZ()), 8, 22).Shape())
+                                  .Shape();
+  const auto grown = make_part(longer, "longer plate");
+  GridOptions o;
+  o.cells_longest = 10;
+  const GridCut old = cut_by_grid(*part, o);
+  RecutReport report;
+  const GridCut again = recut_by_grid(*grown, old, *part, o, &report);
+  ASSERT_TRUE(again.done) << again.message;
+  EXPECT_TRUE(report.full);
+  EXPECT_NE(report.message.find("leaves the old grid"), std::string::npos) << report.message;
+  EXPECT_DOUBLE_EQ(again.cell_size.x(), old.cell_size.x());
+}
+
+}  // namespace
+}  // namespace parafab::occ
