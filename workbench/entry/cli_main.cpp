@@ -1,5 +1,5 @@
 // The `parafab` command line: thin over the same JSON calls as the Python module.
-// Exit codes: 0 result written (a strip may still be infeasible: see "feasible"),
+// Exit codes: 0 result written (a strip or rod may still be infeasible: see "feasible"),
 // 2 invalid input (JSON error on stdout), 1 internal error.
 #include <CLI/CLI.hpp>
 #include <fstream>
@@ -12,6 +12,7 @@
 #include "integrate_json.h"
 #include "simulate_json.h"
 #include "strip_json.h"
+#include "rod_json.h"
 
 namespace {
 
@@ -60,6 +61,9 @@ int main(int argc, char** argv) {
   auto* strip = app.add_subcommand("strip", "Design a bending-active strip for a plane curve (JSON in, JSON out)");
   strip->add_option("input", in_path, "Strip request JSON (see README: JSON formats)")->required();
   strip->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
+  rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
+  rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* inspect = app.add_subcommand("inspect", "Face model of a STEP/BREP part: types, NURBS, edges, tangencies (JSON)");
   parafab::entry::InspectOptions inspect_options;
   inspect->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
@@ -101,6 +105,7 @@ int main(int argc, char** argv) {
     if (*version)
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
     if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
+    if (*rod) return emit(parafab::entry::design_rod_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {
       parafab::entry::ProgressFn progress;

@@ -8,6 +8,7 @@
 #include "part_json.h"
 #include "simulate_json.h"
 #include "strip_json.h"
+#include "rod_json.h"
 
 namespace py = pybind11;
 
@@ -56,6 +57,21 @@ PYBIND11_MODULE(parafab, m) {
       "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
       "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
       "min_width, tolerance.");
+  m.def(
+      "design_rod",
+      [](const py::dict& request) {
+        const nlohmann::json in = to_json(request);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::design_rod_json(in);
+        }
+        return to_python(out);
+      },
+      py::arg("request"),
+      "Design a Kirchhoff rod (thesis ch. 5). `request` and the returned dict follow the rod JSON "
+      "format of the README (SI units): curve (3D bspline or points), material, max_radius, w_reg, "
+      "section {factor}, loads, samples, validate.");
   m.def(
       "inspect_part",
       [](const std::string& path, int solid) {
