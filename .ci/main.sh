@@ -3,7 +3,8 @@
 # then run the main job on the bundled samples:
 #   bash .ci/main.sh [OUT_DIR]        (default OUT_DIR: ./out)
 # Writes OUT_DIR/strips/<sample>.result.json (the CLI's output), <sample>.png (charts) and
-# OUT_DIR/strips.FCStd (a FreeCAD document with one strip feature per sample).
+# OUT_DIR/strips.FCStd (a FreeCAD document with one strip feature per sample);
+# OUT_DIR/rods/<sample>.result.json and <sample>.png (twist plots) for samples/rods.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 build=${PARAFAB_BUILD_DIR:-$repo/build}
@@ -25,6 +26,23 @@ PARAFAB_RESULTS="$out/strips" PARAFAB_DOCUMENT="$out/strips.FCStd" \
   >"$out/freecad.log" 2>&1 || { cat "$out/freecad.log"; exit 1; }
 grep -E '^strip |^wrote' "$out/freecad.log" || true
 test -s "$out/strips.FCStd"
+echo "== rods: parafab rod on samples/rods/*.json (Kirchhoff rods, forward-simulated when validate)"
+mkdir -p "$out/rods"
+rm -f "$out"/rods/*.json "$out"/rods/*.png
+for f in "$repo"/samples/rods/*.json; do
+  name=$(basename "$f" .json)
+  cp "$f" "$out/rods/$name.request.json"
+  "$build/workbench/entry/parafab" rod "$f" -o "$out/rods/$name.result.json"
+  /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); m=d.get('simulation') or {}
+g=lambda x: '-' if x is None else '%.2e' % x
+print('rod %-20s %-10s L %.3f m  R %s  max|twist| %.3g rad/m  load iterations %d  deviation/L %s  %.3f s' % (sys.argv[2], d['status'], d['length'], g(d['R']), max(map(abs, d.get('twist') or [0])), d['load_iterations']['iterations'], g(m.get('deviation')), d['diagnostics']['total_seconds']))" "$out/rods/$name.result.json" "$name"
+done
+for f in "$repo"/samples/rods/invalid/*.json; do  # kappa = 0: exit 2 and a JSON error naming s
+  code=0; "$build/workbench/entry/parafab" rod "$f" >"$out/rods/invalid_$(basename "$f")" || code=$?
+  [ "$code" -eq 2 ] || { echo "rod $(basename "$f"): expected exit 2, got $code"; exit 1; }
+  echo "rod invalid/$(basename "$f" .json): exit 2, $(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['error']['message'][:90])" "$out/rods/invalid_$(basename "$f")")"
+done
+/usr/bin/python3 "$repo/workbench/scripts/plot_rods.py" "$out/rods" >/dev/null
 echo "== parts: parafab inspect + integrate on samples/parts/*.step (cut-cell quadrature vs OCCT)"
 mkdir -p "$out/parts"
 rm -f "$out"/parts/*.json
@@ -43,4 +61,4 @@ for f in "$repo"/samples/simulations/*.json; do
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); s=d['seconds']
 print('simulation %-10s %6d dofs, max displacement %.4g, max von Mises %.4g, cut %.2f s rules %.2f s assemble %.2f s solve %.2f s' % (sys.argv[2], d['dofs'], d['max_displacement'], d['max_von_mises'], s['cut'], s['rules'], s['assemble'], s['solve']))" "$out/simulations/$name/result.json" "$name"
 done
-echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"
+echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd, rods/*.result.json, rods/*.png, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"
