@@ -131,6 +131,8 @@ json design_rod_json(const json& request) {
   o.material = parse_material(request);
   o.max_radius = optional_number(request, "max_radius", "", o.max_radius, 0, INFINITY, true);
   o.lp.regularization_weight = optional_number(request, "w_reg", "", 0.0, 0, INFINITY, false);
+  // Second LP stage (stiffness ratio at R ≤ R*(1 + 1e-7)); off: the Eq. 5.19 optimum itself.
+  o.lp.minimize_stiffness_ratio = optional_bool(request, "stiffness_ratio_stage", "", true);
   if (request.contains("section")) {
     const json& sec = request["section"];
     if (!sec.is_object()) PARAFAB_INPUT_ERROR("section must be a JSON object, got " << sec.type_name());
@@ -199,6 +201,8 @@ json design_rod_json(const json& request) {
                {"stiffness_ratio", num(d.lp.stiffness_ratio)},
                {"parallel", d.lp.parallel},
                {"w_reg", o.lp.regularization_weight},
+               {"stiffness_ratio_stage", o.lp.minimize_stiffness_ratio},
+               {"twist_slack_relative", o.lp.twist_slack_relative},
                {"binding_samples", d.lp.binding_samples},
                {"lps_solved", d.lp.lps_solved},
                {"iterations", d.lp.iterations}};
