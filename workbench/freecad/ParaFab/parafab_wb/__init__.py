@@ -6,6 +6,8 @@ Modules:
 * :mod:`parafab_wb.shapes` -- solver result -> Part shapes (flat + bent strip).
 * :mod:`parafab_wb.strip_feature` -- the ``Strip`` feature proxy, its view
   provider and :func:`~parafab_wb.strip_feature.make_strip`.
+* :mod:`parafab_wb.rod_shapes`, :mod:`parafab_wb.rod_feature`, :mod:`parafab_wb.rod_plot`
+  -- the ``Rod`` feature (Kirchhoff rods on space curves), its shapes and twist plot.
 * :mod:`parafab_wb.commands` -- GUI commands (imported by ``InitGui.py`` only).
 
 This ``__init__`` must stay importable without FreeCAD: it only knows where

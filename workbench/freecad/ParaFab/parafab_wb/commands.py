@@ -5,6 +5,9 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
 
 * ``ParaFab_Strip`` -- "Bending-active strip": create a ``Strip`` feature on
   the selected planar edge (sketch B-spline, arc, ellipse arc, Part edge).
+* ``ParaFab_Rod`` -- "Kirchhoff rod": create a ``Rod`` feature on the selected
+  space-curve edge; export both rods with ``parafab_wb.rod_feature.export_step``
+  and the twist plot with ``write_twist_plot`` (or set its ``PlotFile``).
 """
 
 import FreeCAD
@@ -61,6 +64,43 @@ class StripCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_Strip", StripCommand())
+
+
+class RodCommand(object):
+    """Create a Kirchhoff rod on the selected space-curve edge."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Rod.svg"),
+            "MenuText": "Kirchhoff rod",
+            "ToolTip": "Design a Kirchhoff rod (elliptical sections, twist, clamped end frames) whose "
+                       "equilibrium follows the selected 3D edge. The shape holds the deformed and the "
+                       "straight rod; export both as STEP with parafab_wb.rod_feature.export_step(obj, path)",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and selected_edge() is not None
+
+    def Activated(self):
+        from . import rod_feature
+        selection = selected_edge()
+        if selection is None:
+            FreeCAD.Console.PrintError("ParaFab: select an edge first\n")
+            return
+        owner, element = selection
+        doc = owner.Document
+        doc.openTransaction("Kirchhoff rod")
+        try:
+            rod_feature.make_rod(owner, element, doc)
+            doc.recompute()
+        except Exception as exc:
+            doc.abortTransaction()
+            FreeCAD.Console.PrintError("ParaFab: cannot create rod: %s\n" % exc)
+            return
+        doc.commitTransaction()
+
+
+FreeCADGui.addCommand("ParaFab_Rod", RodCommand())
 
 
 class AnalyzePartCommand(object):
