@@ -64,6 +64,7 @@ def run(check):
     check("workbench_active", wb.name() == "ParaFabWorkbench", wb.name())
     check("workbench_icon", os.path.isfile(wb.Icon), wb.Icon)
     check("command_registered", "ParaFab_Strip" in FreeCADGui.listCommands())
+    check("rod_command_registered", "ParaFab_Rod" in FreeCADGui.listCommands())
     check("toolbar", "ParaFab" in wb.listToolbars(), wb.listToolbars())
     check("menu", "ParaFab" in wb.listMenus(), wb.listMenus())
 
