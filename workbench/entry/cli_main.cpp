@@ -87,7 +87,9 @@ int main(int argc, char** argv) {
   simulate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
   simulate->add_option("job", job_path, "Job JSON: material, grid, supports, loads, gravity, probes")->required();
   simulate->add_option("-o,--output", out_dir, "Folder for result.json, result.vtu and surface.vtu");
-  bool show_progress = false;
+  bool show_progress = false, estimate_only = false;
+  simulate->add_flag("--estimate", estimate_only,
+                     "Only print the size estimate {unknowns, factor_mb, memory_mb, fits}; do not run");
   simulate->add_flag("--progress", show_progress,
                      "Print one JSON line per phase to stderr: {\"progress\": {\"phase\": ..., \"fraction\": ...}}");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
@@ -109,6 +111,8 @@ int main(int argc, char** argv) {
           std::cerr << json{{"progress", {{"phase", phase}, {"fraction", fraction}}}}.dump() << std::endl;
           return true;
         };
+      if (estimate_only)
+        return emit(parafab::entry::SimulationSession(in_path, read_json_file(job_path)).estimate(), "");
       return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
     }
     if (*integrate) {

@@ -118,6 +118,8 @@ PYBIND11_MODULE(parafab, m) {
              return std::make_unique<parafab::entry::SimulationSession>(path, to_json(job));
            }),
            py::arg("path"), py::arg("job"))
+      .def("estimate", [](const parafab::entry::SimulationSession& s) { return to_python(s.estimate()); },
+           "Size of the run before running it: unknowns, factor_mb, memory_mb, fits.")
       .def(
           "run",
           [](parafab::entry::SimulationSession& s, const std::string& out_dir, const py::object& progress) {

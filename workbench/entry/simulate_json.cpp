@@ -185,7 +185,7 @@ struct SimulationSession::Setup {
   std::vector<xfem::TractionCondition> tractions;
   xfem::LinearXfemOptions fo;
   int load_steps = 5;
-  double dofs = 0, factor_mb = 0;
+  double dofs = 0, factor_mb = 0, physical_mb = 0;
 };
 
 SimulationSession::SimulationSession(const std::string& part_path, const json& job) : job_(job) {
@@ -270,18 +270,28 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   const double nodes = (std::ceil(ext.x() / h) + 1) * (std::ceil(ext.y() / h) + 1) * (std::ceil(ext.z() / h) + 1);
   S->dofs = 3 * nodes * 1.2;  // enriched copies at cut cells
   S->factor_mb = 8.0 * S->dofs * 40.0 * std::cbrt(S->dofs) / 1e6;  // nested-dissection fill ~ n^{4/3}
-  const double physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
-  if (S->factor_mb > 0.7 * physical_mb)
-    PARAFAB_INPUT_ERROR("this grid needs about " << S->factor_mb << " MB for the factorization (" << S->dofs
-                                                 << " unknowns), more than 70% of the " << physical_mb
-                                                 << " MB of memory: use fewer cells");
+  S->physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
   return S;
+}
+
+json SimulationSession::estimate() const {
+  return {{"unknowns", setup_->dofs}, {"factor_mb", setup_->factor_mb}, {"memory_mb", setup_->physical_mb},
+          {"fits", setup_->factor_mb <= 0.7 * setup_->physical_mb}};
+}
+
+void SimulationSession::refuse_if_too_big() const {
+  const Setup& S = *setup_;
+  if (S.factor_mb > 0.7 * S.physical_mb)
+    PARAFAB_INPUT_ERROR("this grid needs about " << S.factor_mb << " MB for the factorization (" << S.dofs
+                                                 << " unknowns), more than 70% of the " << S.physical_mb
+                                                 << " MB of memory: use fewer cells");
 }
 
 json SimulationSession::run(const std::string& out_dir, const ProgressFn& progress) {
   auto report = [&](const char* phase, double fraction) {
     if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
   };
+  refuse_if_too_big();
   report("cut", 0.05);
   auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, setup_->go));
   if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << part_path_ << " by the grid: " << model->message);
@@ -304,6 +314,7 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
     setup_ = std::move(old_setup);
     throw;
   }
+  refuse_if_too_big();
   report("cut", 0.05);
   occ::RecutReport rr;
   auto model = std::make_unique<occ::GridModel>(occ::rebuild_grid_model(*part_, *model_, *old_part, setup_->go, &rr));

@@ -5,6 +5,8 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
 
 * ``ParaFab_Strip`` -- "Bending-active strip": create a ``Strip`` feature on
   the selected planar edge (sketch B-spline, arc, ellipse arc, Part edge).
+* ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
+  solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
 """
 
 import FreeCAD
@@ -64,36 +66,37 @@ FreeCADGui.addCommand("ParaFab_Strip", StripCommand())
 
 
 class AnalyzePartCommand(object):
-    """Analyze the selected solid: the selected faces are held fixed; loads (LoadedFaces,
-    Force), material and grid are set in the property editor, then the feature recomputes."""
+    """Analyze the selected solid: creates an ``Analysis`` feature (selected faces held fixed)
+    and opens its task panel, where loads, material and grid are set and the run is started."""
 
     def GetResources(self):
         return {
             "Pixmap": icon_path("ParaFab_Analysis.svg"),
             "MenuText": "Analyze part",
             "ToolTip": "Linear or hyperelastic XFEM simulation of the selected solid on a fixed grid; "
-                       "selected faces are held fixed",
+                       "selected faces are held fixed, the rest is set in the task panel",
         }
 
     def IsActive(self):
         sel = FreeCADGui.Selection.getSelectionEx()
-        return bool(sel) and hasattr(sel[0].Object, "Shape") and bool(sel[0].Object.Shape.Solids)
+        return bool(sel) and hasattr(sel[0].Object, "Shape") and bool(sel[0].Object.Shape.Solids) \
+            and not FreeCADGui.Control.activeDialog()
 
     def Activated(self):
         from . import analysis_feature
         sel = FreeCADGui.Selection.getSelectionEx()[0]
         faces = [n.split(".")[-1] for n in sel.SubElementNames if n.split(".")[-1].startswith("Face")]
         doc = sel.Object.Document
+        # One transaction for the new feature and the task panel: the panel's Cancel undoes both.
         doc.openTransaction("Analyze part")
         try:
-            analysis_feature.make_analysis(sel.Object, faces)
+            obj = analysis_feature.make_analysis(sel.Object, faces)
         except Exception as exc:
             doc.abortTransaction()
             FreeCAD.Console.PrintError("ParaFab: cannot create analysis: %s\n" % exc)
             return
-        doc.commitTransaction()
-        FreeCAD.Console.PrintMessage(
-            "ParaFab: analysis created; set LoadedFaces and Force, then recompute\n")
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.getDocument(doc.Name).setEdit(obj.Name, 0)
 
 
 FreeCADGui.addCommand("ParaFab_AnalyzePart", AnalyzePartCommand())
