@@ -244,6 +244,11 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
       }
     }
     out.converged = done >= 1.0;
+    if (!out.converged) {
+      std::ostringstream os;
+      os << out.message << " (gravity continuation reached " << done << " of the load)";
+      out.message = os.str();
+    }
     z = z_ok;
   }
   if (out.converged) out.message.clear();

@@ -72,20 +72,6 @@ TEST(GravityLp, WithoutGravityItIsEq44) {
   }
 }
 
-// K ≡ 1 under the weight e per length: κ' = ⟨b + (l − s) Re, γ'⟩ (differentiated Eq. 4.5),
-// integrated with RK4 from κ(0) = kappa0.
-BSplineCurve2 gravity_elastica(const Vec2& e, const Vec2& b, double kappa0, double alpha0, double l) {
-  const Vec2 Re(-e.y(), e.x());
-  auto f = [&](double s, const State<4>& q) {
-    const Vec2 t(std::cos(q(2)), std::sin(q(2)));
-    return State<4>(t.x(), t.y(), q(3), (b + (l - s) * Re).dot(t));
-  };
-  const auto st = rk4<4>(f, State<4>(0, 0, alpha0, kappa0), 0.0, l, 16000, 20);
-  std::vector<Vec2> pts;
-  for (const auto& q : st) pts.emplace_back(q(0), q(1));
-  return interpolate_points(pts, 5);
-}
-
 TEST(GravityLp, ConstantStiffnessUnderGravityHasUnitRatio) {
   StripGravity grav;
   grav.enabled = true;  // cardboard, βl³ = 8.86e-4 m³
@@ -94,7 +80,7 @@ TEST(GravityLp, ConstantStiffnessUnderGravityHasUnitRatio) {
   // An arch without inflection and an S-curve with one inflection under its own weight.
   const std::vector<Case> cases = {{{-300.0, 0.0}, -6.0, 0.8, 0.3, 0}, {{0.0, -60.0}, 9.0, 0.6, 0.35, 1}};
   for (const auto& cs : cases) {
-    const BSplineCurve2 curve = gravity_elastica(e, cs.b, cs.kappa0, cs.alpha0, cs.l);
+    const BSplineCurve2 curve = test::gravity_elastica(e, cs.b, cs.kappa0, cs.alpha0, cs.l);
     const PlaneCurve c(curve);
     const auto zs = find_zero_curvature(c);
     int infl = 0;

@@ -79,4 +79,18 @@ inline BSplineCurve2 spiral() {
   return curve_from_curvature([](double s) { return 1.0 / (0.03 + 0.12 * s); }, 0.5, 0.0, 1201);
 }
 
+// K ≡ 1 under the weight e per length: κ' = ⟨b + (l − s) Re, γ'⟩ (differentiated Eq. 4.5),
+// integrated with RK4 from κ(0) = kappa0.
+inline BSplineCurve2 gravity_elastica(const Vec2& e, const Vec2& b, double kappa0, double alpha0, double l) {
+  const Vec2 Re(-e.y(), e.x());
+  auto f = [&](double s, const State<4>& q) {
+    const Vec2 t(std::cos(q(2)), std::sin(q(2)));
+    return State<4>(t.x(), t.y(), q(3), (b + (l - s) * Re).dot(t));
+  };
+  const auto st = rk4<4>(f, State<4>(0, 0, alpha0, kappa0), 0.0, l, 16000, 20);
+  std::vector<Vec2> pts;
+  for (const auto& q : st) pts.emplace_back(q(0), q(1));
+  return interpolate_points(pts, 5);
+}
+
 }  // namespace parafab::test
