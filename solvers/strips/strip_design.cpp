@@ -171,8 +171,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   const double l = d.length;
   ZeroCurvatureOptions zo = o.zeros;
   zo.natural_curvature = o.natural_curvature;
-  const ZeroCurvatureResult zeros = find_zero_curvature(curve, zo);
-  d.zeros = zeros.points;
+  ZeroCurvatureResult zeros = find_zero_curvature(curve, zo);
   const Vec2 load = o.gravity.load();
   auto fail = [&](const std::string& code, const std::string& why, double s) {
     d.reason_code = code;
@@ -180,23 +179,29 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
     d.reason_s = s;
   };
 
-  // A free end angle needs zero moment there, hence κ = κ₀ at that end (§4.3.3).
+  // A free end angle needs zero moment there, hence κ = κ₀ at that end (§4.3.3). An end
+  // whose |κ − κ₀|·l is below free_angle_tolerance counts as such a zero.
   for (int end = 0; end < 2; ++end) {
     const StripEnd& e = end == 0 ? o.boundary.start : o.boundary.end;
-    if (!e.free_angle) continue;
+    if (!e.free_angle || zeros.straight) continue;
     const double s_end = end == 0 ? 0.0 : l;
-    bool has_zero = zeros.straight;
+    bool has_zero = false;
     for (const auto& z : zeros.points)
       has_zero |= z.kind == ZeroKind::AtEnd && std::abs(z.at.s - s_end) <= 1e-9 * l;
-    if (!has_zero) {
-      const CurvePoint p = curve.at_arc_length(s_end);
-      PARAFAB_INPUT_ERROR("boundary." << (end == 0 ? "start" : "end")
-                          << ".free_angle: a free end angle carries no moment, so κ must equal κ₀ = "
-                          << o.natural_curvature << " 1/m at the " << (end == 0 ? "start" : "end")
-                          << " (s = " << s_end << "), but κ = " << p.kappa
-                          << " 1/m there; clamp the angle or make the curve straight at that end");
+    if (has_zero) continue;
+    CurvePoint p = curve.at_arc_length(s_end);
+    if (std::abs(p.kappa - o.natural_curvature) * l <= o.free_angle_tolerance) {
+      p.kappa -= o.natural_curvature;
+      zeros.points.insert(end == 0 ? zeros.points.begin() : zeros.points.end(), {p, ZeroKind::AtEnd});
+      continue;
     }
+    PARAFAB_INPUT_ERROR("boundary." << (end == 0 ? "start" : "end")
+                        << ".free_angle: a free end angle carries no moment, so κ must equal κ₀ = "
+                        << o.natural_curvature << " 1/m at the " << (end == 0 ? "start" : "end")
+                        << " (s = " << s_end << "), but κ = " << p.kappa
+                        << " 1/m there; clamp the angle or end the curve with zero curvature");
   }
+  d.zeros = zeros.points;
   // The moment law must be injective on the curvature range the curve uses (Appendix A.5).
   double used = 0, used_s = 0;
   {

@@ -42,6 +42,8 @@ struct StripDesignOptions {
   /// trapezoidal integrals make R converge as O(n⁻²).
   double load_tolerance = 1e-4;
   int fixed_samples = 0;           ///< > 0: exactly this many samples, no refinement
+  /// A free end angle needs κ = κ₀ at that end: |κ − κ₀|·length up to this counts as zero.
+  double free_angle_tolerance = 1e-6;
 };
 
 struct StripSample {
