@@ -221,17 +221,31 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
     out.message = "no convergence within max_iterations";
     return false;
   };
-  // Gravity continuation: start at the full load; on failure, go back to the last converged
-  // state and take smaller load steps.
-  double done = e_full.norm() > 0 ? 0.0 : 1.0, step = 1.0;
+  // Continuation in t ∈ [0, 1]: the weight grows as t·e and a finite curvature limit falls
+  // geometrically from above the initial curvatures to its value. Start at t = 1; on
+  // failure, go back to the last converged state and take smaller steps.
+  const double klim = p.law.curvature_limit;
+  double khi = klim;
+  if (std::isfinite(klim)) {
+    double kmax = 0;
+    for (int k = 0; k <= N; ++k)
+      if (rod.active(k)) kmax = std::max(kmax, std::abs(rod.node_curvature(z.head(N), k) - rod.kappa0));
+    khi = std::max(klim, 1.05 * kmax);
+  }
+  auto apply = [&](double t) {
+    rod.e = e_full * t;
+    if (std::isfinite(klim)) rod.law.curvature_limit = khi * std::pow(klim / khi, t);
+  };
+  const bool homotopy = e_full.norm() > 0 || khi > klim;
+  double done = homotopy ? 0.0 : 1.0, step = 1.0;
   Eigen::VectorXd z_ok = z;
-  if (done >= 1.0) {
+  if (!homotopy) {
     out.converged = newton(z);
     out.load_steps = 1;
   } else {
     while (done < 1.0) {
       const double target = std::min(1.0, done + step);
-      rod.e = e_full * target;
+      apply(target);
       Eigen::VectorXd zt = z_ok;
       ++out.load_steps;
       if (newton(zt)) {
@@ -246,10 +260,11 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
     out.converged = done >= 1.0;
     if (!out.converged) {
       std::ostringstream os;
-      os << out.message << " (gravity continuation reached " << done << " of the load)";
+      os << out.message << " (continuation in load and curvature limit reached t = " << done << ")";
       out.message = os.str();
     }
     z = z_ok;
+    apply(1.0);
   }
   if (out.converged) out.message.clear();
   // Outputs.
@@ -274,7 +289,6 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
     }
     if (rod.constrained[d]) out.multiplier(d) = z(N + rod.cidx[d]);
   }
-  rod.e = e_full;
   out.energy = rod.energy(a);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

@@ -4,7 +4,8 @@
 // α_{−1}, α_N, gravity potential −Σ_k K_k w_k ⟨x_k, e⟩, and the end-point constraint
 // Σ_j l_j (cos α_j, sin α_j) = γ(l) − γ(0) through Lagrange multipliers. Equilibria are found
 // by Newton's method on the KKT system (Eigen SparseLU) with a backtracking line search on
-// the residual norm, and gravity continuation if the full load fails.
+// the residual norm, and continuation in the weight and the curvature limit (plasticity)
+// if the full problem fails from the initial guess.
 #pragma once
 
 #include <string>
@@ -34,7 +35,7 @@ struct PlaneRodOptions {
   int edges = 400;
   int max_iterations = 100;      ///< Newton iterations per load step
   double tolerance = 1e-10;      ///< relative on moments (K_max/l) and positions (l)
-  int max_load_steps = 64;       ///< gravity continuation: halve the step until this many
+  int max_load_steps = 256;      ///< continuation: halve the step down to 1/this
 };
 
 struct PlaneRodResult {
@@ -47,7 +48,7 @@ struct PlaneRodResult {
   double energy = 0;                 ///< bending + gravity at the equilibrium
   double residual = 0;               ///< max |KKT residual| (scaled)
   int iterations = 0;                ///< Newton iterations, all load steps
-  int load_steps = 0;
+  int load_steps = 0;                ///< continuation steps tried (1 without continuation)
   double seconds = 0;
   std::string message;
 };
