@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <sstream>
 
 #include "common/error.h"
@@ -255,9 +256,31 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   }
   d.collinearity_error = check.collinearity_error;
 
+  // Samples as in sample_by_arc_length, with the curve evaluations of coarser nested grids
+  // reused (l·k/(n−1) is bit-identical to l·2k/(2n−2)).
+  std::map<double, CurvePoint> cache;
+  const std::vector<double> bp = curve.bspline().breakpoints();
+  auto sample_cached = [&](int count) {
+    std::vector<double> at;
+    for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
+    for (size_t i = 1; i + 1 < bp.size(); ++i) at.push_back(curve.arc_length_at(bp[i]));
+    std::sort(at.begin(), at.end());
+    std::vector<CurvePoint> pts;
+    for (size_t k = 0; k < at.size(); ++k) {
+      const double sk = at[k];
+      if (k > 0 && sk - at[k - 1] <= 1e-12 * l) continue;
+      bool near_zero = false;
+      for (const auto& z : zeros.points) near_zero |= std::abs(z.at.s - sk) <= kZeroExclusion * l;
+      if (near_zero) continue;
+      auto it = cache.find(sk);
+      if (it == cache.end()) it = cache.emplace(sk, curve.at_arc_length(sk)).first;
+      pts.push_back(it->second);
+    }
+    return pts;
+  };
   auto lp_samples = [&](int count) {
     std::vector<StripLpSample> out;
-    for (const auto& p : sample_by_arc_length(curve, count, zeros.points)) {
+    for (const auto& p : sample_cached(count)) {
       StripLpSample q;
       q.s = p.s, q.point = p.point, q.tangent = p.tangent, q.kappa = p.kappa;
       q.mu = o.law.moment(p.kappa - o.natural_curvature);
@@ -287,6 +310,9 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   std::vector<StripLpSample> smp;
   double R_prev = NAN;
   const int n0 = o.fixed_samples > 0 ? o.fixed_samples : o.initial_samples + 1;
+  // Refine with phase one only; phase two (smoothing) runs once, on the final grid.
+  const bool smooth = go.smooth;
+  go.smooth = false;
   for (int n = n0;; n = std::min(2 * n - 1, o.max_samples)) {
     smp = lp_samples(n);
     lp = solve_gravity_lp(smp, l, go);
@@ -298,6 +324,10 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
     }
     R_prev = lp.R_first;
     if (n >= o.max_samples) break;
+  }
+  if (lp.ok() && smooth) {
+    go.smooth = true;
+    lp = solve_gravity_lp(smp, l, go);
   }
   d.lp_samples = static_cast<int>(smp.size());
   d.lp_iterations = lp.iterations_first + lp.iterations_second;
