@@ -289,6 +289,7 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
     }
     if (rod.constrained[d]) out.multiplier(d) = z(N + rod.cidx[d]);
   }
+  out.end_force = -out.multiplier;
   out.energy = rod.energy(a);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

@@ -45,6 +45,9 @@ struct PlaneRodResult {
   std::vector<double> edge_angles;   ///< α_j (N)
   std::vector<double> curvature;     ///< κ_k at the nodes
   Vec2 multiplier{0, 0};             ///< λ (end-point constraint; zero for removed rows)
+  /// Force of the end support on the rod, −λ [units of K / m²]: with K normalized as in the
+  /// design it equals StripDesign::end_force (the internal force n(l)).
+  Vec2 end_force{0, 0};
   double energy = 0;                 ///< bending + gravity at the equilibrium
   double residual = 0;               ///< max |KKT residual| (scaled)
   int iterations = 0;                ///< Newton iterations, all load steps

@@ -19,6 +19,17 @@ double gravito_bending_parameter(double E, double h, double rho, double g) {
   return E * h * h / (12.0 * rho * g);
 }
 
+StripGravity StripGravity::from_material(double E, double h, double rho, double g, Vec2 direction) {
+  StripGravity out;
+  out.enabled = true;
+  out.gravito_bending = gravito_bending_parameter(E, h, rho, g);
+  PARAFAB_VERIFY(std::isfinite(direction.norm()) && direction.norm() > 0,
+                 "gravity.direction must be a non-zero vector, got (" << direction.x() << ", "
+                                                                      << direction.y() << ")");
+  out.direction = direction;
+  return out;
+}
+
 void MomentLaw::validate() const {
   PARAFAB_VERIFY(std::isfinite(cubic), "material.law.cubic must be finite, got " << cubic);
   PARAFAB_VERIFY(curvature_limit > 0, "material.law.curvature_limit must be positive (1/m), got "

@@ -21,6 +21,9 @@ struct StripGravity {
   Vec2 direction{0.0, -1.0};
   /// e = direction / βl³ [1/m³], zero when disabled: weight per length = K·e.
   Vec2 load() const;
+  /// Enabled gravity with βl³ = gravito_bending_parameter(E, h, ρ, g).
+  static StripGravity from_material(double youngs_modulus, double thickness, double density,
+                                    double g = 9.81, Vec2 direction = Vec2(0.0, -1.0));
 };
 
 /// βl³ = E h² / (12 ρ g) [m³] from Young's modulus E [Pa], thickness h [m], density ρ

@@ -173,6 +173,9 @@ TEST(GravityLp, GravitoBendingParameterFromMaterial) {
   EXPECT_NEAR(gravito_bending_parameter(2e9, 0.3e-3, 0.2 / 0.3e-3, 9.81),
               2e9 * 0.09e-6 / (12 * 666.6666666666666 * 9.81), 1e-15);
   EXPECT_THROW(gravito_bending_parameter(2e9, 0, 600), Error);
+  const StripGravity g = StripGravity::from_material(2e9, 0.3e-3, 0.2 / 0.3e-3);
+  EXPECT_TRUE(g.enabled);
+  EXPECT_NEAR(g.load().y(), -1 / g.gravito_bending, 1e-12);
 }
 
 }  // namespace

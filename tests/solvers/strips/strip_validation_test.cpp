@@ -117,6 +117,27 @@ TEST(StripValidation, DesignsUnderGravitySimulateOntoTheirTargets) {
   EXPECT_EQ(feasible, 5);  // 0, 1 inflections and the spiral; 2 and 3 from the elasticae
 }
 
+TEST(StripValidation, EndForceOfTheLpMatchesTheSimulatorsReaction) {
+  // b of the LP is the rotated end force (b = R n(l)); the simulator's multiplier of the
+  // end-point constraint is the same force, found without any LP.
+  for (bool gravity : {false, true}) {
+    const BSplineCurve2 c = test::one_inflection();
+    const StripDesignOptions o = cardboard(gravity);
+    StripDesignOptions general = o;
+    general.fixed_samples = 1025;
+    const StripDesign d = design_strip(c, general);
+    ASSERT_TRUE(d.feasible);
+    StripValidationOptions v;
+    v.rod.edges = 1600;
+    const StripValidation val = validate_strip(c, d, general, v);
+    ASSERT_TRUE(val.converged);
+    const Vec2 f = val.simulation.end_force;
+    std::printf("[ one inflection%s ] end force LP (%.6g, %.6g), simulator (%.6g, %.6g)\n",
+                gravity ? ", gravity" : "", d.end_force.x(), d.end_force.y(), f.x(), f.y());
+    EXPECT_LT((f - d.end_force).norm(), 2e-5 * d.end_force.norm());
+  }
+}
+
 TEST(StripValidation, HeavyStripDesignedWithoutGravitySags) {
   // An ellipse arc of cardboard: designed with Eq. 4.4 it sags under its weight; with
   // Eq. 4.6 (gravity in the LP) it holds its shape.
