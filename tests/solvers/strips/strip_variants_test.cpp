@@ -37,6 +37,29 @@ TEST(StripBoundary, FreeXAtTheEndMakesTheLineVertical) {
   EXPECT_LT(k.R, d.R);
 }
 
+TEST(StripBoundary, FreeYMakesTheLineHorizontalAndFreeEndsForbidInflections) {
+  const BSplineCurve2 c = test::ellipse_arc();
+  StripDesignOptions o;
+  o.boundary.start.free_y = true;
+  const StripDesign d = design_strip(c, o);
+  ASSERT_TRUE(d.feasible) << d.reason;
+  EXPECT_LT(std::abs(d.b.x()), 1e-9 * d.b.norm());  // a + b₂ y = 0: horizontal
+  EXPECT_LT(simulate_back(c, d, o, "ellipse arc, start free in y"), 1e-5);
+  // Both ends free in x and in y: b = 0, K = a/κ, R = max κ / min κ.
+  o.boundary.end.free_x = o.boundary.end.free_y = true;
+  o.boundary.start.free_x = true;
+  const StripDesign f = design_strip(c, o);
+  ASSERT_TRUE(f.feasible) << f.reason;
+  EXPECT_LT(f.b.norm() * 0.2, 1e-9 * std::abs(f.a));
+  double kmin = INFINITY, kmax = 0;
+  for (const auto& p : f.samples) kmin = std::min(kmin, std::abs(p.kappa)), kmax = std::max(kmax, std::abs(p.kappa));
+  EXPECT_NEAR(f.R, kmax / kmin, 1e-9 * f.R);
+  // … which no curve with an inflection satisfies.
+  const StripDesign g = design_strip(test::one_inflection(), o);
+  EXPECT_FALSE(g.feasible);
+  EXPECT_NE(g.reason.find("free end directions"), std::string::npos) << g.reason;
+}
+
 TEST(StripBoundary, FreeYAtTheStartUnderGravityHasNoVerticalReaction) {
   const BSplineCurve2 c = test::ellipse_arc();
   StripDesignOptions o;
