@@ -11,6 +11,9 @@
 // sweep from s = l, so Eq. 4.6 (3n + 4 variables) reduces exactly to a 4-variable LP solved
 // with solve_few_variable_lp. At a zero of μ the equation becomes the equality
 // rhs(s₀) = 0 and K(s₀) its l'Hôpital limit (⟨b, γ′⟩ + ⟨Re, γ′⟩F)/μ′, as in Eq. 4.4.
+// Phase two, min Σ|ΔK′| over the same 3 unknowns, is solved by Clp through its dual: 3 rows
+// and one column per bound row or absolute value (μ_j ∈ [−1, 1], warm-started at the signs
+// of phase one's ΔK′), so both phases stay linear in the number of samples.
 #pragma once
 
 #include <string>

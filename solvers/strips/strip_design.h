@@ -1,6 +1,9 @@
 // Bending-active strip design (thesis §4.3): a plane curve in; the feasibility diagnosis of
 // Theorem 1, the optimal stiffness profile of LP Eq. 4.4 with the sample count chosen from a
 // tolerance on R, the width profile of a sheet (K = E·w·h³/12) and the flat outline out.
+// With gravity (§4.4), free end directions or angles (§4.3.3), a natural curvature or a
+// nonlinear moment law (Appendix A.5) the profile comes from the gravity LP (gravity_lp.h,
+// Eq. 4.6 with the smoothing phase of §4.4.3) on nested grids instead.
 #pragma once
 
 #include <string>
