@@ -212,11 +212,19 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
     }
     const double lim = o.law.injective_limit();
     if (used >= lim) {
-      if (o.law.cubic < 0 && lim < o.law.curvature_limit)
+      if (o.law.cubic < 0 && std::abs(lim - 1.0 / std::sqrt(-3.0 * o.law.cubic)) <= 1e-12 * lim)
         PARAFAB_INPUT_ERROR("material.law.cubic = " << o.law.cubic << " makes m(κ) = κ + cκ³ decrease "
                             "beyond |κ − κ₀| = " << lim << " 1/m, but the curve reaches |κ − κ₀| = "
                             << used << " 1/m at s = " << used_s
                             << ": the moment law is not injective on the used range");
+      for (size_t i = 1; i < o.law.table_moment.size(); ++i)
+        if (o.law.table_curvature[i - 1] == lim && o.law.table_moment[i] <= o.law.table_moment[i - 1] &&
+            lim < o.law.curvature_limit)
+          PARAFAB_INPUT_ERROR("material.law.table_moment[" << i << "] = " << o.law.table_moment[i]
+                              << " does not exceed table_moment[" << i - 1 << "] = "
+                              << o.law.table_moment[i - 1] << ": m(κ) stops increasing at |κ − κ₀| = "
+                              << lim << " 1/m, but the curve reaches " << used << " 1/m at s = "
+                              << used_s << ": the moment law is not injective on the used range");
       PARAFAB_INPUT_ERROR("material.law.curvature_limit = " << o.law.curvature_limit
                           << " 1/m with plastic_hardening = 0 (ideal plasticity) makes the moment "
                           "constant beyond the limit, but the curve reaches |κ − κ₀| = " << used

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "common/bspline.h"
 
@@ -50,19 +51,32 @@ struct StripBoundary {
 /// m(κ) = κ + c κ³ for |κ| ≤ κ_lim (c > 0 hardening, c < 0 softening) and, beyond the
 /// curvature limit (ideal plasticity), m = m(κ_lim) + H (|κ| − κ_lim) with sign(κ), where H
 /// is `plastic_hardening` (0: ideally plastic). The linear law is the default (m = κ).
+/// Alternatively a measured law: a table of (|κ|, m) pairs, piecewise linear, starting at
+/// (0, 0), extended beyond its last entry with its last slope, odd in κ (replaces κ + c κ³;
+/// slope 1 at κ = 0 makes K the linear-equivalent stiffness).
 struct MomentLaw {
   double cubic = 0.0;                ///< c [m²]
   double curvature_limit = INFINITY; ///< κ_lim [1/m], > 0
   double plastic_hardening = 0.0;    ///< H ≥ 0 (slope beyond κ_lim, relative to the elastic 1)
-  bool linear() const { return cubic == 0.0 && !std::isfinite(curvature_limit); }
+  std::vector<double> table_curvature;  ///< |κ| [1/m], strictly increasing, first 0
+  std::vector<double> table_moment;     ///< m(|κ|) [1/m], first 0
+  bool linear() const {
+    return cubic == 0.0 && !std::isfinite(curvature_limit) && table_curvature.empty();
+  }
   double moment(double kappa) const;  ///< m(κ), odd
   double slope(double kappa) const;   ///< m'(κ)
   double energy(double kappa) const;  ///< ψ(κ) = ∫₀^κ m, even
-  /// Throws parafab::Error naming the offending field for c, κ_lim or H out of range.
+  /// Throws parafab::Error naming the offending field for c, κ_lim, H or the table.
   void validate() const;
   /// Smallest |κ| ≥ 0 at which m stops increasing (+∞ if m is injective everywhere):
-  /// 1/√(−3c) for softening, κ_lim for ideal plasticity (H = 0).
+  /// 1/√(−3c) for softening, the start of the first non-increasing table segment, κ_lim for
+  /// ideal plasticity (H = 0).
   double injective_limit() const;
+
+ private:
+  double elastic_moment(double a) const;  ///< for a = |κ| ≤ κ_lim
+  double elastic_slope(double a) const;
+  double elastic_energy(double a) const;
 };
 
 }  // namespace parafab

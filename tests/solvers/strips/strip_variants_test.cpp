@@ -175,5 +175,34 @@ TEST(StripMaterialLaw, NonInjectiveLawsAreRejectedNamingTheField) {
   EXPECT_LT(simulate_back(c, pl, o, "plastic beyond 10/m, hardening 0.2"), 1e-5);
 }
 
+TEST(StripMaterialLaw, TabulatedLawMatchesTheCubicItSamples) {
+  // m = κ + 0.002 κ³ tabulated every 0.25 1/m up to 20 1/m: the design follows the cubic
+  // law to the interpolation error, and the simulator with the table reproduces the target.
+  const BSplineCurve2 c = test::ellipse_arc();
+  StripDesignOptions cubic;
+  cubic.law.cubic = 2e-3;
+  StripDesignOptions table;
+  for (int i = 0; i <= 80; ++i) {
+    const double k = 0.25 * i;
+    table.law.table_curvature.push_back(k);
+    table.law.table_moment.push_back(k + 2e-3 * k * k * k);
+  }
+  const StripDesign dc = design_strip(c, cubic), dt = design_strip(c, table);
+  ASSERT_TRUE(dc.feasible && dt.feasible) << dt.reason;
+  EXPECT_NEAR(dt.R, dc.R, 2e-3 * dc.R);  // chord error of the table ≈ 6e-3·κ³·h² / 8
+  EXPECT_LT(simulate_back(c, dt, table, "tabulated hardening law"), 1e-5);
+  // A table that turns down inside the used range is rejected naming the entry.
+  StripDesignOptions bad = table;
+  bad.law.table_moment[40] = bad.law.table_moment[39];  // flat at |κ| = 9.75 1/m
+  try {
+    design_strip(c, bad);
+    FAIL() << "non-injective table accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("material.law.table_moment[40]"), std::string::npos) << e.what();
+  }
+  bad.law.table_curvature[5] = bad.law.table_curvature[4];
+  EXPECT_THROW(design_strip(c, bad), Error);
+}
+
 }  // namespace
 }  // namespace parafab
