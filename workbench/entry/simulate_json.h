@@ -46,6 +46,8 @@ class SimulationSession {
   void refuse_if_too_big() const;
   std::unique_ptr<Setup> parse_job() const;
   template <class Report>
+  nlohmann::json run_to_target(const std::string& out_dir, const Report& report);
+  template <class Report>
   nlohmann::json solve(const std::string& out_dir, const Report& report, const nlohmann::json& recut);
 
   nlohmann::json job_;
