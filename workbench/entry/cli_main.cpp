@@ -10,6 +10,7 @@
 #include "occt_version.h"
 #include "part_json.h"
 #include "integrate_json.h"
+#include "sections_json.h"
 #include "simulate_json.h"
 #include "strip_json.h"
 
@@ -92,6 +93,11 @@ int main(int argc, char** argv) {
                      "Only print the size estimate {unknowns, factor_mb, memory_mb, fits}; do not run");
   simulate->add_flag("--progress", show_progress,
                      "Print one JSON line per phase to stderr: {\"progress\": {\"phase\": ..., \"fraction\": ...}}");
+  auto* sections = app.add_subcommand(
+      "sections", "Strips from plane sections of a surface or solid (JSON job: planes, split, strip request)");
+  sections->add_option("part", in_path, "Surface or solid (.step/.stp/.brep/.brp)")->required();
+  sections->add_option("job", job_path, "Sections job JSON (see README: Strips from sections)")->required();
+  sections->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -115,6 +121,7 @@ int main(int argc, char** argv) {
         return emit(parafab::entry::SimulationSession(in_path, read_json_file(job_path)).estimate(), "");
       return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
     }
+    if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);
     if (*integrate) {
       integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;
       if (integrate->count("--non-negative"))

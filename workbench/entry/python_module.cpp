@@ -6,6 +6,7 @@
 #include "occt_version.h"
 #include "integrate_json.h"
 #include "part_json.h"
+#include "sections_json.h"
 #include "simulate_json.h"
 #include "strip_json.h"
 
@@ -145,6 +146,19 @@ PYBIND11_MODULE(parafab, m) {
             return to_python(out);
           },
           py::arg("path"), py::arg("out_dir") = "", py::arg("progress") = py::none());
+  m.def(
+      "strip_sections",
+      [](const std::string& path, const py::dict& job) {
+        const nlohmann::json in = to_json(job);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::strip_sections_json(path, in);
+        }
+        return to_python(out);
+      },
+      py::arg("path"), py::arg("job"),
+      "Strips from plane sections of a surface or solid (same job and result JSON as `parafab sections`).");
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
   m.attr("__version__") = "0.1.0";
 }
