@@ -190,6 +190,42 @@ class Validation(unittest.TestCase):
         self.assertNotIn("simulation", r)
 
 
+class Variants(unittest.TestCase):
+    """The other issue-5 request fields reach the solver: each validated design follows its
+    curve (deviation <= 1e-3), and the result carries what the variant implies."""
+
+    def test_variants_validate(self):
+        pts = ellipse_arc(n=301)
+        g = gravity()
+        cases = {
+            "density in material": dict(material=dict(CARDBOARD, density=667.0),
+                                        gravity={"direction": [0, -1]}),
+            "free x at the end": dict(gravity=g, boundary={"end": {"free_x": True}}),
+            "natural curvature": dict(natural_curvature=2.0),
+            "cubic law": dict(material=dict(CARDBOARD, law={"cubic": 1e-3})),
+            "table law": dict(material=dict(CARDBOARD, law={"table_curvature": [0, 5, 20],
+                                                            "table_moment": [0, 5, 18]})),
+            "no smoothing": dict(gravity=g, smooth=False),
+        }
+        for name, extra in cases.items():
+            with self.subTest(name):
+                r = parafab.design_strip(request(pts, validate=True, **extra))
+                self.assertTrue(r["feasible"], r["reason"])
+                self.assertTrue(r["general_lp"])
+                sim = r["simulation"]
+                print(f"\n  {name}: R = {r['R']:.6f}, deviation {sim['deviation']:.2e}")
+                self.assertTrue(sim["converged"], sim["message"])
+                self.assertLessEqual(sim["deviation"], 1e-3)
+                if name == "free x at the end":
+                    self.assertEqual(r["end_force"][0], 0.0)      # no x reaction at a sliding end
+                if name == "no smoothing":
+                    self.assertFalse(r["smoothed"])
+                    self.assertEqual(r["R"], r["R_first"])
+                if name == "density in material":
+                    beta = CARDBOARD["E"] * CARDBOARD["thickness"] ** 2 / (12 * 667.0 * 9.81)
+                    self.assertAlmostEqual(r["gravity"]["beta_l3"], beta, delta=1e-12)
+
+
 def run_cli(payload):
     with tempfile.TemporaryDirectory() as d:
         path = os.path.join(d, "in.json")
