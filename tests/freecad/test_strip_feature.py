@@ -488,6 +488,27 @@ class TestStripVersion2(StripTestCase):
             self.assertIn(strip.Label, text)
             with open(svg) as f:
                 self.assertIn('id="%s"' % layer, f.read())
+            if kind == "Plain":
+                self.assert_dxf_reads_back(dxf, strip)
+
+    def assert_dxf_reads_back(self, path, strip):
+        """FreeCAD's own DXF importer reads the cut sheet at true scale (mm): the outline
+        spans the strip's length, the clamp lines 2 mm beyond half the widest width."""
+        import Import
+        doc = FreeCAD.newDocument("DxfRead")
+        try:
+            Import.readDXF(path, doc.Name, True)
+            bb = FreeCAD.BoundBox()
+            for o in doc.Objects:
+                if hasattr(o, "Shape") and not o.Shape.isNull() and o.Shape.Edges:
+                    bb.add(o.Shape.BoundBox)
+            half = 500.0 * max(strip.Proxy.result["width"])
+            self.assertAlmostEqual(bb.XMin, 0.0, delta=1e-6)
+            self.assertAlmostEqual(bb.XMax, strip.Length.Value, delta=1e-5)
+            self.assertAlmostEqual(bb.YMax, half + 2.0, delta=1e-5)
+            self.assertAlmostEqual(bb.YMin, -half - 2.0, delta=1e-5)
+        finally:
+            FreeCAD.closeDocument(doc.Name)
 
     def test_export_of_an_infeasible_strip_is_an_error(self):
         _, strip = self.strip_on("S", _s_curve_three_inflections().toShape())
