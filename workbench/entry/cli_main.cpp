@@ -12,6 +12,7 @@
 #include "integrate_json.h"
 #include "sections_json.h"
 #include "simulate_json.h"
+#include "outline_export.h"
 #include "strip_json.h"
 
 namespace {
@@ -61,6 +62,9 @@ int main(int argc, char** argv) {
   auto* strip = app.add_subcommand("strip", "Design a bending-active strip for a plane curve (JSON in, JSON out)");
   strip->add_option("input", in_path, "Strip request JSON (see README: JSON formats)")->required();
   strip->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  std::string dxf_path, svg_path;
+  strip->add_option("--dxf", dxf_path, "Also write the flat outline (cut sheet, mm) as ASCII DXF R12");
+  strip->add_option("--svg", svg_path, "Also write the flat outline (cut sheet, mm) as SVG");
   auto* inspect = app.add_subcommand("inspect", "Face model of a STEP/BREP part: types, NURBS, edges, tangencies (JSON)");
   parafab::entry::InspectOptions inspect_options;
   inspect->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
@@ -108,7 +112,13 @@ int main(int argc, char** argv) {
   try {
     if (*version)
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
-    if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
+    if (*strip) {
+      const json result = parafab::entry::design_strip_json(read_json_file(in_path));
+      // Cut sheets first: an infeasible design has no outline (exit 2, JSON error).
+      if (!dxf_path.empty()) parafab::entry::write_strip_outline(result, dxf_path);
+      if (!svg_path.empty()) parafab::entry::write_strip_outline(result, svg_path);
+      return emit(result, out_path);
+    }
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {
       parafab::entry::ProgressFn progress;

@@ -8,6 +8,7 @@
 #include "part_json.h"
 #include "sections_json.h"
 #include "simulate_json.h"
+#include "outline_export.h"
 #include "strip_json.h"
 
 namespace py = pybind11;
@@ -56,7 +57,20 @@ PYBIND11_MODULE(parafab, m) {
       py::arg("request"),
       "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
       "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
-      "min_width, tolerance.");
+      "min_width, tolerance; optional gravity, boundary, natural_curvature, material.law, "
+      "smooth, validate, composite, perforated.");
+  m.def(
+      "export_strip_outline",
+      [](const py::dict& result, const std::string& path) {
+        const nlohmann::json in = to_json(result);
+        py::gil_scoped_release release;
+        parafab::entry::write_strip_outline(in, path);
+      },
+      py::arg("result"), py::arg("path"),
+      "Write the flat outline of a design_strip result (cut sheet at true scale, mm) to `path`: "
+      "ASCII DXF R12 for .dxf, SVG for .svg. Composite strips get both layers, perforated strips "
+      "their holes; clamp positions and end angles are annotated. Raises parafab.Error for an "
+      "infeasible result.");
   m.def(
       "inspect_part",
       [](const std::string& path, int solid) {

@@ -5,6 +5,8 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
 
 * ``ParaFab_Strip`` -- "Bending-active strip": create a ``Strip`` feature on
   the selected planar edge (sketch B-spline, arc, ellipse arc, Part edge).
+* ``ParaFab_ExportCutSheets`` -- "Export cut sheets": DXF and SVG outlines of the
+  selected strips (:func:`parafab_wb.strip_feature.export_cut_sheets`).
 * ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
   solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
 """
@@ -63,6 +65,45 @@ class StripCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_Strip", StripCommand())
+
+
+def selected_strips():
+    """Selected ``Strip`` features."""
+    return [sel.Object for sel in FreeCADGui.Selection.getSelectionEx()
+            if getattr(getattr(sel.Object, "Proxy", None), "Type", None) == strip_feature.TYPE]
+
+
+class ExportCutSheetsCommand(object):
+    """Write the flat outlines of the selected strips as DXF and SVG (true scale, mm)."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Export cut sheets",
+            "ToolTip": "Write the flat outline of each selected strip (true scale, mm; both "
+                       "layers of composite strips, holes of perforated ones; clamp positions "
+                       "and end angles annotated) as <Label>.dxf and <Label>.svg",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        from PySide import QtGui
+        strips = selected_strips()
+        directory = QtGui.QFileDialog.getExistingDirectory(
+            FreeCADGui.getMainWindow(), "Folder for the cut sheets (DXF, SVG)")
+        if not directory:
+            return
+        for obj in strips:
+            try:
+                for path in strip_feature.export_cut_sheets(obj, directory):
+                    FreeCAD.Console.PrintMessage("ParaFab: wrote %s\n" % path)
+            except Exception as exc:
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+FreeCADGui.addCommand("ParaFab_ExportCutSheets", ExportCutSheetsCommand())
 
 
 class AnalyzePartCommand(object):
