@@ -576,5 +576,31 @@ class TestStripVersion2(StripTestCase):
             self.assertIn(name, strip.PropertiesList)
 
 
+
+class TestStripsFromSections(StripTestCase):
+    """Strips from sections: a cylinder r = 15 mm cut by planes z = const and split at y = 0
+    gives semicircles, each an equilibrium of a constant-stiffness strip (R = 1)."""
+
+    def test_cylinder_sections_give_semicircle_strips(self):
+        from parafab_wb import sections
+        cyl = self.add_shape("Cylinder", Part.makeCylinder(15, 40))
+        group, report = sections.strips_from_sections(cyl, (0, 0, 1), 3, split=((0, 1, 0), 0.0))
+        self.assertEqual(report["designed"], 6)
+        strips = [o for o in group.Group if o.TypeId == "Part::FeaturePython"]
+        self.assertEqual(len(strips), 6)
+        for strip in strips:
+            self.assert_feasible_strip(strip)
+            self.assertAlmostEqual(strip.R, 1.0, delta=1e-3)
+            self.assertAlmostEqual(strip.Length.Value, 15 * math.pi, delta=1e-3)
+        self.assertTrue(all(o.isValid() for o in self.doc.Objects))
+
+    def test_unsplit_closed_sections_are_reported_not_stripped(self):
+        from parafab_wb import sections
+        cyl = self.add_shape("Cylinder", Part.makeCylinder(15, 40))
+        group, report = sections.strips_from_sections(cyl, (0, 0, 1), 2)
+        self.assertEqual(len(group.Group), 0)
+        self.assertEqual(report["failed"], 2)
+        self.assertIn("closed section curve", report["curves"][0]["strip"]["error"]["message"])
+
 if __name__ == "__main__":
     unittest.main()

@@ -106,6 +106,49 @@ class ExportCutSheetsCommand(object):
 FreeCADGui.addCommand("ParaFab_ExportCutSheets", ExportCutSheetsCommand())
 
 
+class StripsFromSectionsCommand(object):
+    """Strips from plane sections of the selected surface or solid (§4.8.2)."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Strips from sections",
+            "ToolTip": "Cut the selected surface or solid by 5 planes across its longest side, split every "
+                       "section at the middle plane of the shortest side, and design a strip on each piece",
+        }
+
+    def IsActive(self):
+        sel = FreeCADGui.Selection.getSelection()
+        return bool(sel) and hasattr(sel[0], "Shape") and bool(sel[0].Shape.Faces)
+
+    def Activated(self):
+        from . import sections
+        obj = FreeCADGui.Selection.getSelection()[0]
+        box = obj.Shape.BoundBox
+        lengths = [box.XLength, box.YLength, box.ZLength]
+        longest = lengths.index(max(lengths))
+        shortest = lengths.index(min(lengths))
+        if shortest == longest:
+            shortest = (longest + 1) % 3
+        normal = [1.0 if a == longest else 0.0 for a in range(3)]
+        split_normal = [1.0 if a == shortest else 0.0 for a in range(3)]
+        split_offset = [box.Center.x, box.Center.y, box.Center.z][shortest]
+        doc = obj.Document
+        doc.openTransaction("Strips from sections")
+        try:
+            _, report = sections.strips_from_sections(obj, normal, 5, split=(split_normal, split_offset))
+        except Exception as exc:
+            doc.abortTransaction()
+            FreeCAD.Console.PrintError("ParaFab: cannot take sections: %s\n" % exc)
+            return
+        doc.commitTransaction()
+        FreeCAD.Console.PrintMessage("ParaFab: %d strips designed, %d infeasible, %d failed\n"
+                                     % (report["designed"], report["infeasible"], report["failed"]))
+
+
+FreeCADGui.addCommand("ParaFab_StripsFromSections", StripsFromSectionsCommand())
+
+
 class AnalyzePartCommand(object):
     """Analyze the selected solid: creates an ``Analysis`` feature (selected faces held fixed)
     and opens its task panel, where loads, material and grid are set and the run is started."""
