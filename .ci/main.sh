@@ -2,7 +2,8 @@
 # Command 1 of the README: set up if needed (packages, Release build, workbench install),
 # then run the main job on the bundled samples:
 #   bash .ci/main.sh [OUT_DIR]        (default OUT_DIR: ./out)
-# Writes OUT_DIR/strips/<sample>.result.json (the CLI's output), <sample>.png (charts) and
+# Writes OUT_DIR/strips/<sample>.result.json (the CLI's output), <sample>.png (charts),
+# <sample>.dxf/.svg (cut sheets of the feasible designs) and
 # OUT_DIR/strips.FCStd (a FreeCAD document with one strip feature per sample);
 # OUT_DIR/rods/<sample>.result.json and <sample>.png (twist plots) for samples/rods.
 set -euo pipefail
@@ -12,7 +13,7 @@ out=$(mkdir -p "${1:-$repo/out}" && cd "${1:-$repo/out}" && pwd)
 bash "$repo/.ci/setup.sh"
 
 mkdir -p "$out/strips"
-rm -f "$out"/strips/*.json "$out"/strips/*.png
+rm -f "$out"/strips/*.json "$out"/strips/*.png "$out"/strips/*.dxf "$out"/strips/*.svg
 echo "== strips: parafab strip on samples/strips/*.json"
 for f in "$repo"/samples/strips/*.json; do
   name=$(basename "$f" .json)
@@ -20,6 +21,8 @@ for f in "$repo"/samples/strips/*.json; do
   "$build/workbench/entry/parafab" strip "$f" -o "$out/strips/$name.result.json"
 done
 /usr/bin/python3 "$repo/workbench/scripts/plot_strips.py" "$out/strips" >/dev/null
+echo "== strips: cut sheets (DXF, SVG) of the feasible designs"
+/usr/bin/python3 "$repo/workbench/scripts/export_cut_sheets.py" "$out/strips" "$build/workbench/entry"
 echo "== FreeCAD document"
 PARAFAB_RESULTS="$out/strips" PARAFAB_DOCUMENT="$out/strips.FCStd" \
   freecadcmd -c "exec(open('$repo/workbench/scripts/strip_document.py').read())" \
@@ -61,4 +64,4 @@ for f in "$repo"/samples/simulations/*.json; do
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); s=d['seconds']
 print('simulation %-10s %6d dofs, max displacement %.4g, max von Mises %.4g, cut %.2f s rules %.2f s assemble %.2f s solve %.2f s' % (sys.argv[2], d['dofs'], d['max_displacement'], d['max_von_mises'], s['cut'], s['rules'], s['assemble'], s['solve']))" "$out/simulations/$name/result.json" "$name"
 done
-echo "== results in $out: strips/*.result.json, strips/*.png, strips.FCStd, rods/*.result.json, rods/*.png, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"
+echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"

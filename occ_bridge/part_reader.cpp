@@ -286,6 +286,17 @@ std::shared_ptr<const PartShape> make_part(const TopoDS_Shape& shape, const std:
   TopTools_IndexedMapOfShape solids;
   TopExp::MapShapes(shape, TopAbs_SOLID, solids);
   const int n = solids.Extent();
+  if (n == 0 && options.surfaces_allowed) {
+    auto surface = std::make_shared<PartShape>();
+    surface->shape = shape;
+    surface->source = source;
+    surface->solid_count = 0;
+    TopExp::MapShapes(shape, TopAbs_FACE, surface->faces);
+    TopExp::MapShapes(shape, TopAbs_EDGE, surface->edges);
+    TopExp::MapShapes(shape, TopAbs_VERTEX, surface->vertices);
+    if (surface->faces.IsEmpty()) PARAFAB_INPUT_ERROR(source << ": no faces to take sections of");
+    return surface;
+  }
   if (n == 0) no_solid(shape, source);
   if (options.solid_index >= 0 && !options.solid_name.empty())
     PARAFAB_INPUT_ERROR(source << ": choose the solid by index or by name, not both");

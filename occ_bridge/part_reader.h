@@ -19,6 +19,9 @@ struct ReadOptions {
   /// Or choose by name: the STEP product name (FreeCAD: the object's label) or the
   /// solid entity's name. Empty: none chosen.
   std::string solid_name;
+  /// Accept a file without solids (faces, shells: a surface to take sections of). The part
+  /// then holds all faces and is not checked for closedness; solids are still preferred.
+  bool surfaces_allowed = false;
 };
 
 /// Reads a STEP (.step/.stp) or BREP (.brep/.brp) file; the format comes from the content

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <sstream>
 
 #include "common/error.h"
@@ -138,17 +139,260 @@ void finish_outputs(const StripDesignOptions& o, StripDesign& d) {
 
 }  // namespace
 
+namespace {
+
+bool needs_general_lp(const StripDesignOptions& o) {
+  return o.gravity.enabled || !o.boundary.kinematic() || !o.law.linear() ||
+         o.natural_curvature != 0.0 || o.fixed_samples > 0;
+}
+
+void validate_general(const StripDesignOptions& o) {
+  o.law.validate();
+  PARAFAB_VERIFY(std::isfinite(o.natural_curvature),
+                 "natural_curvature must be finite, got " << o.natural_curvature);
+  if (o.gravity.enabled) {
+    PARAFAB_VERIFY(std::isfinite(o.gravity.gravito_bending) && o.gravity.gravito_bending > 0,
+                   "gravity.gravito_bending (βl³, m³) must be positive, got "
+                       << o.gravity.gravito_bending);
+    PARAFAB_VERIFY(std::isfinite(o.gravity.direction.norm()) && o.gravity.direction.norm() > 0,
+                   "gravity.direction must be a non-zero vector, got (" << o.gravity.direction.x()
+                       << ", " << o.gravity.direction.y() << ")");
+  }
+  PARAFAB_VERIFY(std::isfinite(o.load_tolerance) && o.load_tolerance > 0,
+                 "load_tolerance must be positive, got " << o.load_tolerance);
+  PARAFAB_VERIFY(o.fixed_samples == 0 || o.fixed_samples >= 4,
+                 "fixed_samples must be 0 or >= 4, got " << o.fixed_samples);
+}
+
+// Gravity, boundary variants, nonlinear laws and natural curvature: the LP of Eq. 4.6 on
+// samples carrying the effective curvature μ = m(κ − κ₀).
+void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripDesign& d) {
+  validate_general(o);
+  d.general_lp = true;
+  const double l = d.length;
+  ZeroCurvatureOptions zo = o.zeros;
+  zo.natural_curvature = o.natural_curvature;
+  ZeroCurvatureResult zeros = find_zero_curvature(curve, zo);
+  const Vec2 load = o.gravity.load();
+  auto fail = [&](const std::string& code, const std::string& why, double s) {
+    d.reason_code = code;
+    d.reason = why;
+    d.reason_s = s;
+  };
+
+  // A free end angle needs zero moment there, hence κ = κ₀ at that end (§4.3.3). An end
+  // whose |κ − κ₀|·l is below free_angle_tolerance counts as such a zero.
+  for (int end = 0; end < 2; ++end) {
+    const StripEnd& e = end == 0 ? o.boundary.start : o.boundary.end;
+    if (!e.free_angle || zeros.straight) continue;
+    const double s_end = end == 0 ? 0.0 : l;
+    bool has_zero = false;
+    for (const auto& z : zeros.points)
+      has_zero |= z.kind == ZeroKind::AtEnd && std::abs(z.at.s - s_end) <= 1e-9 * l;
+    if (has_zero) continue;
+    CurvePoint p = curve.at_arc_length(s_end);
+    if (std::abs(p.kappa - o.natural_curvature) * l <= o.free_angle_tolerance) {
+      p.kappa -= o.natural_curvature;
+      zeros.points.insert(end == 0 ? zeros.points.begin() : zeros.points.end(), {p, ZeroKind::AtEnd});
+      continue;
+    }
+    PARAFAB_INPUT_ERROR("boundary." << (end == 0 ? "start" : "end")
+                        << ".free_angle: a free end angle carries no moment, so κ must equal κ₀ = "
+                        << o.natural_curvature << " 1/m at the " << (end == 0 ? "start" : "end")
+                        << " (s = " << s_end << "), but κ = " << p.kappa
+                        << " 1/m there; clamp the angle or end the curve with zero curvature");
+  }
+  d.zeros = zeros.points;
+  // The moment law must be injective on the curvature range the curve uses (Appendix A.5).
+  double used = 0, used_s = 0;
+  {
+    for (double u : zeros.scan_parameters) {
+      const double k = std::abs(curve.curvature_at(u) - o.natural_curvature);
+      if (k > used) used = k, used_s = curve.arc_length_at(u);
+    }
+    const double lim = o.law.injective_limit();
+    if (used >= lim) {
+      if (o.law.cubic < 0 && std::abs(lim - 1.0 / std::sqrt(-3.0 * o.law.cubic)) <= 1e-12 * lim)
+        PARAFAB_INPUT_ERROR("material.law.cubic = " << o.law.cubic << " makes m(κ) = κ + cκ³ decrease "
+                            "beyond |κ − κ₀| = " << lim << " 1/m, but the curve reaches |κ − κ₀| = "
+                            << used << " 1/m at s = " << used_s
+                            << ": the moment law is not injective on the used range");
+      for (size_t i = 1; i < o.law.table_moment.size(); ++i)
+        if (o.law.table_curvature[i - 1] == lim && o.law.table_moment[i] <= o.law.table_moment[i - 1] &&
+            lim < o.law.curvature_limit)
+          PARAFAB_INPUT_ERROR("material.law.table_moment[" << i << "] = " << o.law.table_moment[i]
+                              << " does not exceed table_moment[" << i - 1 << "] = "
+                              << o.law.table_moment[i - 1] << ": m(κ) stops increasing at |κ − κ₀| = "
+                              << lim << " 1/m, but the curve reaches " << used << " 1/m at s = "
+                              << used_s << ": the moment law is not injective on the used range");
+      PARAFAB_INPUT_ERROR("material.law.curvature_limit = " << o.law.curvature_limit
+                          << " 1/m with plastic_hardening = 0 (ideal plasticity) makes the moment "
+                          "constant beyond the limit, but the curve reaches |κ − κ₀| = " << used
+                          << " 1/m at s = " << used_s << ": the moment law is not injective on the "
+                          "used range, so no width profile determines the shape; raise the limit "
+                          "or give plastic_hardening > 0");
+    }
+    if (used > o.law.curvature_limit) d.max_plastic_curvature = used;
+  }
+
+  if (zeros.straight) {
+    const Vec2 t = curve.at_arc_length(0).tangent;
+    const bool along = load.norm() == 0 || std::abs(t.x() * load.y() - t.y() * load.x()) <= 1e-12 * load.norm();
+    if (!along) {
+      fail("straight_under_gravity", "the curve is straight (κ = κ₀ everywhere) but gravity is not "
+           "along it: any strip sags under its weight", -1);
+      return;
+    }
+    d.feasible = true;
+    d.converged = true;
+    for (const auto& p : sample_by_arc_length(curve, o.initial_samples, {}))
+      d.samples.push_back({p.s, p.point, p.kappa, 1.0});
+    d.lp_samples = static_cast<int>(d.samples.size());
+    d.R = 1;
+    d.R_first = 1;
+    return;
+  }
+  const EquilibriumCheck check = check_equilibrium(curve, zeros, o.check);
+  const bool line_reason = check.reason == Infeasibility::NotCollinear ||
+                           check.reason == Infeasibility::LineTangentAtInflection ||
+                           check.reason == Infeasibility::LineCrossesCurve;
+  // Under gravity there is no straight inflection line: only conditions on κ itself apply,
+  // and the LP decides the rest.
+  if (!check.feasible() && !(line_reason && o.gravity.enabled)) {
+    fail(to_code(check.reason), check.message, check.where_s);
+    return;
+  }
+  d.collinearity_error = check.collinearity_error;
+
+  // Samples as in sample_by_arc_length, with the curve evaluations of coarser nested grids
+  // reused (l·k/(n−1) is bit-identical to l·2k/(2n−2)).
+  std::map<double, CurvePoint> cache;
+  const std::vector<double> bp = curve.bspline().breakpoints();
+  auto sample_cached = [&](int count) {
+    std::vector<double> at;
+    for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
+    for (size_t i = 1; i + 1 < bp.size(); ++i) at.push_back(curve.arc_length_at(bp[i]));
+    std::sort(at.begin(), at.end());
+    std::vector<CurvePoint> pts;
+    for (size_t k = 0; k < at.size(); ++k) {
+      const double sk = at[k];
+      if (k > 0 && sk - at[k - 1] <= 1e-12 * l) continue;
+      bool near_zero = false;
+      for (const auto& z : zeros.points) near_zero |= std::abs(z.at.s - sk) <= kZeroExclusion * l;
+      if (near_zero) continue;
+      auto it = cache.find(sk);
+      if (it == cache.end()) it = cache.emplace(sk, curve.at_arc_length(sk)).first;
+      pts.push_back(it->second);
+    }
+    return pts;
+  };
+  auto lp_samples = [&](int count) {
+    std::vector<StripLpSample> out;
+    for (const auto& p : sample_cached(count)) {
+      StripLpSample q;
+      q.s = p.s, q.point = p.point, q.tangent = p.tangent, q.kappa = p.kappa;
+      q.mu = o.law.moment(p.kappa - o.natural_curvature);
+      q.dmu_ds = o.law.slope(p.kappa - o.natural_curvature) * p.dkappa_ds;
+      out.push_back(q);
+    }
+    for (const auto& z : zeros.points) {
+      StripLpSample q;
+      q.s = z.at.s, q.point = z.at.point, q.tangent = z.at.tangent;
+      q.kappa = o.natural_curvature;
+      q.mu = 0;
+      q.dmu_ds = o.law.slope(0.0) * z.at.dkappa_ds;
+      q.zero = true;
+      out.push_back(q);
+    }
+    std::sort(out.begin(), out.end(), [](const StripLpSample& x, const StripLpSample& y) { return x.s < y.s; });
+    return out;
+  };
+  GravityLpOptions go;
+  go.load = load;
+  go.boundary = o.boundary;
+  go.smooth = o.smooth && o.gravity.enabled;
+  go.smoothing_margin = o.smoothing_margin;
+  go.inflection_rows = o.inflection_rows;
+  go.form = o.lp_form;
+  GravityLpResult lp;
+  std::vector<StripLpSample> smp;
+  double R_prev = NAN;
+  const int n0 = o.fixed_samples > 0 ? o.fixed_samples : o.initial_samples + 1;
+  // Refine with phase one only; phase two (smoothing) runs once, on the final grid.
+  const bool smooth = go.smooth;
+  go.smooth = false;
+  for (int n = n0;; n = std::min(2 * n - 1, o.max_samples)) {
+    smp = lp_samples(n);
+    lp = solve_gravity_lp(smp, l, go);
+    d.refinement.push_back({n, lp.ok() ? lp.R_first : NAN, NAN});
+    if (!lp.ok() || o.fixed_samples > 0) { d.converged = lp.ok(); break; }
+    if (std::isfinite(R_prev) && std::abs(lp.R_first / R_prev - 1) <= o.load_tolerance) {
+      d.converged = true;
+      break;
+    }
+    R_prev = lp.R_first;
+    if (n >= o.max_samples) break;
+  }
+  if (lp.ok() && smooth) {
+    go.smooth = true;
+    lp = solve_gravity_lp(smp, l, go);
+  }
+  d.lp_samples = static_cast<int>(smp.size());
+  d.lp_iterations = lp.iterations_first + lp.iterations_second;
+  d.lp_seconds = lp.seconds_first;
+  d.lp_seconds_second = lp.seconds_second;
+  d.lp_message = lp.message;
+  d.zero_consistency = lp.zero_consistency;
+  if (!lp.ok()) {
+    std::ostringstream os;
+    os << "no stiffness profile keeps K positive along the curve";
+    if (o.gravity.enabled) os << " under gravity (LP Eq. 4.6 ";
+    else os << " (LP Eq. 4.4 ";
+    os << to_string(lp.status) << ")";
+    if (!o.boundary.kinematic()) os << " with the given free end directions";
+    if (!lp.message.empty()) os << ": " << lp.message;
+    fail(lp.zero_consistency > go.zero_consistency_tolerance ? "zeros_inconsistent"
+                                                              : to_code(Infeasibility::NoLineAvoidsCurve),
+         os.str(), zeros.points.size() == 1 ? zeros.points[0].at.s : -1);
+    return;
+  }
+  const std::vector<StripLpSample>& used_smp = smp;
+  size_t j = 0;
+  for (const auto& p : used_smp) {
+    if (!o.inflection_rows && p.zero) continue;
+    d.samples.push_back({p.s, p.point, p.kappa, lp.K[j++]});
+  }
+  d.a = lp.a;
+  d.b = lp.b;
+  d.R = lp.R;
+  d.R_first = lp.R_first;
+  d.smoothed = lp.smoothed;
+  d.tv_first = lp.tv_first;
+  d.tv = lp.tv;
+  d.start_force = lp.start_force;
+  d.end_force = lp.end_force;
+  d.feasible = true;
+}
+
+}  // namespace
+
 StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   validate(options);
   const PlaneCurve curve(bspline);
   StripDesign d;
   d.length = curve.length();
-  const ZeroCurvatureResult zeros = find_zero_curvature(curve, options.zeros);
-  d.zeros = zeros.points;
   auto elapsed = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
+  if (needs_general_lp(options)) {
+    design_general(curve, options, d);
+    if (d.feasible) finish_outputs(options, d);
+    d.total_seconds = elapsed();
+    return d;
+  }
+  const ZeroCurvatureResult zeros = find_zero_curvature(curve, options.zeros);
+  d.zeros = zeros.points;
 
   if (zeros.straight) {  // a line segment: any constant K, no bending
     d.feasible = true;

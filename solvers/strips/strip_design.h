@@ -1,6 +1,9 @@
 // Bending-active strip design (thesis §4.3): a plane curve in; the feasibility diagnosis of
 // Theorem 1, the optimal stiffness profile of LP Eq. 4.4 with the sample count chosen from a
 // tolerance on R, the width profile of a sheet (K = E·w·h³/12) and the flat outline out.
+// With gravity (§4.4), free end directions or angles (§4.3.3), a natural curvature or a
+// nonlinear moment law (Appendix A.5) the profile comes from the gravity LP (gravity_lp.h,
+// Eq. 4.6 with the smoothing phase of §4.4.3) on nested grids instead.
 #pragma once
 
 #include <string>
@@ -8,6 +11,8 @@
 
 #include "common/few_variable_lp.h"
 #include "strips/equilibrium_check.h"
+#include "strips/gravity_lp.h"
+#include "strips/strip_model.h"
 
 namespace parafab {
 
@@ -25,6 +30,23 @@ struct StripDesignOptions {
   LpForm lp_form = LpForm::Dual;
   ZeroCurvatureOptions zeros;
   EquilibriumCheckOptions check;
+
+  // ---- Extensions; the defaults keep the plain Eq. 4.4 design above. Any non-default value
+  // routes the design through the gravity LP (Eq. 4.6, which is Eq. 4.4 without gravity).
+  StripGravity gravity;            ///< §4.4: weight K/βl³ per length
+  StripBoundary boundary;          ///< §4.3.3: free x / y / angle at an end
+  MomentLaw law;                   ///< Appendix A.5: nonlinear moment law, plasticity
+  double natural_curvature = 0.0;  ///< §4.3.3: κ₀ [1/m]; zeros are those of κ − κ₀
+  bool smooth = true;              ///< §4.4.3 phase two (only when gravity is on)
+  double smoothing_margin = 0.01;  ///< ε of phase two
+  bool inflection_rows = true;     ///< see GravityLpOptions::inflection_rows
+  /// Sampling of the gravity LP: from initial_samples + 1, the count doubles (nested grids)
+  /// until R changes by at most this (relative) between grids, or max_samples. The
+  /// trapezoidal integrals make R converge as O(n⁻²).
+  double load_tolerance = 1e-4;
+  int fixed_samples = 0;           ///< > 0: exactly this many samples, no refinement
+  /// A free end angle needs κ = κ₀ at that end: |κ − κ₀|·length up to this counts as zero.
+  double free_angle_tolerance = 1e-6;
 };
 
 struct StripSample {
@@ -64,6 +86,15 @@ struct StripDesign {
   double lp_seconds = 0;    ///< of the final LP
   double total_seconds = 0;
   std::string lp_message;
+  // Gravity / general LP diagnostics (defaults for the plain Eq. 4.4 design).
+  bool general_lp = false;   ///< designed with the gravity LP (Eq. 4.6)
+  double R_first = NAN;      ///< phase-one optimum (before smoothing)
+  bool smoothed = false;     ///< phase two returned the profile
+  double tv_first = NAN, tv = NAN;  ///< Σ|ΔK′| before / after smoothing [1/m]
+  Vec2 start_force{0, 0}, end_force{0, 0};  ///< internal force at the ends for min K = 1
+  double zero_consistency = 0;  ///< σ₃/σ₁ of the equality rows
+  double max_plastic_curvature = 0;  ///< max |κ − κ₀| beyond law.curvature_limit (0: elastic)
+  double lp_seconds_second = 0;      ///< phase two of the final LP
 };
 
 /// Throws parafab::Error for invalid options (non-positive E, thickness, width, tolerance) or

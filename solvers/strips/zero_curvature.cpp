@@ -17,13 +17,16 @@ const char* to_string(ZeroKind kind) {
 namespace {
 int sign_of(double k, double eps) { return k > eps ? 1 : (k < -eps ? -1 : 0); }
 
+// κ(u) − κ₀ (κ₀ = 0 unless the rod has a natural curvature).
+double offset_curvature(const PlaneCurve& c, double u, double k0) { return c.curvature_at(u) - k0; }
+
 // Bisection on κ(u) inside a bracket [lo, hi] with κ(lo)·κ(hi) < 0.
-double refine_root(const PlaneCurve& c, double lo, double hi) {
-  double klo = c.curvature_at(lo);
+double refine_root(const PlaneCurve& c, double lo, double hi, double k0) {
+  double klo = offset_curvature(c, lo, k0);
   for (int it = 0; it < 200 && hi - lo > 1e-15 * (c.last_parameter() - c.first_parameter());
        ++it) {
     const double mid = 0.5 * (lo + hi);
-    const double km = c.curvature_at(mid);
+    const double km = offset_curvature(c, mid, k0);
     if (km == 0.0) return mid;
     if ((km < 0) == (klo < 0)) lo = mid, klo = km;
     else hi = mid;
@@ -32,14 +35,14 @@ double refine_root(const PlaneCurve& c, double lo, double hi) {
 }
 
 // Golden-section minimization of |κ| on [lo, hi].
-double minimize_abs_curvature(const PlaneCurve& c, double lo, double hi) {
+double minimize_abs_curvature(const PlaneCurve& c, double lo, double hi, double k0) {
   const double g = 0.5 * (std::sqrt(5.0) - 1.0);
   double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
-  double f1 = std::abs(c.curvature_at(x1)), f2 = std::abs(c.curvature_at(x2));
+  double f1 = std::abs(offset_curvature(c, x1, k0)), f2 = std::abs(offset_curvature(c, x2, k0));
   for (int it = 0; it < 200 && hi - lo > 1e-14 * (c.last_parameter() - c.first_parameter());
        ++it) {
-    if (f1 < f2) hi = x2, x2 = x1, f2 = f1, x1 = hi - g * (hi - lo), f1 = std::abs(c.curvature_at(x1));
-    else lo = x1, x1 = x2, f1 = f2, x2 = lo + g * (hi - lo), f2 = std::abs(c.curvature_at(x2));
+    if (f1 < f2) hi = x2, x2 = x1, f2 = f1, x1 = hi - g * (hi - lo), f1 = std::abs(offset_curvature(c, x1, k0));
+    else lo = x1, x1 = x2, f1 = f2, x2 = lo + g * (hi - lo), f2 = std::abs(offset_curvature(c, x2, k0));
   }
   return 0.5 * (lo + hi);
 }
@@ -48,6 +51,7 @@ double minimize_abs_curvature(const PlaneCurve& c, double lo, double hi) {
 ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,
                                         const ZeroCurvatureOptions& options) {
   ZeroCurvatureResult r;
+  const double k0 = options.natural_curvature;
   const std::vector<double> bp = curve.bspline().breakpoints();
   std::vector<double>& u = r.scan_parameters;
   u.push_back(bp.front());
@@ -57,7 +61,7 @@ ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,
   const size_t n = u.size();
   std::vector<double> kappa(n);
   for (size_t i = 0; i < n; ++i) {
-    kappa[i] = curve.curvature_at(u[i]);
+    kappa[i] = offset_curvature(curve, u[i], k0);
     r.kappa_scale = std::max(r.kappa_scale, std::abs(kappa[i]));
   }
   const double l = curve.length();
@@ -72,6 +76,7 @@ ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,
   auto add = [&](double uu, ZeroKind kind) {
     ZeroCurvaturePoint z;
     z.at = curve.at_parameter(uu);
+    z.at.kappa -= options.natural_curvature;
     z.kind = kind;
     r.points.push_back(z);
   };
@@ -90,20 +95,20 @@ ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,
     }
     if (i == 0) add(u[0], ZeroKind::AtEnd);
     else if (j == n - 1) add(u[n - 1], ZeroKind::AtEnd);
-    else if (sg[i - 1] * sg[j + 1] < 0) add(refine_root(curve, u[i - 1], u[j + 1]), ZeroKind::Inflection);
-    else add(minimize_abs_curvature(curve, u[i - 1], u[j + 1]), ZeroKind::Touch);
+    else if (sg[i - 1] * sg[j + 1] < 0) add(refine_root(curve, u[i - 1], u[j + 1], k0), ZeroKind::Inflection);
+    else add(minimize_abs_curvature(curve, u[i - 1], u[j + 1], k0), ZeroKind::Touch);
     i = j + 1;
   }
   for (size_t i = 0; i + 1 < n; ++i)
-    if (sg[i] * sg[i + 1] < 0) add(refine_root(curve, u[i], u[i + 1]), ZeroKind::Inflection);
+    if (sg[i] * sg[i + 1] < 0) add(refine_root(curve, u[i], u[i + 1], k0), ZeroKind::Inflection);
   // Dips of |κ| towards zero between scan points without a sign change (double roots).
   for (size_t i = 1; i + 1 < n; ++i) {
     if (sg[i] == 0 || sg[i - 1] != sg[i] || sg[i + 1] != sg[i]) continue;
     const double a = std::abs(kappa[i]);
     if (a > std::abs(kappa[i - 1]) || a > std::abs(kappa[i + 1]) || a > 1e-2 * r.kappa_scale)
       continue;
-    const double um = minimize_abs_curvature(curve, u[i - 1], u[i + 1]);
-    if (std::abs(curve.curvature_at(um)) <= eps) add(um, ZeroKind::Touch);
+    const double um = minimize_abs_curvature(curve, u[i - 1], u[i + 1], k0);
+    if (std::abs(offset_curvature(curve, um, k0)) <= eps) add(um, ZeroKind::Touch);
   }
   std::sort(r.points.begin(), r.points.end(),
             [](const ZeroCurvaturePoint& x, const ZeroCurvaturePoint& y) { return x.at.s < y.at.s; });

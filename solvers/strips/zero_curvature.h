@@ -15,6 +15,9 @@ struct ZeroCurvatureOptions {
   int scan_per_span = 64;
   /// |κ|·length below this counts as zero curvature.
   double zero_tolerance = 1e-9;
+  /// κ₀ [1/m]: find the zeros of κ − κ₀ instead (rods with fixed natural curvature, thesis
+  /// §4.3.3). The returned points then carry κ − κ₀ in `at.kappa`.
+  double natural_curvature = 0.0;
 };
 
 enum class ZeroKind {

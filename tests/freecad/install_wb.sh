@@ -8,6 +8,7 @@
 #   workbench/freecad/ParaFab/*           -> ParaFab/
 #   resources/icons/*                     -> ParaFab/Resources/icons/
 #   BUILD_DIR/workbench/entry/parafab*.so -> ParaFab/
+#   BUILD_DIR/workbench/entry/parafab     -> ParaFab/   (the CLI run by the task panel)
 # Any previous copy is removed first, so running it twice is harmless.
 
 _parafab_repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -27,6 +28,8 @@ install_parafab_wb() {
            cp -R "$_parafab_repo/workbench/freecad/ParaFab/." "$dest/" &&
            cp -R "$_parafab_repo/resources/icons/." "$dest/Resources/icons/" &&
            cp "$so" "$dest/" &&
+           { [ ! -x "$build_dir/workbench/entry/parafab" ] ||
+             cp "$build_dir/workbench/entry/parafab" "$dest/parafab"; } &&
            find "$dest" -name __pycache__ -type d -prune -exec rm -rf {} +; }; then
         echo "install_wb.sh: installation into $dest failed" >&2
         return 1

@@ -1,12 +1,15 @@
 """Headless FreeCAD tests of the ParaFab ``Analysis`` feature (XFEM on a solid).
 
-Run with ``tests/freecad/run_tests.sh``; needs the real solver (PARAFAB_MODULE_DIR).
+Run with ``tests/freecad/run_tests.sh``; needs the real solver (PARAFAB_MODULE_DIR) and, for
+the task panel's process runner, the ``parafab`` CLI beside it (or ``$PARAFAB_CLI``).
 """
 
+import json
 import os
 import sys
 import tempfile
 import unittest
+import xml.etree.ElementTree as ET
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 _REPO = os.path.normpath(os.path.join(_HERE, os.pardir, os.pardir))
@@ -19,6 +22,11 @@ import FreeCAD  # noqa: E402
 import Part  # noqa: E402
 import parafab  # noqa: E402
 from parafab_wb import analysis_feature  # noqa: E402
+from parafab_wb import cli_runner  # noqa: E402
+from PySide import QtCore  # noqa: E402
+
+#: Grid of the display/cancel tests: small, so the suite stays fast.
+CELLS = 10
 
 
 def _face_at(shape, axis, value):
@@ -27,6 +35,43 @@ def _face_at(shape, axis, value):
         if abs([c.x, c.y, c.z][axis] - value) < 1e-6 and abs(abs(f.normalAt(0, 0)[axis]) - 1) < 1e-9:
             return "Face%d" % (i + 1)
     raise AssertionError("no face at axis %d = %g" % (axis, value))
+
+
+def _read_vtu(path):
+    """Independent reader of surface.vtu: {array name: flat list}, plus the point count."""
+    piece = ET.parse(path).getroot().find("UnstructuredGrid/Piece")
+    arrays = {}
+    for array in piece.iter("DataArray"):
+        convert = int if array.get("type", "").startswith(("Int", "UInt")) else float
+        arrays[array.get("Name") or "Points"] = [convert(v) for v in array.text.split()]
+    return int(piece.get("NumberOfPoints")), int(piece.get("NumberOfCells")), arrays
+
+
+def _norm(x, y, z):
+    return (x * x + y * y + z * z) ** 0.5
+
+
+def _snapshot(doc, out_dir):
+    """What a cancelled or failed run must not change: objects, inputs, results, mesh, files."""
+    snap = {"objects": sorted((o.Name, o.TypeId) for o in doc.Objects)}
+    for o in doc.Objects:
+        if o.TypeId == "Part::FeaturePython":
+            snap[o.Name] = (analysis_feature.inputs_of(o), o.Dofs, o.MaxDisplacement.Value,
+                            o.MaxVonMises.Value, o.DeformationScale, o.AutoScale, o.Estimate,
+                            round(o.Shape.Volume, 6) if not o.Shape.isNull() else None)
+        elif o.TypeId == "Mesh::Feature":
+            points, facets = o.Mesh.Topology
+            snap[o.Name] = (len(points), len(facets), sum(p.x + 2 * p.y + 3 * p.z for p in points),
+                            o.VertexColors[:5] if "VertexColors" in o.PropertiesList else None)
+        elif hasattr(o, "Shape"):
+            snap[o.Name] = (o.Shape.isValid(), round(o.Shape.Volume, 6))
+    result = os.path.join(out_dir, "result.json")
+    snap["result.json"] = open(result).read() if os.path.isfile(result) else None
+    return snap
+
+
+def _app():
+    return QtCore.QCoreApplication.instance() or QtCore.QCoreApplication([])
 
 
 class AnalysisFeatureTest(unittest.TestCase):
@@ -48,6 +93,163 @@ class AnalysisFeatureTest(unittest.TestCase):
             setattr(a, k, v)
         self.doc.recompute()
         return a
+
+    def assertMeshShows(self, a, scale):
+        """Every mesh vertex is the surface.vtu point moved by ``scale`` times its displacement."""
+        n, cells, vtu = _read_vtu(os.path.join(self.tmp, "surface.vtu"))
+        mesh = a.ResultMesh.Mesh
+        self.assertEqual(mesh.CountPoints, n)
+        self.assertEqual(mesh.CountFacets, cells)
+        self.assertEqual(len(a.ResultMesh.Displacement), n)
+        umax = max(_norm(*vtu["displacement"][3 * i:3 * i + 3]) for i in range(n))
+        points = mesh.Topology[0]
+        worst = 0.0
+        for i, q in enumerate(points):
+            x, y, z = vtu["Points"][3 * i:3 * i + 3]
+            ux, uy, uz = vtu["displacement"][3 * i:3 * i + 3]
+            # The mesh stores single precision: compare the displacement it shows, relative to umax.
+            worst = max(worst, _norm((q.x - x) / scale - ux, (q.y - y) / scale - uy, (q.z - z) / scale - uz))
+        self.assertLess(worst, 1e-3 * umax + 1e-5 * a.Part.Shape.BoundBox.DiagonalLength / scale)
+        # Facets are the VTU triangles, in order.
+        conn = vtu["connectivity"]
+        for k in (0, cells // 2, cells - 1):
+            self.assertEqual(tuple(mesh.Topology[1][k]), tuple(conn[3 * k:3 * k + 3]))
+        return n, vtu, umax
+
+    def test_deformed_mesh_shows_surface_vtu_scaled_and_coloured(self):
+        a = self.make(Cells=CELLS)
+        self.assertNotIn("Invalid", a.State, a.Status)
+        self.assertIsNotNone(a.ResultMesh)
+        self.assertEqual(a.ResultMesh.TypeId, "Mesh::Feature")
+        self.assertTrue(a.AutoScale)
+        n, vtu, umax = self.assertMeshShows(a, a.DeformationScale)
+        # Automatic scale: the largest surface displacement shows as 5 % of the diagonal.
+        diag = self.beam.Shape.BoundBox.DiagonalLength
+        self.assertAlmostEqual(a.DeformationScale * umax, 0.05 * diag, delta=1e-9 * diag)
+        # The largest displacement shown is result.json's (the surface agrees within a few %).
+        with open(os.path.join(self.tmp, "result.json")) as f:
+            result = json.load(f)
+        self.assertAlmostEqual(a.MaxDisplacement.Value, result["max_displacement"], delta=1e-9)
+        self.assertAlmostEqual(a.MaxVonMises.getValueAs("MPa"), result["max_von_mises"], delta=1e-6)
+        self.assertAlmostEqual(umax, result["max_displacement"], delta=0.05 * result["max_displacement"])
+        self.assertIn("%d unknowns" % result["estimate"]["unknowns"], a.Estimate)
+        # Colours: blue at the smallest von Mises on the surface, red at the largest.
+        vm = vtu["von_mises"]
+        self.assertEqual(len(a.ResultMesh.VertexColors), n)
+        self.assertAlmostEqual(a.ColorScaleMin.getValueAs("MPa"), min(vm), delta=1e-9)
+        self.assertAlmostEqual(a.ColorScaleMax.getValueAs("MPa"), max(vm), delta=1e-9)
+        lo, hi = vm.index(min(vm)), vm.index(max(vm))
+        self.assertEqual(a.ResultMesh.VertexColors[hi][:3], (1.0, 0.0, 0.0))
+        self.assertEqual(a.ResultMesh.VertexColors[lo][:3], (0.0, 0.0, 1.0))
+        self.assertIn("(blue)", a.Status)
+        self.assertIn("(red)", a.Status)
+        # A new scale moves the vertices only: no re-solve, AutoScale off; AutoScale restores it.
+        auto = a.DeformationScale
+        a.DeformationScale = 10.0
+        self.assertFalse(a.AutoScale)
+        self.assertNotIn("Touched", a.State)
+        self.assertMeshShows(a, 10.0)
+        a.AutoScale = True
+        self.assertAlmostEqual(a.DeformationScale, auto, delta=1e-9 * auto)
+        self.assertMeshShows(a, auto)
+        self.assertEqual(self.doc.recompute(), 0)  # nothing left to recompute
+
+    def test_estimate_matches_the_solver(self):
+        a = self.make(Cells=CELLS)
+        with open(os.path.join(self.tmp, "result.json")) as f:
+            est = json.load(f)["estimate"]
+        unknowns, mb = analysis_feature.estimate(self.beam, CELLS)
+        self.assertAlmostEqual(unknowns, est["unknowns"], delta=1e-6 * est["unknowns"])
+        self.assertAlmostEqual(mb, est["factor_mb"], delta=1e-6 * est["factor_mb"])
+        self.assertTrue(a.Estimate)
+
+    def test_cancel_in_process_keeps_the_previous_results(self):
+        a = self.make(Cells=CELLS)
+        self.assertNotIn("Invalid", a.State, a.Status)
+        before = _snapshot(self.doc, self.tmp)
+        phases = []
+
+        def cancel_at_cut(phase, fraction):
+            phases.append((phase, fraction))
+            return phase != "cut"  # False: parafab.simulate raises "simulation cancelled by the user"
+        a.Proxy.progress = cancel_at_cut
+        a.Gravity = True
+        self.doc.recompute()
+        self.assertEqual([p for p, _ in phases], ["read", "cut"])
+        self.assertIn("Invalid", a.State)  # needs a new run: the next recompute solves again
+        self.assertTrue(a.Status.startswith("cancelled"), a.Status)
+        self.assertIn("previous results kept", a.Status)
+        after = _snapshot(self.doc, self.tmp)
+        after[a.Name][0]["gravity"] = False  # the one input changed on purpose
+        self.assertEqual(after, before)
+        a.Proxy.progress = None
+        self.doc.recompute()
+        self.assertNotIn("Invalid", a.State, a.Status)
+        self.assertTrue(a.Status.startswith("solved"), a.Status)
+
+    def test_panel_process_runs_the_cli_and_cancels_cleanly(self):
+        _app()
+        cli = cli_runner.find_cli()
+        self.assertTrue(cli and os.access(cli, os.X_OK), "parafab CLI not found (PARAFAB_CLI)")
+        a = analysis_feature.make_analysis(self.beam, [_face_at(self.beam.Shape, 0, 0)])
+        a.OutputDir = self.tmp
+        self.doc.recompute()  # no load: solves to zero displacement
+        inputs = analysis_feature.inputs_of(a)
+        inputs.update(loaded=[_face_at(self.beam.Shape, 0, 200)], force=(0, 0, -100), cells=CELLS)
+
+        # Solved through the CLI: inputs and results land in the feature, nothing left to recompute.
+        progress = []
+        outcome = cli_runner.run_blocking(cli_runner.AnalysisRun(a, inputs), 120000,
+                                          lambda p, f: progress.append((p, f)))
+        self.assertEqual(outcome.state, cli_runner.SOLVED, outcome.message)
+        self.assertEqual([p for p, _ in progress][:2], ["read", "cut"])
+        self.assertEqual(sorted(f for _, f in progress), [f for _, f in progress])
+        self.assertEqual(a.Cells, CELLS)
+        self.assertEqual(list(a.LoadedFaces), inputs["loaded"])
+        self.assertNotIn("Touched", a.State)
+        self.assertEqual(a.MaxDisplacement.Value, outcome.result["max_displacement"])
+        self.assertAlmostEqual(a.MaxDisplacement.Value, 0.0952, delta=0.15 * 0.0952)
+        self.assertMeshShows(a, a.DeformationScale)
+        self.assertEqual(self.doc.recompute(), 0)
+
+        # Cancelled (the process is killed at its first progress line): only Status changes.
+        before = _snapshot(self.doc, self.tmp)
+        run = cli_runner.AnalysisRun(a, dict(inputs, cells=CELLS + 2, gravity=True))
+        run.progress.connect(lambda phase, fraction: run.cancel())
+        outcome = cli_runner.run_blocking(run, 120000)
+        self.assertEqual(outcome.state, cli_runner.CANCELLED)
+        self.assertEqual(_snapshot(self.doc, self.tmp), before)
+        self.assertTrue(a.Status.startswith("cancelled by the user"), a.Status)
+        self.assertNotIn("Invalid", a.State)
+        self.assertNotIn("Touched", a.State)
+
+        # Refused by the CLI (JSON error on stdout, exit status 2): the message, nothing else.
+        outcome = cli_runner.run_blocking(cli_runner.AnalysisRun(a, dict(inputs, nu=0.6)), 120000)
+        self.assertEqual(outcome.state, cli_runner.ERROR)
+        self.assertIn("material.nu", outcome.message)
+        self.assertIn("material.nu", a.Status)
+        self.assertEqual(_snapshot(self.doc, self.tmp), before)
+        # Rejected before starting (no such face).
+        outcome = cli_runner.run_blocking(cli_runner.AnalysisRun(a, dict(inputs, fixed=["Face99"])), 120000)
+        self.assertEqual(outcome.state, cli_runner.ERROR)
+        self.assertIn("Face99", outcome.message)
+        self.assertEqual(_snapshot(self.doc, self.tmp), before)
+
+    def test_find_cli(self):
+        old = os.environ.get("PARAFAB_CLI")
+        try:
+            os.environ.pop("PARAFAB_CLI", None)
+            found = cli_runner.find_cli()
+            self.assertTrue(found and os.path.basename(found) == "parafab", found)
+            os.environ["PARAFAB_CLI"] = found
+            self.assertEqual(cli_runner.find_cli(), os.path.abspath(found))
+            os.environ["PARAFAB_CLI"] = os.path.join(self.tmp, "missing")
+            self.assertIsNone(cli_runner.find_cli())
+        finally:
+            if old is None:
+                os.environ.pop("PARAFAB_CLI", None)
+            else:
+                os.environ["PARAFAB_CLI"] = old
 
     def test_cantilever_matches_the_module_and_beam_theory(self):
         a = self.make()
@@ -75,6 +277,25 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.doc.recompute()
         self.assertNotIn("Invalid", b.State, b.Status)
 
+    def test_version_1_document_gets_a_result_mesh(self):
+        a = self.make(Cells=CELLS)
+        # What a document saved before the result display looks like.
+        mesh = a.ResultMesh
+        a.ResultMesh = None
+        self.doc.removeObject(mesh.Name)
+        for name in ("Estimate", "ResultMesh", "AutoScale", "DeformationScale", "ColorScaleMin", "ColorScaleMax"):
+            a.removeProperty(name)
+        a.Proxy.Version = 1
+        a.Proxy.onDocumentRestored(a)
+        self.assertEqual(a.Proxy.Version, analysis_feature.VERSION)
+        self.assertTrue(a.AutoScale)
+        a.touch()
+        self.doc.recompute()
+        self.assertNotIn("Invalid", a.State, a.Status)
+        self.assertIsNotNone(a.ResultMesh)
+        self.assertMeshShows(a, a.DeformationScale)
+        self.assertEqual(self.doc.recompute(), 0)
+
     def test_save_and_reopen(self):
         a = self.make()
         path = os.path.join(self.tmp, "analysis.FCStd")
@@ -83,6 +304,15 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.doc = FreeCAD.openDocument(path)
         a = self.doc.getObject("Analysis")
         self.assertEqual(a.Proxy.Type, analysis_feature.TYPE)
+        self.assertEqual(a.Proxy.__getstate__(), {"Type": analysis_feature.TYPE,
+                                                  "Version": analysis_feature.VERSION})
+        # The result mesh, its data and the scale survive the reload; rescaling still works.
+        self.assertIsNotNone(a.ResultMesh)
+        self.assertGreater(a.ResultMesh.Mesh.CountPoints, 0)
+        self.assertEqual(len(a.ResultMesh.VertexColors), a.ResultMesh.Mesh.CountPoints)
+        self.assertAlmostEqual(a.ResultMesh.Scale, a.DeformationScale, delta=1e-9 * a.DeformationScale)
+        a.DeformationScale = 3.0
+        self.assertMeshShows(a, 3.0)
         a.touch()
         self.doc.recompute()
         self.assertNotIn("Invalid", a.State, a.Status)

@@ -397,5 +397,210 @@ class TestStripFeature(StripTestCase):
             strip_feature.make_strip(src, "Face1")
 
 
+def _ellipse_arc_mm():
+    """The cardboard test arch of the solver tests: semi-axes 200 x 120 mm, 0.2..2.9 rad."""
+    pts = [(200.0 * math.cos(t), 120.0 * math.sin(t))
+           for t in (0.2 + 2.7 * i / 120.0 for i in range(121))]
+    return _interpolated(pts)
+
+
+class TestStripVersion2(StripTestCase):
+    """Gravity, presets, strip types, validation, cut sheets, version-1 documents."""
+
+    def cardboard_strip(self, name="Arch", gravity=True):
+        src, strip = self.strip_on(name, _ellipse_arc_mm().toShape(), recompute=False)
+        strip.MaterialPreset = "Cardboard 200 gsm"
+        strip.MinWidth = "20 mm"
+        strip.Gravity = gravity
+        strip.GravityDirection = V(0, -1, 0)  # the curve lies in XY; "down" is -Y
+        self.doc.recompute()
+        return src, strip
+
+    def test_presets_set_the_material(self):
+        _, strip = self.strip_on("Curve", _convex_bspline().toShape())
+        self.assertEqual(strip.MaterialPreset, "Custom")
+        for name, (E, h, rho) in strip_feature.PRESETS.items():
+            strip.MaterialPreset = name
+            self.assertAlmostEqual(strip.YoungsModulus.getValueAs("Pa"), E, delta=1e-6 * E)
+            self.assertAlmostEqual(strip.Thickness.getValueAs("m"), h, delta=1e-12)
+            self.assertAlmostEqual(strip.Density, rho)
+        # The cardboard preset reproduces the thesis' gravito-bending parameter.
+        E, h, rho = strip_feature.PRESETS["Cardboard 200 gsm"]
+        self.assertAlmostEqual(E * h * h / (12 * rho * 9.81), 8.86e-4, delta=2e-6)
+        strip.Thickness = "0.6 mm"  # editing by hand leaves the preset
+        self.assertEqual(strip.MaterialPreset, "Custom")
+        self.assertAlmostEqual(strip.Thickness.Value, 0.6)
+
+    def test_gravity_changes_the_design(self):
+        _, plain = self.cardboard_strip("Plain", gravity=False)
+        _, heavy = self.cardboard_strip("Heavy", gravity=True)
+        self.assert_feasible_strip(plain)
+        self.assert_feasible_strip(heavy)
+        self.assertGreater(abs(heavy.R - plain.R), 1e-3 * plain.R)
+        self.assertGreater(heavy.RFirst, 1.0)
+        self.assertEqual(plain.RFirst, 0.0)
+        k0 = plain.Proxy.result["K"]
+        k1 = heavy.Proxy.result["K"]
+        self.assertTrue(heavy.Proxy.result["general_lp"])
+        self.assertNotEqual(len(k0), 0)
+        self.assertGreater(abs(max(k1) - max(k0)), 1e-3)
+        # Same as the solver called directly with the projected direction and the preset.
+        self.assertEqual(heavy.Proxy.result["gravity"]["direction"], [0.0, -1.0])
+        self.assertAlmostEqual(heavy.Proxy.result["gravity"]["beta_l3"], 8.86e-4, delta=2e-6)
+
+    def test_gravity_perpendicular_to_the_plane_is_an_error(self):
+        _, strip = self.cardboard_strip()
+        strip.GravityDirection = V(0, 0, -1)
+        self.doc.recompute()
+        self.assertTrue(_is_error(strip))
+        self.assertIn("perpendicular to the curve's plane", strip.Reason)
+        strip.GravityDirection = V(0, -1, 0)
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+
+    def test_validate_reports_the_deviation(self):
+        _, strip = self.cardboard_strip()
+        self.assertEqual(strip.Deviation, 0.0)
+        strip.Validate = True
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        self.assertGreater(strip.Deviation, 0.0)
+        self.assertLess(strip.Deviation, 1e-3)
+
+    def test_strip_types_and_cut_sheets(self):
+        _, strip = self.cardboard_strip()
+        self.tmpdir = tempfile.mkdtemp(prefix="parafab_")
+        for kind, layer in (("Plain", "OUTLINE"), ("Composite", "INNER"), ("Perforated", "HOLES")):
+            strip.StripType = kind
+            strip.OuterWidth = "50 mm" if kind == "Composite" else "40 mm"
+            self.doc.recompute()
+            self.assert_feasible_strip(strip)
+            if kind != "Plain":
+                self.assertIn("feasible", strip.TypeMessage)
+                self.assertNotIn("infeasible", strip.TypeMessage)
+            dxf, svg = strip_feature.export_cut_sheets(strip, self.tmpdir)
+            for path in (dxf, svg):
+                self.assertTrue(os.path.getsize(path) > 0)
+            with open(dxf) as f:
+                text = f.read()
+            self.assertIn("\n" + layer + "\n", text)
+            self.assertIn("START clamp", text)
+            self.assertIn(strip.Label, text)
+            with open(svg) as f:
+                self.assertIn('id="%s"' % layer, f.read())
+            if kind == "Plain":
+                self.assert_dxf_reads_back(dxf, strip)
+
+    def assert_dxf_reads_back(self, path, strip):
+        """FreeCAD's own DXF importer reads the cut sheet at true scale (mm): the outline
+        spans the strip's length, the clamp lines 2 mm beyond half the widest width."""
+        import Import
+        doc = FreeCAD.newDocument("DxfRead")
+        try:
+            Import.readDXF(path, doc.Name, True)
+            bb = FreeCAD.BoundBox()
+            for o in doc.Objects:
+                if hasattr(o, "Shape") and not o.Shape.isNull() and o.Shape.Edges:
+                    bb.add(o.Shape.BoundBox)
+            half = 500.0 * max(strip.Proxy.result["width"])
+            self.assertAlmostEqual(bb.XMin, 0.0, delta=1e-6)
+            self.assertAlmostEqual(bb.XMax, strip.Length.Value, delta=1e-5)
+            self.assertAlmostEqual(bb.YMax, half + 2.0, delta=1e-5)
+            self.assertAlmostEqual(bb.YMin, -half - 2.0, delta=1e-5)
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+
+    def test_export_of_an_infeasible_strip_is_an_error(self):
+        _, strip = self.strip_on("S", _s_curve_three_inflections().toShape())
+        self.assertFalse(strip.Feasible)
+        self.tmpdir = tempfile.mkdtemp(prefix="parafab_")
+        with self.assertRaises(strip_feature.StripError):
+            strip_feature.export_cut_sheets(strip, self.tmpdir)
+
+    def test_strips_recompute_independently(self):
+        src_a, a = self.strip_on("CurveA", _convex_bspline().toShape())
+        src_b, b = self.cardboard_strip("CurveB")
+        na, nb = a.Proxy.executions, b.Proxy.executions
+        r_b = b.R
+        moved = _convex_bspline()
+        moved.setPole(3, moved.getPole(3) + V(0, 25, 0))
+        src_a.Shape = moved.toShape()
+        self.assertIn("Touched", src_a.State)
+        self.assertNotIn("Touched", src_b.State)
+        self.doc.recompute()
+        self.assertEqual(a.Proxy.executions, na + 1)
+        self.assertEqual(b.Proxy.executions, nb)   # the other strip did not recompute
+        self.assertEqual(b.State, ["Up-to-date"])
+        self.assertEqual(b.R, r_b)
+        b.Gravity = False                          # and the other way round
+        self.doc.recompute()
+        self.assertEqual(a.Proxy.executions, na + 1)
+        self.assertEqual(b.Proxy.executions, nb + 1)
+
+    def test_version_1_document_still_loads(self):
+        _, strip = self.strip_on("Curve", _convex_bspline().toShape())
+        r_v1 = strip.R
+        # What a document saved by version 1 holds: no version-2 properties, Version 1.
+        for name in ("MaterialPreset", "Density", "Gravity", "GravityDirection", "StripType",
+                     "OuterWidth", "InnerThickness", "Validate", "Deviation", "RFirst",
+                     "TypeMessage"):
+            strip.removeProperty(name)
+        strip.Proxy.VERSION = strip.Proxy.Version = 1  # the instance now saves state version 1
+        self.assertEqual(strip.Proxy.__getstate__(), {"Type": strip_feature.TYPE, "Version": 1})
+        self.tmpdir = tempfile.mkdtemp(prefix="parafab_")
+        path = os.path.join(self.tmpdir, "v1.FCStd")
+        self.doc.saveAs(path)
+        FreeCAD.closeDocument(self.doc.Name)
+        self.doc = FreeCAD.openDocument(path)
+        strip = self.doc.getObject("Strip")
+        self.assertEqual(strip.Proxy.Version, strip_feature.VERSION)  # upgraded on restore
+        self.assertEqual(strip.Proxy.__getstate__()["Version"], strip_feature.VERSION)
+        self.assertFalse(strip.Gravity)
+        self.assertEqual(strip.StripType, "Plain")
+        self.assertEqual(strip.MaterialPreset, "Custom")
+        self.assertEqual(strip.GravityDirection, V(0, 0, -1))
+        self.assertAlmostEqual(strip.Thickness.Value, 0.5)  # restore did not apply a preset
+        strip.touch()
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        self.assertAlmostEqual(strip.R, r_v1, delta=1e-12 * r_v1)
+
+    def test_version_1_proxy_upgraded_in_place(self):
+        _, strip = self.strip_on("Curve", _convex_bspline().toShape())
+        for name in ("Gravity", "GravityDirection", "StripType", "Deviation"):
+            strip.removeProperty(name)
+        strip.Proxy.Version = 1
+        strip.Proxy.onDocumentRestored(strip)
+        self.assertEqual(strip.Proxy.Version, strip_feature.VERSION)
+        for name in ("Gravity", "GravityDirection", "StripType", "Deviation"):
+            self.assertIn(name, strip.PropertiesList)
+
+
+
+class TestStripsFromSections(StripTestCase):
+    """Strips from sections: a cylinder r = 15 mm cut by planes z = const and split at y = 0
+    gives semicircles, each an equilibrium of a constant-stiffness strip (R = 1)."""
+
+    def test_cylinder_sections_give_semicircle_strips(self):
+        from parafab_wb import sections
+        cyl = self.add_shape("Cylinder", Part.makeCylinder(15, 40))
+        group, report = sections.strips_from_sections(cyl, (0, 0, 1), 3, split=((0, 1, 0), 0.0))
+        self.assertEqual(report["designed"], 6)
+        strips = [o for o in group.Group if o.TypeId == "Part::FeaturePython"]
+        self.assertEqual(len(strips), 6)
+        for strip in strips:
+            self.assert_feasible_strip(strip)
+            self.assertAlmostEqual(strip.R, 1.0, delta=1e-3)
+            self.assertAlmostEqual(strip.Length.Value, 15 * math.pi, delta=1e-3)
+        self.assertTrue(all(o.isValid() for o in self.doc.Objects))
+
+    def test_unsplit_closed_sections_are_reported_not_stripped(self):
+        from parafab_wb import sections
+        cyl = self.add_shape("Cylinder", Part.makeCylinder(15, 40))
+        group, report = sections.strips_from_sections(cyl, (0, 0, 1), 2)
+        self.assertEqual(len(group.Group), 0)
+        self.assertEqual(report["failed"], 2)
+        self.assertIn("closed section curve", report["curves"][0]["strip"]["error"]["message"])
+
 if __name__ == "__main__":
     unittest.main()

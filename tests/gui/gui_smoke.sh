@@ -5,8 +5,9 @@
 #
 # Installs the workbench (tests/freecad/install_wb.sh) into a throw-away HOME,
 # runs FreeCAD on gui_smoke_macro.py under xvfb-run and checks the status
-# file written by the macro.  Artifacts (status.json, strip.png,
-# gui_smoke.FCStd, freecad.log) go to $PARAFAB_ARTIFACT_DIR
+# file written by the macro.  Artifacts (status.json, strip.png, analysis.png, analysis_panel.png,
+# gui_smoke.FCStd, gui_smoke_analysis.FCStd, analysis_out/, freecad.log) go to
+# $PARAFAB_ARTIFACT_DIR
 # (default: BUILD_DIR/gui-artifacts).  Timeout: $PARAFAB_GUI_TIMEOUT
 # seconds (default 180).  Exits non-zero on failure or timeout.
 set -euo pipefail
@@ -18,7 +19,8 @@ timeout_s=${PARAFAB_GUI_TIMEOUT:-180}
 artifacts=${PARAFAB_ARTIFACT_DIR:-$build_dir/gui-artifacts}
 mkdir -p "$artifacts"
 artifacts=$(cd "$artifacts" && pwd)
-rm -f "$artifacts/status.json" "$artifacts/strip.png" "$artifacts/gui_smoke.FCStd"
+rm -rf "$artifacts/status.json" "$artifacts/strip.png" "$artifacts/gui_smoke.FCStd" \
+       "$artifacts/analysis.png" "$artifacts/analysis_panel.png" "$artifacts/gui_smoke_analysis.FCStd" "$artifacts/analysis_out"
 
 tmp_home=$(mktemp -d "${TMPDIR:-/tmp}/parafab_gui_home.XXXXXX")
 trap 'rm -rf "$tmp_home"' EXIT
@@ -33,6 +35,7 @@ HOME=$tmp_home \
 QTWEBENGINE_DISABLE_SANDBOX=1 \
 PYTHONDONTWRITEBYTECODE=1 \
 PARAFAB_ARTIFACT_DIR=$artifacts \
+PARAFAB_SAMPLES_DIR=$repo/samples \
     timeout --kill-after=10 "$timeout_s" \
     xvfb-run -a -s "-screen 0 1280x1024x24" \
     freecad "$here/gui_smoke_macro.py" >"$artifacts/freecad.log" 2>&1 || status=$?
@@ -53,4 +56,4 @@ if [ "$status" -ne 0 ] || ! grep -q '"status": "pass"' "$artifacts/status.json";
     echo "gui_smoke.sh: FAILED (FreeCAD exit status $status), artifacts in $artifacts" >&2
     exit 1
 fi
-echo "gui_smoke.sh: passed, screenshot: $artifacts/strip.png"
+echo "gui_smoke.sh: passed, screenshots: $artifacts/strip.png $artifacts/analysis.png"

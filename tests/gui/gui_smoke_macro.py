@@ -7,9 +7,17 @@ Xvfb, with the workbench installed in FreeCAD's user Mod directory.  Steps:
 2. create a sketch holding a B-spline, select its edge;
 3. run ``ParaFab_Strip`` through ``FreeCADGui.runCommand``, recompute;
 4. fit the view and save a screenshot; check the strip's colour is visible;
-5. save, close and reopen the document; recompute.
+5. save, close and reopen the document; recompute;
+6. "Analyze part" on the L-bracket (``$PARAFAB_SAMPLES_DIR/parts/l_bracket.step``): select the
+   back face, run the command, check the task panel opens with it fixed; pick the loaded face
+   with "Add selected faces", set the force and a 10-cell grid, press Run and wait for the
+   ``parafab`` CLI (QProcess) to finish; check the progress bar, the results and the coloured
+   deformed mesh; run again and press "Cancel run" at the first progress line (results must
+   stay as they were); OK; screenshot of the coloured part; reopen the panel by editing the
+   feature and close it with Cancel; save and reopen.
 
-Results go to ``$PARAFAB_ARTIFACT_DIR`` (``status.json``, ``strip.png``).
+Results go to ``$PARAFAB_ARTIFACT_DIR`` (``status.json``, ``strip.png``, ``analysis.png``,
+``analysis_panel.png``).
 FreeCAD is then left with ``os._exit`` (0 = pass, 1 = fail), so no dialog
 ("save changes?") can block the run.
 """
@@ -27,6 +35,13 @@ ARTIFACT_DIR = os.environ.get("PARAFAB_ARTIFACT_DIR") or tempfile.mkdtemp()
 STATUS_FILE = os.path.join(ARTIFACT_DIR, "status.json")
 SCREENSHOT = os.path.join(ARTIFACT_DIR, "strip.png")
 DOCUMENT = os.path.join(ARTIFACT_DIR, "gui_smoke.FCStd")
+ANALYSIS_SCREENSHOT = os.path.join(ARTIFACT_DIR, "analysis.png")
+PANEL_SCREENSHOT = os.path.join(ARTIFACT_DIR, "analysis_panel.png")
+ANALYSIS_DOCUMENT = os.path.join(ARTIFACT_DIR, "gui_smoke_analysis.FCStd")
+ANALYSIS_OUT = os.path.join(ARTIFACT_DIR, "analysis_out")
+SAMPLES_DIR = os.environ.get("PARAFAB_SAMPLES_DIR", "")
+#: Seconds to wait for the CLI run of the bracket.
+RUN_TIMEOUT = 120
 
 #: Minimum number of strip-coloured pixels expected in the screenshot.
 MIN_STRIP_PIXELS = 2000
@@ -55,6 +70,163 @@ def strip_pixels(path):
             if c.red() > 120 and c.red() - c.blue() > 80 and c.green() > 40:
                 count += 1
     return count * 4
+
+
+def color_pixels(path):
+    """Counts of saturated pixels per hue band (blue, cyan, green, yellow, red) in the PNG."""
+    from PySide2 import QtGui
+    image = QtGui.QImage(path)
+    bands = {"blue": 0, "cyan": 0, "green": 0, "yellow": 0, "red": 0}
+    for y in range(0, image.height(), 2):
+        for x in range(0, image.width(), 2):
+            c = QtGui.QColor(image.pixel(x, y))
+            if c.saturation() < 120 or c.value() < 60:
+                continue
+            h = c.hue()
+            band = ("red" if h < 20 or h >= 300 else "yellow" if h < 75 else "green" if h < 150
+                    else "cyan" if h < 200 else "blue")
+            bands[band] += 4
+    return bands
+
+
+def wait_for(condition, seconds):
+    """Process GUI events until ``condition()`` holds or ``seconds`` pass; returns it."""
+    import time
+    from PySide2 import QtCore
+    end = time.time() + seconds
+    while not condition() and time.time() < end:
+        QtCore.QCoreApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
+        time.sleep(0.01)
+    return condition()
+
+
+def face_at(shape, point):
+    """``FaceN`` of the face of ``shape`` through ``point``."""
+    vertex = Part.Vertex(FreeCAD.Vector(*point))
+    for i, face in enumerate(shape.Faces):
+        if face.distToShape(vertex)[0] < 1e-6:
+            return "Face%d" % (i + 1)
+    raise AssertionError("no face through %s" % (point,))
+
+
+def run_analysis(check):
+    """Step 6: the "Analyze part" task panel on the L-bracket."""
+    from parafab_wb import analysis_panel, cli_runner
+    check("analyze_command_registered", "ParaFab_AnalyzePart" in FreeCADGui.listCommands())
+    doc = FreeCAD.newDocument("GuiAnalysis")
+    part = doc.addObject("Part::Feature", "Bracket")
+    part.Shape = Part.read(os.path.join(SAMPLES_DIR, "parts", "l_bracket.step"))
+    doc.recompute()
+    fixed = face_at(part.Shape, (0, 20, 30))   # back of the upright
+    loaded = face_at(part.Shape, (60, 20, 4))  # free end of the base
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(doc.Name, part.Name, fixed)
+    FreeCADGui.updateGui()
+    FreeCADGui.runCommand("ParaFab_AnalyzePart")
+    FreeCADGui.updateGui()
+    panel = analysis_panel.active_panel()
+    check("panel_open", panel is not None and FreeCADGui.Control.activeDialog())
+    analysis = panel.obj
+    check("panel_fixed_face", panel.fixed.faces() == [fixed], panel.fixed.faces())
+    cli = cli_runner.find_cli()
+    check("cli_found", cli is not None and os.access(cli, os.X_OK), cli)
+
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(doc.Name, part.Name, loaded)
+    panel.loaded.add_button.click()
+    check("panel_loaded_face", panel.loaded.faces() == [loaded], panel.loaded.faces())
+    panel.force[2].setValue(-500.0)
+    panel.preset.setCurrentIndex(panel.preset.findText("Steel"))
+    panel.cells.setValue(10)
+    panel.output_dir.setText(ANALYSIS_OUT)
+    check("panel_estimate", "unknowns" in panel.estimate_label.text(), panel.estimate_label.text())
+
+    phases = []
+    panel.run_button.click()
+    panel.run.progress.connect(lambda phase, fraction: phases.append(phase))
+    check("run_started", not panel.run_button.isEnabled() and panel.cancel_button.isEnabled())
+    check("run_finished", wait_for(lambda: panel.outcome is not None, RUN_TIMEOUT))
+    check("run_solved", panel.outcome.state == cli_runner.SOLVED, panel.outcome.message)
+    check("run_progress_lines", phases[:2] == ["read", "cut"] and "write" in phases, phases)
+    check("progress_bar_full", panel.progress.value() == 100, panel.progress.value())
+    check("results_stored", analysis.Dofs > 0 and analysis.MaxDisplacement.Value > 0, analysis.Status)
+    check("status_solved", analysis.Status.startswith("solved"), analysis.Status)
+    mesh = analysis.ResultMesh
+    check("result_mesh", mesh is not None and mesh.Mesh.CountPoints > 0)
+    check("result_mesh_colors", len(mesh.VertexColors) == mesh.Mesh.CountPoints
+          and mesh.ViewObject.Coloring)
+    check("result_mesh_child", mesh in analysis.ViewObject.Proxy.claimChildren())
+    check("inputs_stored", list(analysis.LoadedFaces) == [loaded] and analysis.Cells == 10
+          and abs(analysis.Force.z + 500) < 1e-9)
+    solved = (analysis.Dofs, analysis.MaxDisplacement.Value, mesh.Mesh.CountPoints, analysis.Cells)
+    FreeCADGui.updateGui()
+    FreeCADGui.getMainWindow().grab().save(PANEL_SCREENSHOT)
+
+    # Cancel a second run at its first progress line: nothing but Status changes.
+    panel.cells.setValue(12)
+    panel.run_button.click()
+    panel.run.progress.connect(lambda phase, fraction: panel.cancel_button.click())
+    check("cancel_finished", wait_for(lambda: panel.outcome is not None, RUN_TIMEOUT))
+    check("cancel_outcome", panel.outcome.state == cli_runner.CANCELLED, panel.outcome)
+    check("cancel_status", analysis.Status.startswith("cancelled"), analysis.Status)
+    check("cancel_kept_results", (analysis.Dofs, analysis.MaxDisplacement.Value, mesh.Mesh.CountPoints,
+                                  analysis.Cells) == solved)
+    check("cancel_progress_bar", panel.progress.format() == "cancelled", panel.progress.format())
+
+    panel.accept()
+    FreeCADGui.updateGui()
+    check("panel_closed", not FreeCADGui.Control.activeDialog())
+    check("undo_analysis", "Analyze part" in doc.UndoNames, doc.UndoNames)
+    check("part_hidden", not part.ViewObject.Visibility)
+
+    view = FreeCADGui.getDocument(doc.Name).activeView()
+    view.viewIsometric()
+    view.fitAll()
+    FreeCADGui.updateGui()
+    view.saveImage(ANALYSIS_SCREENSHOT, 1280, 1024, "White")
+    bands = color_pixels(ANALYSIS_SCREENSHOT)
+    check("analysis_colors_visible", bands["blue"] >= 2000 and sum(v >= 500 for v in bands.values()) >= 3,
+          bands)
+
+    # Double-click path: the view provider opens the panel; Cancel keeps the results.
+    FreeCADGui.getDocument(doc.Name).setEdit(analysis.Name, 0)
+    FreeCADGui.updateGui()
+    panel = analysis_panel.active_panel()
+    check("panel_reopened", panel is not None and panel.obj == analysis
+          and panel.loaded.faces() == [loaded] and panel.cells.value() == 10)
+    panel.reject()
+    FreeCADGui.updateGui()
+    check("panel_reject_closed", not FreeCADGui.Control.activeDialog())
+    check("reject_kept_results", analysis.Dofs == solved[0] and analysis.ResultMesh is not None)
+
+    # "Analyze part" again, then Cancel in the panel: the new feature and its mesh are undone.
+    names = sorted(o.Name for o in doc.Objects)
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(doc.Name, part.Name, fixed)
+    FreeCADGui.runCommand("ParaFab_AnalyzePart")
+    FreeCADGui.updateGui()
+    panel = analysis_panel.active_panel()
+    check("second_panel_open", panel is not None and panel.obj != analysis
+          and len(doc.Objects) == len(names) + 2)
+    panel.reject()
+    FreeCADGui.updateGui()
+    check("reject_removed_new_analysis", sorted(o.Name for o in doc.Objects) == names,
+          sorted(o.Name for o in doc.Objects))
+
+    name = analysis.Name
+    doc.saveAs(ANALYSIS_DOCUMENT)
+    FreeCAD.closeDocument(doc.Name)
+    doc = FreeCAD.openDocument(ANALYSIS_DOCUMENT)
+    analysis = doc.getObject(name)
+    check("reopened_analysis_view_provider",
+          type(analysis.ViewObject.Proxy).__name__ == "ViewProviderAnalysis")
+    check("reopened_result_mesh", analysis.ResultMesh is not None
+          and analysis.ResultMesh.Mesh.CountPoints == solved[2] and analysis.ResultMesh.ViewObject.Coloring)
+    scale = analysis.DeformationScale
+    FreeCAD.closeDocument(doc.Name)
+    return {"analysis_dofs": solved[0], "analysis_max_displacement_mm": solved[1],
+            "analysis_deformation_scale": scale,
+            "analysis_color_pixels": bands, "cli": cli, "analysis_screenshot": ANALYSIS_SCREENSHOT}
 
 
 def run(check):
@@ -113,6 +285,8 @@ def run(check):
     doc.recompute()
     check("reopened_recompute", strip.isValid() and strip.Feasible,
           strip.getStatusString())
+    FreeCAD.closeDocument(doc.Name)
+    info.update(run_analysis(check))
     return info
 
 

@@ -10,7 +10,9 @@
 #include "occt_version.h"
 #include "part_json.h"
 #include "integrate_json.h"
+#include "sections_json.h"
 #include "simulate_json.h"
+#include "outline_export.h"
 #include "strip_json.h"
 #include "rod_json.h"
 
@@ -61,6 +63,9 @@ int main(int argc, char** argv) {
   auto* strip = app.add_subcommand("strip", "Design a bending-active strip for a plane curve (JSON in, JSON out)");
   strip->add_option("input", in_path, "Strip request JSON (see README: JSON formats)")->required();
   strip->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  std::string dxf_path, svg_path;
+  strip->add_option("--dxf", dxf_path, "Also write the flat outline (cut sheet, mm) as ASCII DXF R12");
+  strip->add_option("--svg", svg_path, "Also write the flat outline (cut sheet, mm) as SVG");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
   rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
   rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
@@ -91,9 +96,16 @@ int main(int argc, char** argv) {
   simulate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
   simulate->add_option("job", job_path, "Job JSON: material, grid, supports, loads, gravity, probes")->required();
   simulate->add_option("-o,--output", out_dir, "Folder for result.json, result.vtu and surface.vtu");
-  bool show_progress = false;
+  bool show_progress = false, estimate_only = false;
+  simulate->add_flag("--estimate", estimate_only,
+                     "Only print the size estimate {unknowns, factor_mb, memory_mb, fits}; do not run");
   simulate->add_flag("--progress", show_progress,
                      "Print one JSON line per phase to stderr: {\"progress\": {\"phase\": ..., \"fraction\": ...}}");
+  auto* sections = app.add_subcommand(
+      "sections", "Strips from plane sections of a surface or solid (JSON job: planes, split, strip request)");
+  sections->add_option("part", in_path, "Surface or solid (.step/.stp/.brep/.brp)")->required();
+  sections->add_option("job", job_path, "Sections job JSON (see README: Strips from sections)")->required();
+  sections->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -104,7 +116,13 @@ int main(int argc, char** argv) {
   try {
     if (*version)
       return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
-    if (*strip) return emit(parafab::entry::design_strip_json(read_json_file(in_path)), out_path);
+    if (*strip) {
+      const json result = parafab::entry::design_strip_json(read_json_file(in_path));
+      // Cut sheets first: an infeasible design has no outline (exit 2, JSON error).
+      if (!dxf_path.empty()) parafab::entry::write_strip_outline(result, dxf_path);
+      if (!svg_path.empty()) parafab::entry::write_strip_outline(result, svg_path);
+      return emit(result, out_path);
+    }
     if (*rod) return emit(parafab::entry::design_rod_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {
@@ -114,8 +132,11 @@ int main(int argc, char** argv) {
           std::cerr << json{{"progress", {{"phase", phase}, {"fraction", fraction}}}}.dump() << std::endl;
           return true;
         };
+      if (estimate_only)
+        return emit(parafab::entry::SimulationSession(in_path, read_json_file(job_path)).estimate(), "");
       return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
     }
+    if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);
     if (*integrate) {
       integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;
       if (integrate->count("--non-negative"))

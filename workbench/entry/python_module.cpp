@@ -6,7 +6,9 @@
 #include "occt_version.h"
 #include "integrate_json.h"
 #include "part_json.h"
+#include "sections_json.h"
 #include "simulate_json.h"
+#include "outline_export.h"
 #include "strip_json.h"
 #include "rod_json.h"
 
@@ -56,7 +58,20 @@ PYBIND11_MODULE(parafab, m) {
       py::arg("request"),
       "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
       "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
-      "min_width, tolerance.");
+      "min_width, tolerance; optional gravity, boundary, natural_curvature, material.law, "
+      "smooth, validate, composite, perforated.");
+  m.def(
+      "export_strip_outline",
+      [](const py::dict& result, const std::string& path) {
+        const nlohmann::json in = to_json(result);
+        py::gil_scoped_release release;
+        parafab::entry::write_strip_outline(in, path);
+      },
+      py::arg("result"), py::arg("path"),
+      "Write the flat outline of a design_strip result (cut sheet at true scale, mm) to `path`: "
+      "ASCII DXF R12 for .dxf, SVG for .svg. Composite strips get both layers, perforated strips "
+      "their holes; clamp positions and end angles are annotated. Raises parafab.Error for an "
+      "infeasible result.");
   m.def(
       "design_rod",
       [](const py::dict& request) {
@@ -134,6 +149,8 @@ PYBIND11_MODULE(parafab, m) {
              return std::make_unique<parafab::entry::SimulationSession>(path, to_json(job));
            }),
            py::arg("path"), py::arg("job"))
+      .def("estimate", [](const parafab::entry::SimulationSession& s) { return to_python(s.estimate()); },
+           "Size of the run before running it: unknowns, factor_mb, memory_mb, fits.")
       .def(
           "run",
           [](parafab::entry::SimulationSession& s, const std::string& out_dir, const py::object& progress) {
@@ -159,6 +176,19 @@ PYBIND11_MODULE(parafab, m) {
             return to_python(out);
           },
           py::arg("path"), py::arg("out_dir") = "", py::arg("progress") = py::none());
+  m.def(
+      "strip_sections",
+      [](const std::string& path, const py::dict& job) {
+        const nlohmann::json in = to_json(job);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::strip_sections_json(path, in);
+        }
+        return to_python(out);
+      },
+      py::arg("path"), py::arg("job"),
+      "Strips from plane sections of a surface or solid (same job and result JSON as `parafab sections`).");
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
   m.attr("__version__") = "0.1.0";
 }

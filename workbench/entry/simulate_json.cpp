@@ -6,6 +6,9 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <fstream>
 
 #include "common/error.h"
@@ -185,7 +188,11 @@ struct SimulationSession::Setup {
   std::vector<xfem::TractionCondition> tractions;
   xfem::LinearXfemOptions fo;
   int load_steps = 5;
-  double dofs = 0, factor_mb = 0;
+  double dofs = 0, factor_mb = 0, physical_mb = 0;
+  double target = 0;   ///< relative accuracy target (grid.target); 0: the given grid
+  int max_cells = 64;  ///< refinement stops here (grid.max_cells)
+  Vec3 extent{0, 0, 0};
+  void set_estimate();
 };
 
 SimulationSession::SimulationSession(const std::string& part_path, const json& job) : job_(job) {
@@ -264,29 +271,119 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   S->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
   if (S->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1");
 
-  // Estimate before running: DOFs from the cell count, factor memory from a 3D fill model.
-  const Vec3 ext = info.bbox_max - info.bbox_min;
+  // An accuracy target instead of a fixed grid: grids refined by 1.5 from grid.cells (default 8)
+  // until the estimated relative error of the results is below the target (see run()).
+  S->target = number(grid_job.value("target", json(0.0)), "grid.target");
+  S->max_cells = static_cast<int>(number(grid_job.value("max_cells", json(64)), "grid.max_cells"));
+  if (S->target < 0 || S->target >= 1) PARAFAB_INPUT_ERROR("grid.target must be in (0, 1) (a relative error), got " << S->target);
+  if (S->target > 0 && go.grid.cell_size > 0) PARAFAB_INPUT_ERROR("grid.target chooses the cells: drop grid.cell_size");
+  if (S->target > 0 && !grid_job.contains("cells")) go.grid.cells_longest = 8;
+  S->extent = info.bbox_max - info.bbox_min;
+  S->physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
+  S->set_estimate();
+  return S;
+}
+
+// Estimate before running: DOFs from the cell count, factor memory from a 3D fill model.
+void SimulationSession::Setup::set_estimate() {
+  const Vec3& ext = extent;
   const double h = go.grid.cell_size > 0 ? go.grid.cell_size : ext.maxCoeff() / go.grid.cells_longest;
   const double nodes = (std::ceil(ext.x() / h) + 1) * (std::ceil(ext.y() / h) + 1) * (std::ceil(ext.z() / h) + 1);
-  S->dofs = 3 * nodes * 1.2;  // enriched copies at cut cells
-  S->factor_mb = 8.0 * S->dofs * 40.0 * std::cbrt(S->dofs) / 1e6;  // nested-dissection fill ~ n^{4/3}
-  const double physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
-  if (S->factor_mb > 0.7 * physical_mb)
-    PARAFAB_INPUT_ERROR("this grid needs about " << S->factor_mb << " MB for the factorization (" << S->dofs
-                                                 << " unknowns), more than 70% of the " << physical_mb
+  dofs = 3 * nodes * 1.2;  // enriched copies at cut cells
+  factor_mb = 8.0 * dofs * 40.0 * std::cbrt(dofs) / 1e6;  // nested-dissection fill ~ n^{4/3}
+}
+
+json SimulationSession::estimate() const {
+  return {{"unknowns", setup_->dofs}, {"factor_mb", setup_->factor_mb}, {"memory_mb", setup_->physical_mb},
+          {"fits", setup_->factor_mb <= 0.7 * setup_->physical_mb}};
+}
+
+void SimulationSession::refuse_if_too_big() const {
+  const Setup& S = *setup_;
+  if (S.factor_mb > 0.7 * S.physical_mb)
+    PARAFAB_INPUT_ERROR("this grid needs about " << S.factor_mb << " MB for the factorization (" << S.dofs
+                                                 << " unknowns), more than 70% of the " << S.physical_mb
                                                  << " MB of memory: use fewer cells");
-  return S;
 }
 
 json SimulationSession::run(const std::string& out_dir, const ProgressFn& progress) {
   auto report = [&](const char* phase, double fraction) {
     if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
   };
+  refuse_if_too_big();
+  if (setup_->target > 0) return run_to_target(out_dir, report);
   report("cut", 0.05);
   auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, setup_->go));
   if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << part_path_ << " by the grid: " << model->message);
   model_ = std::move(model);
   return solve(out_dir, report, json(nullptr));
+}
+
+// The results q (probe displacements, or the largest displacement without probes) on grids
+// refined by r = 1.5. The relative change Δ_k = ‖q_k − q_{k−1}‖ / ‖q_k‖ gives, with the
+// observed order p = log(Δ_{k−1}/Δ_k) / log r, clamped to [0.5, 1], the Richardson estimate
+// of the error of the finest grid, e_k = Δ_k / (r^p − 1). The cap at first order is on
+// purpose: with Nitsche on partly cut faces the bracket converges like h before it converges
+// like h², and a higher observed order there underestimated its error 2× (README). Stops when
+// e_k ≤ target (at least three grids), or at grid.max_cells / the memory limit (not met).
+template <class Report>
+json SimulationSession::run_to_target(const std::string& out_dir, const Report& report) {
+  Setup& S = *setup_;
+  const double ratio = 1.5;
+  json levels = json::array(), out;
+  std::vector<Eigen::VectorXd> q;
+  std::vector<double> change;
+  double estimated = std::numeric_limits<double>::infinity(), order = 1;
+  bool met = false;
+  std::string stop;
+  for (int cells = S.go.grid.cells_longest;; cells = static_cast<int>(std::lround(cells * ratio))) {
+    if (cells > S.max_cells) {
+      stop = "grid.max_cells (" + std::to_string(S.max_cells) + ") reached";
+      break;
+    }
+    S.go.grid.cells_longest = cells;
+    S.set_estimate();
+    if (S.factor_mb > 0.7 * S.physical_mb) {
+      stop = "the next grid (" + std::to_string(cells) + " cells) would not fit in memory";
+      break;
+    }
+    report("cut", 0.05);
+    auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, S.go));
+    if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << part_path_ << " by the grid: " << model->message);
+    model_ = std::move(model);
+    out = solve(out_dir, report, json(nullptr));
+    Eigen::VectorXd qk;
+    if (!out["probes"].empty()) {
+      qk.resize(3 * out["probes"].size());
+      for (size_t i = 0; i < out["probes"].size(); ++i)
+        for (int c = 0; c < 3; ++c) qk(3 * i + c) = out["probes"][i]["displacement"][c].get<double>();
+    } else {
+      qk = Eigen::VectorXd::Constant(1, out["max_displacement"].get<double>());
+    }
+    json level{{"cells", cells}, {"dofs", out["dofs"]}, {"seconds", out["seconds"]}};
+    if (!q.empty()) {
+      change.push_back((qk - q.back()).norm() / std::max(qk.norm(), 1e-300));
+      level["change"] = change.back();
+      if (change.size() >= 2) {
+        order = std::clamp(std::log(change[change.size() - 2] / std::max(change.back(), 1e-300)) / std::log(ratio), 0.5, 1.0);
+        estimated = change.back() / (std::pow(ratio, order) - 1);
+        level["order"] = order;
+        level["estimated_error"] = estimated;
+      }
+    }
+    q.push_back(qk);
+    levels.push_back(level);
+    if (estimated <= S.target) {
+      met = true;
+      break;
+    }
+  }
+  if (q.empty()) PARAFAB_INPUT_ERROR("grid.target: no grid could be run: " << stop);
+  out["accuracy"] = {{"target", S.target}, {"met", met}, {"estimated_error", std::isfinite(estimated) ? json(estimated) : json(nullptr)},
+                     {"order", order}, {"quantity", out["probes"].empty() ? "max_displacement" : "probe displacements"},
+                     {"levels", levels}, {"stopped", met ? "target met" : stop}};
+  if (!out_dir.empty()) std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
+  return out;
 }
 
 json SimulationSession::update(const std::string& new_part_path, const std::string& out_dir, const ProgressFn& progress) {
@@ -304,6 +401,7 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
     setup_ = std::move(old_setup);
     throw;
   }
+  refuse_if_too_big();
   report("cut", 0.05);
   occ::RecutReport rr;
   auto model = std::make_unique<occ::GridModel>(occ::rebuild_grid_model(*part_, *model_, *old_part, setup_->go, &rr));

@@ -29,6 +29,9 @@ class SimulationSession {
   /// Reads the part and checks the job; throws parafab::Error like simulate_part_json.
   SimulationSession(const std::string& part_path, const nlohmann::json& job);
   ~SimulationSession();
+  /// Size of the run before running it: {"unknowns", "factor_mb", "memory_mb", "fits"}; run()
+  /// and update() refuse a run that does not fit (factorization > 70 % of the memory).
+  nlohmann::json estimate() const;
   /// Cuts, solves and reports (the result JSON of simulate_part_json).
   nlohmann::json run(const std::string& out_dir, const ProgressFn& progress = {});
   /// The same job on a changed part on the same grid; the result carries "recut" (changed
@@ -40,7 +43,10 @@ class SimulationSession {
  private:
   struct Setup;
   void load_part(const std::string& part_path);
+  void refuse_if_too_big() const;
   std::unique_ptr<Setup> parse_job() const;
+  template <class Report>
+  nlohmann::json run_to_target(const std::string& out_dir, const Report& report);
   template <class Report>
   nlohmann::json solve(const std::string& out_dir, const Report& report, const nlohmann::json& recut);
 

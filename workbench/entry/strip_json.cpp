@@ -3,7 +3,10 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "strips/composite_strip.h"
+#include "strips/perforated_strip.h"
 #include "strips/strip_design.h"
+#include "strips/strip_validation.h"
 
 namespace parafab::entry {
 
@@ -59,6 +62,108 @@ std::vector<double> numbers(const json& v, const std::string& path) {
   return out;
 }
 
+bool boolean(const json& v, const std::string& path) {
+  if (!v.is_boolean()) PARAFAB_INPUT_ERROR(path << " must be true or false, got " << v.dump());
+  return v.get<bool>();
+}
+
+// Objects of the extensions reject unknown keys, so a typo is an error, not a silent default.
+void only_keys(const json& obj, const std::string& path, std::initializer_list<const char*> keys) {
+  if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.dump());
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool known = false;
+    for (const char* k : keys) known |= it.key() == k;
+    if (!known) {
+      std::string list;
+      for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
+      PARAFAB_INPUT_ERROR(path << "." << it.key() << " is not a known field (expected " << list << ")");
+    }
+  }
+}
+
+double positive(const json& v, const std::string& path) {
+  const double x = number(v, path);
+  if (!(x > 0)) PARAFAB_INPUT_ERROR(path << " must be positive, got " << x);
+  return x;
+}
+
+Vec2 direction2(const json& v, const std::string& path) {
+  if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number())
+    PARAFAB_INPUT_ERROR(path << " must be [x, y], got " << v.dump());
+  const Vec2 d(number(v[0], path + "[0]"), number(v[1], path + "[1]"));
+  if (!(d.norm() > 0)) PARAFAB_INPUT_ERROR(path << " must be a non-zero vector, got " << v.dump());
+  return d;
+}
+
+// "gravity": {"direction": [gx, gy], "beta_l3": m³} or {"direction", "density"[, "g"]}
+// (E and thickness from the material); false or null: no gravity.
+StripGravity parse_gravity(const json& v, const std::string& path, double E, double h) {
+  StripGravity g;
+  if (v.is_null() || (v.is_boolean() && !v.get<bool>())) return g;
+  only_keys(v, path, {"direction", "beta_l3", "density", "g"});
+  if (v.contains("direction")) g.direction = direction2(v["direction"], path + ".direction");
+  const bool beta = v.contains("beta_l3"), rho = v.contains("density");
+  if (beta == rho)
+    PARAFAB_INPUT_ERROR(path << " needs exactly one of \"beta_l3\" (m³) or \"density\" (kg/m³, "
+                             "or material.density), got " << v.dump());
+  if (beta) {
+    if (v.contains("g")) PARAFAB_INPUT_ERROR(path << ".g is only used with density, not with beta_l3");
+    g.gravito_bending = positive(v["beta_l3"], path + ".beta_l3");
+    g.enabled = true;
+    return g;
+  }
+  const double density = positive(v["density"], path + ".density");
+  const double acc = v.contains("g") ? positive(v["g"], path + ".g") : 9.81;
+  return StripGravity::from_material(E, h, density, acc, g.direction);
+}
+
+StripBoundary parse_boundary(const json& v) {
+  StripBoundary b;
+  only_keys(v, "boundary", {"start", "end"});
+  for (const char* which : {"start", "end"}) {
+    if (!v.contains(which)) continue;
+    const std::string p = std::string("boundary.") + which;
+    const json& e = v[which];
+    only_keys(e, p, {"free_x", "free_y", "free_angle"});
+    StripEnd& end = std::string(which) == "start" ? b.start : b.end;
+    if (e.contains("free_x")) end.free_x = boolean(e["free_x"], p + ".free_x");
+    if (e.contains("free_y")) end.free_y = boolean(e["free_y"], p + ".free_y");
+    if (e.contains("free_angle")) end.free_angle = boolean(e["free_angle"], p + ".free_angle");
+  }
+  return b;
+}
+
+MomentLaw parse_law(const json& v) {
+  MomentLaw law;
+  const std::string p = "material.law";
+  only_keys(v, p, {"cubic", "table_curvature", "table_moment", "curvature_limit", "hardening"});
+  if (v.contains("cubic")) law.cubic = number(v["cubic"], p + ".cubic");
+  if (v.contains("table_curvature") != v.contains("table_moment"))
+    PARAFAB_INPUT_ERROR(p << " needs both table_curvature and table_moment (a table of (|κ|, m) pairs)");
+  if (v.contains("table_curvature")) {
+    law.table_curvature = numbers(v["table_curvature"], p + ".table_curvature");
+    law.table_moment = numbers(v["table_moment"], p + ".table_moment");
+  }
+  if (v.contains("curvature_limit")) law.curvature_limit = positive(v["curvature_limit"], p + ".curvature_limit");
+  if (v.contains("hardening")) {
+    if (!v.contains("curvature_limit"))
+      PARAFAB_INPUT_ERROR(p << ".hardening needs " << p << ".curvature_limit (the plastic slope applies beyond it)");
+    law.plastic_hardening = number(v["hardening"], p + ".hardening");
+    if (law.plastic_hardening < 0) PARAFAB_INPUT_ERROR(p << ".hardening must be >= 0, got " << law.plastic_hardening);
+  }
+  law.validate();
+  return law;
+}
+
+// gravity, with material.density filling in when the object gives only the direction.
+StripGravity gravity_field(json g, const std::string& path, const json& material, double E, double h) {
+  if (g.is_object() && !g.contains("density") && !g.contains("beta_l3") && material.contains("density"))
+    g["density"] = material["density"];
+  return parse_gravity(g, path, E, h);
+}
+
+json num_or_null(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
+
 BSplineCurve2 parse_curve(const json& request) {
   const json& curve = require(request, "curve", "request");
   if (curve.contains("bspline")) {
@@ -99,6 +204,73 @@ json design_strip_json(const json& request) {
   o.youngs_modulus = number(require(material, "E", "material"), "material.E");
   o.thickness = number(require(material, "thickness", "material"), "material.thickness");
   o.min_width = number(require(request, "min_width", "request"), "min_width");
+  // ---- issue 5 extensions (all optional; absent = the plain Eq. 4.4 design)
+  if (material.contains("density")) positive(material["density"], "material.density");
+  if (material.contains("law")) o.law = parse_law(material["law"]);
+  if (request.contains("gravity"))
+    o.gravity = gravity_field(request["gravity"], "gravity", material, o.youngs_modulus, o.thickness);
+  if (request.contains("boundary")) o.boundary = parse_boundary(request["boundary"]);
+  if (request.contains("natural_curvature"))
+    o.natural_curvature = number(request["natural_curvature"], "natural_curvature");
+  if (request.contains("smooth")) o.smooth = boolean(request["smooth"], "smooth");
+  if (request.contains("samples")) {
+    const json& n = request["samples"];
+    if (!n.is_number_integer() || n.get<long long>() < 4 || n.get<long long>() > (1 << 20))
+      PARAFAB_INPUT_ERROR("samples must be an integer 4..1048576 (a fixed sample count), got " << n.dump());
+    o.fixed_samples = n.get<int>();
+  }
+  bool validate = false;
+  StripValidationOptions vo;
+  bool sim_gravity = false;  // simulate under another gravity than the design's
+  StripGravity sim_g;
+  if (request.contains("validate")) {
+    const json& v = request["validate"];
+    if (v.is_boolean()) {
+      validate = v.get<bool>();
+    } else if (v.is_object()) {
+      only_keys(v, "validate", {"edges", "gravity"});
+      validate = true;
+      if (v.contains("edges")) {
+        if (!v["edges"].is_number_integer() || v["edges"].get<long long>() < 4 || v["edges"].get<long long>() > 100000)
+          PARAFAB_INPUT_ERROR("validate.edges must be an integer 4..100000, got " << v["edges"].dump());
+        vo.rod.edges = v["edges"].get<int>();
+      }
+      if (v.contains("gravity")) {
+        sim_g = gravity_field(v["gravity"], "validate.gravity", material, o.youngs_modulus, o.thickness);
+        sim_gravity = true;
+      }
+    } else {
+      PARAFAB_INPUT_ERROR("validate must be true, false or {\"edges\": n, \"gravity\": {...}}, got " << v.dump());
+    }
+  }
+  CompositeStripOptions co;
+  double composite_w1 = 0;
+  if (request.contains("composite")) {
+    const json& c = request["composite"];
+    only_keys(c, "composite", {"h1", "h2", "outer_width"});
+    co.outer_thickness = positive(require(c, "h1", "composite"), "composite.h1");
+    co.inner_thickness = positive(require(c, "h2", "composite"), "composite.h2");
+    composite_w1 = positive(require(c, "outer_width", "composite"), "composite.outer_width");
+  }
+  PerforatedStripOptions po;
+  double perforated_w = 0;
+  if (request.contains("perforated")) {
+    const json& c = request["perforated"];
+    only_keys(c, "perforated", {"outer_width", "min_ligament", "columns", "cell_aspect"});
+    perforated_w = positive(require(c, "outer_width", "perforated"), "perforated.outer_width");
+    if (c.contains("min_ligament")) po.min_ligament = positive(c["min_ligament"], "perforated.min_ligament");
+    if (c.contains("cell_aspect")) po.cell_aspect = positive(c["cell_aspect"], "perforated.cell_aspect");
+    if (c.contains("columns")) {
+      const json& m = c["columns"];
+      if (!m.is_number_integer() || (m.get<long long>() != 0 && m.get<long long>() < 2) || m.get<long long>() > 1000)
+        PARAFAB_INPUT_ERROR("perforated.columns must be 0 (automatic) or an integer 2..1000, got " << m.dump());
+      po.columns = m.get<int>();
+    }
+  }
+  if (request.contains("composite") && request.contains("perforated"))
+    PARAFAB_INPUT_ERROR("composite and perforated are exclusive: a strip is one or the other");
+  if (request.contains("name") && !request["name"].is_string())
+    PARAFAB_INPUT_ERROR("name must be a string, got " << request["name"].dump());
   o.tolerance = optional_number(request, "tolerance", "request", o.tolerance);
   if (request.contains("max_samples"))
     o.max_samples = static_cast<int>(number(request["max_samples"], "max_samples"));
@@ -158,6 +330,104 @@ json design_strip_json(const json& request) {
                         {"total_seconds", d.total_seconds},
                         {"lp_message", d.lp_message},
                         {"collinearity_error", d.collinearity_error}};
+  if (request.contains("name")) out["name"] = request["name"];
+  out["thickness"] = o.thickness;
+  out["min_width"] = o.min_width;
+  // Gravity / general LP fields (null / defaults for the plain Eq. 4.4 design).
+  out["general_lp"] = d.general_lp;
+  out["R_first"] = d.feasible ? num_or_null(d.R_first) : json(nullptr);
+  out["smoothed"] = d.smoothed;
+  out["tv_first"] = num_or_null(d.tv_first);
+  out["tv"] = num_or_null(d.tv);
+  out["start_force"] = d.general_lp && d.feasible ? to_json(d.start_force) : json(nullptr);
+  out["end_force"] = d.general_lp && d.feasible ? to_json(d.end_force) : json(nullptr);
+  out["zero_consistency"] = d.zero_consistency;
+  out["max_plastic_curvature"] = d.max_plastic_curvature;
+  if (o.gravity.enabled) {
+    const Vec2 dir = o.gravity.direction / o.gravity.direction.norm();
+    out["gravity"] = {{"direction", to_json(dir)}, {"beta_l3", o.gravity.gravito_bending},
+                      {"load", to_json(o.gravity.load())}};
+  } else {
+    out["gravity"] = nullptr;
+  }
+  {  // the clamp (or support) at each end: position and tangent angle of the curve
+    const PlaneCurve pc(curve);
+    json ends = json::array();
+    for (int e = 0; e < 2; ++e) {
+      const CurvePoint p = pc.at_arc_length(e == 0 ? 0.0 : d.length);
+      const StripEnd& be = e == 0 ? o.boundary.start : o.boundary.end;
+      ends.push_back({{"which", e == 0 ? "start" : "end"}, {"s", e == 0 ? 0.0 : d.length},
+                      {"point", to_json(p.point)},
+                      {"angle_deg", std::atan2(p.tangent.y(), p.tangent.x()) * 180.0 / M_PI},
+                      {"free_x", be.free_x}, {"free_y", be.free_y}, {"free_angle", be.free_angle}});
+    }
+    out["ends"] = ends;
+  }
+  if (validate) {
+    if (!d.feasible) {
+      out["simulation"] = nullptr;
+    } else {
+      StripDesignOptions so = o;
+      if (sim_gravity) so.gravity = sim_g;
+      const StripValidation v = validate_strip(curve, d, so, vo);
+      json nodes = json::array();
+      for (const auto& p : v.simulation.nodes) nodes.push_back(to_json(p));
+      out["simulation"] = {{"deviation", num_or_null(v.deviation)},
+                           {"max_distance", num_or_null(v.max_distance)},
+                           {"worst_s", v.worst_s},
+                           {"iterations", v.iterations},
+                           {"load_steps", v.load_steps},
+                           {"converged", v.converged},
+                           {"seconds", v.seconds},
+                           {"message", v.message},
+                           {"gravity", so.gravity.enabled},
+                           {"edges", vo.rod.edges},
+                           {"nodes", nodes}};
+    }
+  }
+  if (request.contains("composite")) {
+    if (!d.feasible) {
+      out["composite"] = nullptr;
+    } else {
+      std::vector<double> sv, K, w1;
+      for (const auto& p : d.samples) sv.push_back(p.s), K.push_back(p.K), w1.push_back(composite_w1);
+      const CompositeStripResult c = design_composite_strip(sv, K, w1, co);
+      out["composite"] = {{"feasible", c.feasible},
+                          {"h1", co.outer_thickness},
+                          {"h2", co.inner_thickness},
+                          {"outer_width", composite_w1},
+                          {"w2", c.inner_width},
+                          {"scale", c.scale},
+                          {"worst_s", c.worst_s},
+                          {"max_thickness_ratio", num_or_null(c.max_thickness_ratio)},
+                          {"message", c.message}};
+    }
+  }
+  if (request.contains("perforated")) {
+    if (!d.feasible) {
+      out["perforations"] = nullptr;
+    } else {
+      std::vector<double> sv, w;
+      for (const auto& p : d.samples) sv.push_back(p.s), w.push_back(perforated_w);
+      const PerforatedStripResult r = design_perforated_strip(sv, w, d.width, po);
+      json diamonds = json::array();
+      for (const auto& dm : r.diamonds) {
+        json corners = json::array();
+        for (const auto& c : dm.corners()) corners.push_back(to_json(c));
+        diamonds.push_back({{"s", dm.s}, {"offset", dm.offset}, {"length", dm.length},
+                            {"width", dm.width}, {"corners", corners}});
+      }
+      out["perforations"] = {{"feasible", r.feasible},
+                             {"outer_width", perforated_w},
+                             {"columns", r.columns},
+                             {"pitch", r.pitch},
+                             {"from", r.perforated_from},
+                             {"to", r.perforated_to},
+                             {"worst_s", r.worst_s},
+                             {"message", r.message},
+                             {"diamonds", diamonds}};
+    }
+  }
   out["units"] = {{"length", "m"}, {"E", "Pa"}, {"bending_stiffness", "N*m^2"}};
   return out;
 }

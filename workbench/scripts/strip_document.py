@@ -45,11 +45,29 @@ for path in results:
     strip.YoungsModulus = FreeCAD.Units.Quantity("%r Pa" % request["material"]["E"])
     strip.MinWidth = FreeCAD.Units.Quantity(request["min_width"] * M_TO_MM, FreeCAD.Units.Length)
     strip.Tolerance = request.get("tolerance", 1e-6)
+    # Issue 5 fields: gravity (direction in the XY plane of the document, density from the
+    # material or from beta_l3 = E h^2 / (12 rho g)), composite / perforated, validation.
+    gravity = request.get("gravity")
+    if gravity:
+        mat = request["material"]
+        dx, dy = gravity.get("direction", [0.0, -1.0])
+        strip.Gravity = True
+        strip.GravityDirection = FreeCAD.Vector(dx, dy, 0)
+        strip.Density = float(gravity.get("density") or mat.get("density") or
+                              mat["E"] * mat["thickness"] ** 2 / (12 * gravity.get("g", 9.81) * gravity["beta_l3"]))
+    for kind in ("composite", "perforated"):
+        if kind in request:
+            strip.StripType = kind.capitalize()
+            strip.OuterWidth = FreeCAD.Units.Quantity(request[kind]["outer_width"] * M_TO_MM, FreeCAD.Units.Length)
+            if kind == "composite":
+                strip.InnerThickness = FreeCAD.Units.Quantity(request[kind]["h2"] * M_TO_MM, FreeCAD.Units.Length)
+    strip.Validate = bool(request.get("validate"))
     doc.recompute()
-    summary.append((name, strip.Feasible, strip.R, strip.Reason))
+    summary.append((name, strip.Feasible, strip.R, strip.Reason, strip.Deviation))
     bb = owner.Shape.BoundBox
     y_offset -= bb.YLength + 400.0
 doc.saveAs(os.environ["PARAFAB_DOCUMENT"])
-for name, ok, R, reason in summary:
-    print("strip %-22s %s" % (name, ("feasible, R = %.6f" % R) if ok else "infeasible: " + reason[:90]))
+for name, ok, R, reason, deviation in summary:
+    print("strip %-26s %s%s" % (name, ("feasible, R = %.6f" % R) if ok else "infeasible: " + reason[:90],
+                                 ", simulated deviation %.2e" % deviation if deviation else ""))
 print("wrote", os.environ["PARAFAB_DOCUMENT"])

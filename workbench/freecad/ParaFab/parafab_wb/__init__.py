@@ -8,6 +8,11 @@ Modules:
   provider and :func:`~parafab_wb.strip_feature.make_strip`.
 * :mod:`parafab_wb.rod_shapes`, :mod:`parafab_wb.rod_feature`, :mod:`parafab_wb.rod_plot`
   -- the ``Rod`` feature (Kirchhoff rods on space curves), its shapes and twist plot.
+* :mod:`parafab_wb.analysis_feature` -- the ``Analysis`` feature (XFEM on a solid), its view
+  provider and :func:`~parafab_wb.analysis_feature.make_analysis`.
+* :mod:`parafab_wb.result_display` -- ``surface.vtu`` -> deformed mesh coloured by von Mises.
+* :mod:`parafab_wb.cli_runner` -- locate the ``parafab`` CLI and run it in a QProcess.
+* :mod:`parafab_wb.analysis_panel` -- the "Analyze part" task panel (GUI only).
 * :mod:`parafab_wb.commands` -- GUI commands (imported by ``InitGui.py`` only).
 
 This ``__init__`` must stay importable without FreeCAD: it only knows where

@@ -8,6 +8,10 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
 * ``ParaFab_Rod`` -- "Kirchhoff rod": create a ``Rod`` feature on the selected
   space-curve edge; export both rods with ``parafab_wb.rod_feature.export_step``
   and the twist plot with ``write_twist_plot`` (or set its ``PlotFile``).
+* ``ParaFab_ExportCutSheets`` -- "Export cut sheets": DXF and SVG outlines of the
+  selected strips (:func:`parafab_wb.strip_feature.export_cut_sheets`).
+* ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
+  solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
 """
 
 import FreeCAD
@@ -103,37 +107,120 @@ class RodCommand(object):
 FreeCADGui.addCommand("ParaFab_Rod", RodCommand())
 
 
+def selected_strips():
+    """Selected ``Strip`` features."""
+    return [sel.Object for sel in FreeCADGui.Selection.getSelectionEx()
+            if getattr(getattr(sel.Object, "Proxy", None), "Type", None) == strip_feature.TYPE]
+
+
+class ExportCutSheetsCommand(object):
+    """Write the flat outlines of the selected strips as DXF and SVG (true scale, mm)."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Export cut sheets",
+            "ToolTip": "Write the flat outline of each selected strip (true scale, mm; both "
+                       "layers of composite strips, holes of perforated ones; clamp positions "
+                       "and end angles annotated) as <Label>.dxf and <Label>.svg",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        from PySide import QtGui
+        strips = selected_strips()
+        directory = QtGui.QFileDialog.getExistingDirectory(
+            FreeCADGui.getMainWindow(), "Folder for the cut sheets (DXF, SVG)")
+        if not directory:
+            return
+        for obj in strips:
+            try:
+                for path in strip_feature.export_cut_sheets(obj, directory):
+                    FreeCAD.Console.PrintMessage("ParaFab: wrote %s\n" % path)
+            except Exception as exc:
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+FreeCADGui.addCommand("ParaFab_ExportCutSheets", ExportCutSheetsCommand())
+
+
+class StripsFromSectionsCommand(object):
+    """Strips from plane sections of the selected surface or solid (§4.8.2)."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Strips from sections",
+            "ToolTip": "Cut the selected surface or solid by 5 planes across its longest side, split every "
+                       "section at the middle plane of the shortest side, and design a strip on each piece",
+        }
+
+    def IsActive(self):
+        sel = FreeCADGui.Selection.getSelection()
+        return bool(sel) and hasattr(sel[0], "Shape") and bool(sel[0].Shape.Faces)
+
+    def Activated(self):
+        from . import sections
+        obj = FreeCADGui.Selection.getSelection()[0]
+        box = obj.Shape.BoundBox
+        lengths = [box.XLength, box.YLength, box.ZLength]
+        longest = lengths.index(max(lengths))
+        shortest = lengths.index(min(lengths))
+        if shortest == longest:
+            shortest = (longest + 1) % 3
+        normal = [1.0 if a == longest else 0.0 for a in range(3)]
+        split_normal = [1.0 if a == shortest else 0.0 for a in range(3)]
+        split_offset = [box.Center.x, box.Center.y, box.Center.z][shortest]
+        doc = obj.Document
+        doc.openTransaction("Strips from sections")
+        try:
+            _, report = sections.strips_from_sections(obj, normal, 5, split=(split_normal, split_offset))
+        except Exception as exc:
+            doc.abortTransaction()
+            FreeCAD.Console.PrintError("ParaFab: cannot take sections: %s\n" % exc)
+            return
+        doc.commitTransaction()
+        FreeCAD.Console.PrintMessage("ParaFab: %d strips designed, %d infeasible, %d failed\n"
+                                     % (report["designed"], report["infeasible"], report["failed"]))
+
+
+FreeCADGui.addCommand("ParaFab_StripsFromSections", StripsFromSectionsCommand())
+
+
 class AnalyzePartCommand(object):
-    """Analyze the selected solid: the selected faces are held fixed; loads (LoadedFaces,
-    Force), material and grid are set in the property editor, then the feature recomputes."""
+    """Analyze the selected solid: creates an ``Analysis`` feature (selected faces held fixed)
+    and opens its task panel, where loads, material and grid are set and the run is started."""
 
     def GetResources(self):
         return {
             "Pixmap": icon_path("ParaFab_Analysis.svg"),
             "MenuText": "Analyze part",
             "ToolTip": "Linear or hyperelastic XFEM simulation of the selected solid on a fixed grid; "
-                       "selected faces are held fixed",
+                       "selected faces are held fixed, the rest is set in the task panel",
         }
 
     def IsActive(self):
         sel = FreeCADGui.Selection.getSelectionEx()
-        return bool(sel) and hasattr(sel[0].Object, "Shape") and bool(sel[0].Object.Shape.Solids)
+        return bool(sel) and hasattr(sel[0].Object, "Shape") and bool(sel[0].Object.Shape.Solids) \
+            and not FreeCADGui.Control.activeDialog()
 
     def Activated(self):
         from . import analysis_feature
         sel = FreeCADGui.Selection.getSelectionEx()[0]
         faces = [n.split(".")[-1] for n in sel.SubElementNames if n.split(".")[-1].startswith("Face")]
         doc = sel.Object.Document
+        # One transaction for the new feature and the task panel: the panel's Cancel undoes both.
         doc.openTransaction("Analyze part")
         try:
-            analysis_feature.make_analysis(sel.Object, faces)
+            obj = analysis_feature.make_analysis(sel.Object, faces)
         except Exception as exc:
             doc.abortTransaction()
             FreeCAD.Console.PrintError("ParaFab: cannot create analysis: %s\n" % exc)
             return
-        doc.commitTransaction()
-        FreeCAD.Console.PrintMessage(
-            "ParaFab: analysis created; set LoadedFaces and Force, then recompute\n")
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.getDocument(doc.Name).setEdit(obj.Name, 0)
 
 
 FreeCADGui.addCommand("ParaFab_AnalyzePart", AnalyzePartCommand())

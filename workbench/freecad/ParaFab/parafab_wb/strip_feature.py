@@ -26,6 +26,8 @@ Works headless (``freecadcmd``): the view provider is only created when
 time because FreeCAD imports it to restore saved documents.
 """
 
+import math
+import os
 import traceback
 
 import FreeCAD
@@ -39,7 +41,24 @@ from . import feature_proxy
 #: Proxy type tag stored in documents.
 TYPE = "ParaFab::Strip"
 #: Version of the stored proxy state / property set.
-VERSION = 1
+#: 1: edge, material (E, thickness), min width, tolerance; results Feasible, Reason, R, Length.
+#: 2: gravity (direction, density), material presets, strip type (plain / composite /
+#:    perforated), validation by simulation (Deviation), RFirst, TypeMessage. Version-1
+#:    documents get the new properties with defaults that reproduce their design (no gravity,
+#:    plain strip, no validation).
+VERSION = 2
+
+#: Material presets: (E [Pa], thickness [m], density [kg/m³]). 200 gsm cardboard: h = 0.3 mm,
+#: 200 g/m² → ρ = 667 kg/m³, and E = 0.773 GPa, the modulus for which βl³ = E h²/(12 ρ g)
+#: equals the thesis' fit 8.86e-4 m³ (§4.4.1). POM sheet 0.5 mm: E ≈ 2.8 GPa, ρ = 1410 kg/m³
+#: (βl³ ≈ 4.2e-3 m³). Birch plywood 0.8 mm: E ≈ 8 GPa, ρ ≈ 600 kg/m³ (βl³ ≈ 7.2e-2 m³).
+PRESETS = {
+    "Cardboard 200 gsm": (0.773e9, 0.3e-3, 667.0),
+    "POM 0.5 mm": (2.8e9, 0.5e-3, 1410.0),
+    "Plywood 0.8 mm": (8.0e9, 0.8e-3, 600.0),
+}
+PRESET_NAMES = ["Custom"] + list(PRESETS)
+STRIP_TYPES = ["Plain", "Composite", "Perforated"]
 
 # Property status bits (App::PropertyType): read-only in the editor, and
 # "output" (changing it does not touch the object).
@@ -70,7 +89,36 @@ _PROPERTIES = (
      _READ_ONLY | _OUTPUT),
     ("App::PropertyLength", "Length", "Results",
      "Arc length of the centreline", "0 mm", _READ_ONLY | _OUTPUT),
+    # ---- version 2
+    ("App::PropertyEnumeration", "MaterialPreset", "Material",
+     "Sets thickness, Young's modulus and density (Custom: edit them freely)", None, 0),
+    ("App::PropertyFloat", "Density", "Material",
+     "Density of the strip material [kg/m^3] (for gravity)", 1000.0, 0),
+    ("App::PropertyBool", "Gravity", "Load",
+     "Design for the strip's own weight (thesis section 4.4, LP Eq. 4.6)", False, 0),
+    ("App::PropertyVector", "GravityDirection", "Load",
+     "Direction of gravity (global); projected onto the curve's plane", None, 0),
+    ("App::PropertyEnumeration", "StripType", "Strip",
+     "Plain sheet, composite (broad + narrow strip) or perforated (diamond holes)", None, 0),
+    ("App::PropertyLength", "OuterWidth", "Strip",
+     "Composite: width of the broad strip; perforated: width of the strip with holes",
+     "50 mm", 0),
+    ("App::PropertyLength", "InnerThickness", "Strip",
+     "Composite: thickness of the narrow strip (the broad one has Thickness)", "0.3 mm", 0),
+    ("App::PropertyBool", "Validate", "Solver",
+     "Simulate the designed strip and report its deviation from the curve", False, 0),
+    ("App::PropertyFloat", "Deviation", "Results",
+     "Max distance of the simulated strip from the curve / length (0: not validated)", 0.0,
+     _READ_ONLY | _OUTPUT),
+    ("App::PropertyFloat", "RFirst", "Results",
+     "Phase-one optimum of the gravity LP before smoothing (0 without gravity)", 0.0,
+     _READ_ONLY | _OUTPUT),
+    ("App::PropertyString", "TypeMessage", "Results",
+     "Composite / perforated design: feasibility and why not", "", _READ_ONLY | _OUTPUT),
 )
+_ENUMERATIONS = {"MaterialPreset": PRESET_NAMES, "StripType": STRIP_TYPES}
+#: Inputs whose manual change turns a preset into "Custom".
+_PRESET_INPUTS = ("Thickness", "YoungsModulus", "Density")
 
 
 class StripError(RuntimeError):
@@ -122,9 +170,24 @@ def _number(value):
     return 0.0 if value is None else float(value)
 
 
+def gravity_in_plane(obj, frame):
+    """``GravityDirection`` projected onto the curve's plane, as (x, y) in its frame."""
+    g = FreeCAD.Vector(obj.GravityDirection)
+    if g.Length == 0:
+        raise StripError("GravityDirection must be a non-zero vector")
+    g.normalize()
+    x, y = g.dot(frame.xdir), g.dot(frame.ydir)
+    if math.hypot(x, y) < 1e-6:
+        raise StripError("GravityDirection (%g, %g, %g) is perpendicular to the curve's plane: "
+                         "the weight does not bend the strip in its plane; set a direction in "
+                         "the plane" % (g.x, g.y, g.z))
+    return [x, y]
+
+
 def build_spec(obj, curve):
     """Solver input (SI units) for feature ``obj`` and :class:`PlanarCurve` ``curve``."""
-    return {
+    spec = {
+        "name": obj.Label,
         "curve": curve.to_spec(geometry.MM_TO_M),
         "material": {
             "E": float(obj.YoungsModulus.getValueAs("Pa")),
@@ -133,6 +196,42 @@ def build_spec(obj, curve):
         "min_width": float(obj.MinWidth.getValueAs("m")),
         "tolerance": float(obj.Tolerance),
     }
+    if not hasattr(obj, "Gravity"):  # version-1 object not yet upgraded
+        return spec
+    if obj.Gravity:
+        spec["gravity"] = {"direction": gravity_in_plane(obj, curve.frame),
+                           "density": float(obj.Density)}
+    if obj.Validate:
+        spec["validate"] = True
+    if obj.StripType == "Composite":
+        spec["composite"] = {"h1": spec["material"]["thickness"],
+                             "h2": float(obj.InnerThickness.getValueAs("m")),
+                             "outer_width": float(obj.OuterWidth.getValueAs("m"))}
+    elif obj.StripType == "Perforated":
+        spec["perforated"] = {"outer_width": float(obj.OuterWidth.getValueAs("m"))}
+    return spec
+
+
+def export_cut_sheets(obj, directory):
+    """Write ``<Label>.dxf`` and ``<Label>.svg`` (flat outline at true scale, mm) of strip
+    ``obj`` into ``directory``; returns the two paths. Raises :class:`StripError` when the
+    strip has no feasible design."""
+    proxy = obj.Proxy
+    result = getattr(proxy, "result", None)
+    if result is None:  # not designed in this session (e.g. a reopened document)
+        owner, edge = _linked_edge(obj)
+        curve = geometry.planar_curve_from_edge(edge, _plane_hint(owner))
+        result = _solver().design_strip(build_spec(obj, curve))
+    if not result.get("feasible"):
+        raise StripError("%s has no feasible design to export: %s"
+                         % (obj.Label, result.get("reason") or obj.Reason))
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in obj.Label) or obj.Name
+    paths = []
+    for ext in ("dxf", "svg"):
+        path = os.path.join(directory, safe + "." + ext)
+        _solver().export_strip_outline(result, path)
+        paths.append(path)
+    return paths
 
 
 class StripFeature(feature_proxy.FeatureProxy):
@@ -141,15 +240,60 @@ class StripFeature(feature_proxy.FeatureProxy):
     TYPE = TYPE
     VERSION = VERSION
     PROPERTIES = _PROPERTIES
+    ENUMERATIONS = _ENUMERATIONS
+
+    #: Transient (not saved): the last solver result, and how often execute ran.
+    result = None
+    executions = 0
+    _quiet = False
+
+    def __init__(self, obj):
+        super(StripFeature, self).__init__(obj)
+        if obj.GravityDirection.Length == 0:
+            obj.GravityDirection = FreeCAD.Vector(0, 0, -1)
+
+    def onDocumentRestored(self, obj):
+        """Version 1 -> 2: add the new properties (defaults keep the old design)."""
+        missing_direction = "GravityDirection" not in obj.PropertiesList
+        super(StripFeature, self).onDocumentRestored(obj)
+        if missing_direction:
+            obj.GravityDirection = FreeCAD.Vector(0, 0, -1)
+
+    def onChanged(self, obj, prop):
+        """Material presets: choosing one sets thickness, E and density; editing those by
+        hand switches the preset to Custom."""
+        if self._quiet or "Restore" in obj.State or not hasattr(obj, "MaterialPreset"):
+            return
+        if prop == "MaterialPreset" and obj.MaterialPreset in PRESETS:
+            E, h, rho = PRESETS[obj.MaterialPreset]
+            self._quiet = True
+            try:
+                obj.YoungsModulus = FreeCAD.Units.Quantity("%r Pa" % E)
+                obj.Thickness = FreeCAD.Units.Quantity(h * 1e3, FreeCAD.Units.Length)
+                obj.Density = rho
+            finally:
+                self._quiet = False
+        elif prop in _PRESET_INPUTS and obj.MaterialPreset != "Custom":
+            self._quiet = True
+            try:
+                obj.MaterialPreset = "Custom"
+            finally:
+                self._quiet = False
 
     # -- recompute ---------------------------------------------------------
 
     def execute(self, obj):
         """Recompute the strip; on failure set the results and raise."""
+        self.executions = self.executions + 1
+        self.result = None
         obj.Feasible = False
         obj.Reason = ""
         obj.R = 0.0
         obj.Length = 0.0
+        if hasattr(obj, "Deviation"):
+            obj.Deviation = 0.0
+            obj.RFirst = 0.0
+            obj.TypeMessage = ""
         try:
             self._design(obj)
         except Exception as exc:
@@ -175,6 +319,23 @@ class StripFeature(feature_proxy.FeatureProxy):
         obj.Shape = shapes.strip_shape(result, curve.frame)
         obj.Feasible = True
         obj.Reason = ""
+        self.result = result
+        if not hasattr(obj, "Deviation"):
+            return
+        obj.RFirst = _number(result.get("R_first")) if result.get("general_lp") else 0.0
+        sim = result.get("simulation")
+        if sim:
+            obj.Deviation = _number(sim.get("deviation"))
+            if not sim.get("converged"):
+                FreeCAD.Console.PrintWarning("ParaFab: %s: the validation did not converge: %s\n"
+                                             % (obj.Label, sim.get("message")))
+        part = result.get("composite") or result.get("perforations")
+        if part is not None:
+            kind = "composite" if result.get("composite") else "perforated"
+            if part.get("feasible"):
+                obj.TypeMessage = "%s strip feasible" % kind
+            else:
+                obj.TypeMessage = "%s strip infeasible: %s" % (kind, part.get("message", ""))
 
 
 class ViewProviderStrip(object):

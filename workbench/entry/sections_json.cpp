@@ -1,0 +1,111 @@
+#include "sections_json.h"
+
+#include "common/error.h"
+#include "part_reader.h"
+#include "plane_sections.h"
+#include "strip_json.h"
+
+namespace parafab::entry {
+
+using nlohmann::json;
+
+namespace {
+
+Eigen::Vector3d vec3_field(const json& v, const std::string& path) {
+  if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+    PARAFAB_INPUT_ERROR(path << " must be [x, y, z], got " << v.dump());
+  return Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+}
+
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+}  // namespace
+
+json strip_sections_json(const std::string& part_path, const json& job) {
+  if (!job.is_object()) PARAFAB_INPUT_ERROR("the sections job must be a JSON object");
+  occ::ReadOptions ro;
+  ro.surfaces_allowed = true;
+  const auto shape = occ::read_part(part_path, ro);
+
+  occ::PlaneSectionOptions o;
+  const json planes = job.value("planes", json::object());
+  if (!planes.is_object()) PARAFAB_INPUT_ERROR("planes must be {\"normal\": [x,y,z], \"offsets\": [...] | \"count\": n}");
+  if (planes.contains("normal")) o.normal = vec3_field(planes["normal"], "planes.normal");
+  if (o.normal.norm() == 0) PARAFAB_INPUT_ERROR("planes.normal must not be zero");
+  if (planes.contains("offsets")) {
+    if (!planes["offsets"].is_array() || planes["offsets"].empty())
+      PARAFAB_INPUT_ERROR("planes.offsets must be a non-empty list of numbers");
+    for (size_t i = 0; i < planes["offsets"].size(); ++i) {
+      if (!planes["offsets"][i].is_number()) PARAFAB_INPUT_ERROR("planes.offsets[" << i << "] must be a number");
+      o.offsets.push_back(planes["offsets"][i].get<double>());
+    }
+  }
+  if (planes.contains("count")) {
+    if (!planes["count"].is_number_integer() || planes["count"].get<int>() < 1)
+      PARAFAB_INPUT_ERROR("planes.count must be a positive integer, got " << planes["count"].dump());
+    o.count = planes["count"].get<int>();
+  }
+  if (job.contains("split")) {
+    const json& sp = job["split"];
+    if (!sp.is_object() || !sp.contains("normal") || !sp.contains("offset") || !sp["offset"].is_number())
+      PARAFAB_INPUT_ERROR("split must be {\"normal\": [x,y,z], \"offset\": d}");
+    o.split = true;
+    o.split_normal = vec3_field(sp["normal"], "split.normal");
+    if (o.split_normal.norm() == 0) PARAFAB_INPUT_ERROR("split.normal must not be zero");
+    o.split_offset = sp["offset"].get<double>();
+  }
+  const json samples = job.value("samples", json(60));
+  if (!samples.is_number_integer() || samples.get<int>() < 8 || samples.get<int>() > 100000)
+    PARAFAB_INPUT_ERROR("samples must be an integer in [8, 100000], got " << samples.dump());
+  o.samples = samples.get<int>();
+  // The part's length unit in metres (the strip solver works in SI).
+  const std::string units = job.value("units", std::string("mm"));
+  double scale = 0;
+  if (units == "mm") scale = 1e-3;
+  else if (units == "cm") scale = 1e-2;
+  else if (units == "m") scale = 1.0;
+  else PARAFAB_INPUT_ERROR("units must be \"mm\", \"cm\" or \"m\", got \"" << units << "\"");
+  const json strip = job.value("strip", json::object());
+  if (!strip.is_object()) PARAFAB_INPUT_ERROR("strip must be a strip request without \"curve\" (see README)");
+  if (strip.contains("curve")) PARAFAB_INPUT_ERROR("strip.curve is set by the sections; remove it");
+
+  const occ::PlaneSectionResult sections = occ::plane_sections(*shape, o);
+  if (!sections.done) PARAFAB_INPUT_ERROR("cannot take sections of " << part_path << ": " << sections.message);
+  json curves = json::array();
+  int designed = 0, infeasible = 0, failed = 0;
+  for (const occ::SectionCurve& c : sections.curves) {
+    json pts = json::array(), pts2 = json::array();
+    for (const auto& X : c.points) pts.push_back(vec(X));
+    for (const auto& x : c.points2d) pts2.push_back({x.x() * scale, x.y() * scale});
+    json design;
+    if (c.closed) {
+      design = error_json("closed section curve: a strip needs two ends; split it (job \"split\")", "closed_curve");
+      ++failed;
+    } else {
+      json request = strip;
+      request["curve"] = {{"points", pts2}, {"degree", 4}};
+      try {
+        design = design_strip_json(request);
+        if (design.value("feasible", false)) ++designed;
+        else ++infeasible;
+      } catch (const parafab::Error& e) {
+        design = error_json(e.what(), "invalid_input");
+        ++failed;
+      }
+    }
+    curves.push_back({{"plane", c.plane}, {"offset", c.offset}, {"piece", c.piece}, {"closed", c.closed},
+                      {"length", c.length * scale},
+                      {"frame", {{"origin", vec(c.origin)}, {"u", vec(c.u_axis)}, {"v", vec(c.v_axis)}}},
+                      {"points", pts}, {"strip", design}});
+  }
+  return {{"part", part_path},
+          {"offsets", sections.offsets},
+          {"empty_planes", sections.empty_planes},
+          {"units", units},
+          {"curves", curves},
+          {"designed", designed},
+          {"infeasible", infeasible},
+          {"failed", failed}};
+}
+
+}  // namespace parafab::entry
