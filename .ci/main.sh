@@ -5,7 +5,8 @@
 # Writes OUT_DIR/strips/<sample>.result.json (the CLI's output), <sample>.png (charts),
 # <sample>.dxf/.svg (cut sheets of the feasible designs) and
 # OUT_DIR/strips.FCStd (a FreeCAD document with one strip feature per sample);
-# OUT_DIR/rods/<sample>.result.json and <sample>.png (twist plots) for samples/rods.
+# OUT_DIR/rods/<sample>.result.json, <sample>.png (twist plots), <sample>.step (deformed and
+# straight rod) and OUT_DIR/rods.FCStd (one Rod feature per sample) for samples/rods.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 build=${PARAFAB_BUILD_DIR:-$repo/build}
@@ -31,7 +32,7 @@ grep -E '^strip |^wrote' "$out/freecad.log" || true
 test -s "$out/strips.FCStd"
 echo "== rods: parafab rod on samples/rods/*.json (Kirchhoff rods, forward-simulated when validate)"
 mkdir -p "$out/rods"
-rm -f "$out"/rods/*.json "$out"/rods/*.png
+rm -f "$out"/rods/*.json "$out"/rods/*.png "$out"/rods/*.step
 for f in "$repo"/samples/rods/*.json; do
   name=$(basename "$f" .json)
   cp "$f" "$out/rods/$name.request.json"
@@ -46,6 +47,11 @@ for f in "$repo"/samples/rods/invalid/*.json; do  # kappa = 0: exit 2 and a JSON
   echo "rod invalid/$(basename "$f" .json): exit 2, $(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['error']['message'][:90])" "$out/rods/invalid_$(basename "$f")")"
 done
 /usr/bin/python3 "$repo/workbench/scripts/plot_rods.py" "$out/rods" >/dev/null
+PARAFAB_RESULTS="$out/rods" PARAFAB_DOCUMENT="$out/rods.FCStd" \
+  freecadcmd -c "exec(open('$repo/workbench/scripts/rod_document.py').read())" \
+  >"$out/freecad_rods.log" 2>&1 || { cat "$out/freecad_rods.log"; exit 1; }
+grep -E '^rod |^wrote' "$out/freecad_rods.log" || true
+test -s "$out/rods.FCStd"
 echo "== parts: parafab inspect + integrate on samples/parts/*.step (cut-cell quadrature vs OCCT)"
 mkdir -p "$out/parts"
 rm -f "$out"/parts/*.json
@@ -64,4 +70,4 @@ for f in "$repo"/samples/simulations/*.json; do
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); s=d['seconds']
 print('simulation %-10s %6d dofs, max displacement %.4g, max von Mises %.4g, cut %.2f s rules %.2f s assemble %.2f s solve %.2f s' % (sys.argv[2], d['dofs'], d['max_displacement'], d['max_von_mises'], s['cut'], s['rules'], s['assemble'], s['solve']))" "$out/simulations/$name/result.json" "$name"
 done
-echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"
+echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, rods/*.step, rods.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"
