@@ -70,4 +70,21 @@ for f in "$repo"/samples/simulations/*.json; do
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); s=d['seconds']
 print('simulation %-10s %6d dofs, max displacement %.4g, max von Mises %.4g, cut %.2f s rules %.2f s assemble %.2f s solve %.2f s' % (sys.argv[2], d['dofs'], d['max_displacement'], d['max_von_mises'], s['cut'], s['rules'], s['assemble'], s['solve']))" "$out/simulations/$name/result.json" "$name"
 done
-echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, rods/*.step, rods.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}"
+echo "== strips from sections: parafab sections on samples/sections/*.json"
+mkdir -p "$out/sections"
+for f in "$repo"/samples/sections/*.json; do
+  name=$(basename "$f" .json)
+  part=$(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['part'])" "$f")
+  "$build/workbench/entry/parafab" sections "$repo/samples/parts/$part" "$f" -o "$out/sections/$name.result.json"
+  /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1]))
+print('sections %-10s %d curves: %d designed, %d infeasible, %d failed; R %s' % (sys.argv[2], len(d['curves']), d['designed'], d['infeasible'], d['failed'], ['%.4f' % c['strip']['R'] for c in d['curves'] if c['strip'].get('feasible')]))" "$out/sections/$name.result.json" "$name"
+done
+echo "== surfaces of revolution: parafab revolution on samples/revolution/*.json"
+mkdir -p "$out/revolution"
+for f in "$repo"/samples/revolution/*.json; do
+  name=$(basename "$f" .json)
+  "$build/workbench/entry/parafab" revolution "$f" -o "$out/revolution/$name.result.json"
+  /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); m=d['meridian']; s=d['strips']
+print('revolution %-8s meridian complete=%s residual %.1e, %d strips, R %.4f' % (sys.argv[2], m['complete'], m['residual'], s['count'], s['R']))" "$out/revolution/$name.result.json" "$name"
+done
+echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, rods/*.step, rods.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}, sections/*.result.json, revolution/*.result.json"

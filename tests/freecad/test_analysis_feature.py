@@ -154,6 +154,20 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.assertMeshShows(a, auto)
         self.assertEqual(self.doc.recompute(), 0)  # nothing left to recompute
 
+    def test_fem_result_viewer_reads_the_vtu_files(self):
+        """FreeCAD's FEM post-processing pipeline (VTK) reads result.vtu and surface.vtu."""
+        self.make()
+        try:
+            import Fem  # noqa: F401
+        except ImportError:
+            self.skipTest("FreeCAD's Fem module is not available")
+        for name in ("result.vtu", "surface.vtu"):
+            pipeline = self.doc.addObject("Fem::FemPostPipeline", "Pipeline")
+            pipeline.read(os.path.join(self.tmp, name))
+            self.doc.recompute()
+            self.assertEqual(pipeline.State, ["Up-to-date"], name)
+            self.assertTrue(all(o.isValid() for o in self.doc.Objects), name)
+
     def test_estimate_matches_the_solver(self):
         a = self.make(Cells=CELLS)
         with open(os.path.join(self.tmp, "result.json")) as f:

@@ -602,5 +602,37 @@ class TestStripsFromSections(StripTestCase):
         self.assertEqual(report["failed"], 2)
         self.assertIn("closed section curve", report["curves"][0]["strip"]["error"]["message"])
 
+
+class TestRevolutionStrips(StripTestCase):
+    """Surface of revolution strips: b = (10/m, 0), a = 0 from r = 100 mm is a sphere."""
+
+    def test_sphere_surface_and_strips(self):
+        from parafab_wb import revolution_feature
+        obj = revolution_feature.make_revolution_strips(self.doc)
+        obj.Strips = 8
+        self.doc.recompute()
+        self.assertEqual(obj.State, ["Up-to-date"], obj.Status)
+        self.assertTrue(obj.Complete)
+        faces = obj.Shape.Faces
+        surface = [f for f in faces if f.Surface.TypeId != "Part::GeomPlane" and abs(f.Area) > 0]
+        # the surface: a spherical zone of radius 100 mm from the equator over 120 mm of meridian
+        zone = 2 * math.pi * 100 * 100 * math.sin(1.2)
+        self.assertAlmostEqual(obj.Shape.Faces[0].Area, zone, delta=2e-3 * zone)
+        self.assertEqual(len(faces), 1 + 8 + 1)
+        self.assertGreater(obj.R, 1.0)
+        self.assertAlmostEqual(obj.R, 1.0 / math.cos(1.2), delta=1e-6)  # x from 100 to 100 cos(1.2)
+        self.assertTrue(len(surface) >= 1)
+
+    def test_bad_strip_count_is_an_error_and_recovers(self):
+        from parafab_wb import revolution_feature
+        obj = revolution_feature.make_revolution_strips(self.doc)
+        obj.Strips = 2
+        self.doc.recompute()
+        self.assertTrue(_is_error(obj))
+        self.assertIn("at least 3", obj.Status)
+        obj.Strips = 6
+        self.doc.recompute()
+        self.assertEqual(obj.State, ["Up-to-date"], obj.Status)
+
 if __name__ == "__main__":
     unittest.main()

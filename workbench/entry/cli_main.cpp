@@ -10,6 +10,7 @@
 #include "occt_version.h"
 #include "part_json.h"
 #include "integrate_json.h"
+#include "revolution_json.h"
 #include "sections_json.h"
 #include "simulate_json.h"
 #include "outline_export.h"
@@ -106,6 +107,10 @@ int main(int argc, char** argv) {
   sections->add_option("part", in_path, "Surface or solid (.step/.stp/.brep/.brp)")->required();
   sections->add_option("job", job_path, "Sections job JSON (see README: Strips from sections)")->required();
   sections->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* revolution = app.add_subcommand(
+      "revolution", "Meridian of a surface of revolution tiled by strips without gaps, and the strips (JSON)");
+  revolution->add_option("job", in_path, "Revolution job JSON (see README)")->required();
+  revolution->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -136,6 +141,7 @@ int main(int argc, char** argv) {
         return emit(parafab::entry::SimulationSession(in_path, read_json_file(job_path)).estimate(), "");
       return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
     }
+    if (*revolution) return emit(parafab::entry::revolution_strips_json(read_json_file(in_path)), out_path);
     if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);
     if (*integrate) {
       integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;

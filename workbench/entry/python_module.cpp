@@ -6,6 +6,7 @@
 #include "occt_version.h"
 #include "integrate_json.h"
 #include "part_json.h"
+#include "revolution_json.h"
 #include "sections_json.h"
 #include "simulate_json.h"
 #include "outline_export.h"
@@ -176,6 +177,11 @@ PYBIND11_MODULE(parafab, m) {
             return to_python(out);
           },
           py::arg("path"), py::arg("out_dir") = "", py::arg("progress") = py::none());
+  m.def(
+      "revolution_strips",
+      [](const py::dict& job) { return to_python(parafab::entry::revolution_strips_json(to_json(job))); },
+      py::arg("job"),
+      "Meridian of a surface of revolution tiled by strips, and the strips (same JSON as `parafab revolution`).");
   m.def(
       "strip_sections",
       [](const std::string& path, const py::dict& job) {

@@ -189,6 +189,38 @@ class StripsFromSectionsCommand(object):
 FreeCADGui.addCommand("ParaFab_StripsFromSections", StripsFromSectionsCommand())
 
 
+class RevolutionStripsCommand(object):
+    """A surface of revolution covered by strips without gaps (§4.8.4); edit the meridian's
+    a, b, start and length and the strip count in the property editor."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Surface of revolution strips",
+            "ToolTip": "A surface of revolution whose meridian solves x·κ = a + ⟨b, γ⟩, covered by n "
+                       "strips without gaps, with their flat outlines",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None
+
+    def Activated(self):
+        from . import revolution_feature
+        doc = FreeCAD.ActiveDocument
+        doc.openTransaction("Surface of revolution strips")
+        try:
+            revolution_feature.make_revolution_strips(doc)
+            doc.recompute()
+        except Exception as exc:
+            doc.abortTransaction()
+            FreeCAD.Console.PrintError("ParaFab: cannot create revolution strips: %s\n" % exc)
+            return
+        doc.commitTransaction()
+
+
+FreeCADGui.addCommand("ParaFab_RevolutionStrips", RevolutionStripsCommand())
+
+
 class AnalyzePartCommand(object):
     """Analyze the selected solid: creates an ``Analysis`` feature (selected faces held fixed)
     and opens its task panel, where loads, material and grid are set and the run is started."""
