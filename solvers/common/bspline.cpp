@@ -1,5 +1,7 @@
 #include "common/bspline.h"
 
+#include <sstream>
+
 #include <Eigen/SparseLU>
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -147,25 +149,30 @@ std::array<Vec2, 4> BSplineCurve2::derivatives(double u) const {
   return C;
 }
 
-BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree) {
-  const int n = static_cast<int>(points.size());
+namespace {
+std::string row_text(const Eigen::MatrixXd& P, int i) {
+  std::ostringstream os;
+  os << "(";
+  for (int c = 0; c < P.cols(); ++c) os << (c ? ", " : "") << P(i, c);
+  os << ")";
+  return os.str();
+}
+}  // namespace
+
+InterpolatedBSpline interpolate_rows(const Eigen::MatrixXd& points, int degree) {
+  const int n = static_cast<int>(points.rows());
   if (n < 2)
     PARAFAB_INPUT_ERROR("curve.points: need at least 2 points to define a curve, got " << n);
   for (int i = 0; i < n; ++i)
-    if (!points[i].allFinite())
-      PARAFAB_INPUT_ERROR("curve.points[" << i << "] is not finite (" << points[i].x() << ", "
-                                          << points[i].y() << ")");
+    if (!points.row(i).allFinite())
+      PARAFAB_INPUT_ERROR("curve.points[" << i << "] is not finite " << row_text(points, i));
   std::vector<double> chord(n, 0.0);
   double total = 0.0;
-  for (int i = 1; i < n; ++i) {
-    const double d = (points[i] - points[i - 1]).norm();
-    total += d;
-    chord[i] = d;
-  }
+  for (int i = 1; i < n; ++i) total += chord[i] = (points.row(i) - points.row(i - 1)).norm();
   for (int i = 1; i < n; ++i)
     if (chord[i] <= 1e-12 * total)
-      PARAFAB_INPUT_ERROR("curve.points[" << i << "] repeats curve.points[" << i - 1 << "] ("
-                                          << points[i].x() << ", " << points[i].y() << ")");
+      PARAFAB_INPUT_ERROR("curve.points[" << i << "] repeats curve.points[" << i - 1 << "] "
+                                          << row_text(points, i));
   PARAFAB_VERIFY(degree >= 1, "interpolation degree must be >= 1, got " << degree);
   const int p = std::min(degree, n - 1);
   // Chord-length parameters on [0, 1].
@@ -184,20 +191,9 @@ BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree) {
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(static_cast<size_t>(n) * (p + 1));
   for (int i = 0; i < n; ++i) {
-    // Span lookup via the curve; basis values from the shared routine.
-    int span;
-    {
-      const double u = t[i];
-      int lo = p, hi = n;  // knots index range for spans
-      if (u >= U[n]) span = n - 1;
-      else {
-        while (hi - lo > 1) {
-          const int mid = (lo + hi) / 2;
-          if (u < U[mid]) hi = mid; else lo = mid;
-        }
-        span = lo;
-      }
-    }
+    // Span: U[span] ≤ t < U[span + 1], the last span for t = 1.
+    const int span = std::clamp(static_cast<int>(std::upper_bound(U.begin() + p, U.begin() + n, t[i]) - U.begin()) - 1,
+                                p, n - 1);
     std::array<std::array<double, 8>, 4> N{};
     basis_derivatives(span, t[i], p, U, 0, N);
     for (int j = 0; j <= p; ++j)
@@ -208,12 +204,20 @@ BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree) {
   Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
   lu.compute(M);
   PARAFAB_VERIFY(lu.info() == Eigen::Success, "curve.points: interpolation matrix is singular");
-  Eigen::MatrixXd rhs(n, 2);
-  for (int i = 0; i < n; ++i) rhs.row(i) = points[i].transpose();
-  const Eigen::MatrixXd P = lu.solve(rhs);
-  std::vector<Vec2> poles(n);
-  for (int i = 0; i < n; ++i) poles[i] = P.row(i).transpose();
-  return BSplineCurve2(p, std::move(U), std::move(poles));
+  InterpolatedBSpline out;
+  out.degree = p;
+  out.knots = std::move(U);
+  out.poles = lu.solve(points);
+  return out;
+}
+
+BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree) {
+  Eigen::MatrixXd P(points.size(), 2);
+  for (size_t i = 0; i < points.size(); ++i) P.row(static_cast<Eigen::Index>(i)) = points[i].transpose();
+  InterpolatedBSpline s = interpolate_rows(P, degree);
+  std::vector<Vec2> poles(points.size());
+  for (size_t i = 0; i < poles.size(); ++i) poles[i] = s.poles.row(static_cast<Eigen::Index>(i)).transpose();
+  return BSplineCurve2(s.degree, std::move(s.knots), std::move(poles));
 }
 
 }  // namespace parafab

@@ -43,9 +43,19 @@ class BSplineCurve2 {
   std::vector<double> weights_;
 };
 
-/// Interpolates `points` (at least 2, consecutive points distinct) by a B-spline of the
-/// given degree (lowered to points.size()-1 if needed). Throws parafab::Error naming the
-/// offending point index for NaN/inf or repeated points.
+/// Interpolation of points of any dimension (one per row of `points`, at least 2, consecutive
+/// points distinct) by a non-rational B-spline of the given degree (lowered to rows − 1 if
+/// needed): chord-length parameters, averaged knots, a banded collocation solve (Piegl &
+/// Tiller §9.2.1). Throws parafab::Error naming the offending point index (as
+/// "curve.points[i]") for NaN/inf or repeated points.
+struct InterpolatedBSpline {
+  int degree = 0;
+  std::vector<double> knots;
+  Eigen::MatrixXd poles;  ///< one pole per row
+};
+InterpolatedBSpline interpolate_rows(const Eigen::MatrixXd& points, int degree);
+
+/// interpolate_rows for plane points.
 BSplineCurve2 interpolate_points(const std::vector<Vec2>& points, int degree);
 
 }  // namespace parafab
