@@ -257,7 +257,8 @@ def run(check):
     check("strip_created", strip is not None)
     check("strip_valid", strip.isValid(), strip.getStatusString())
     check("strip_feasible", strip.Feasible, strip.Reason)
-    check("strip_shape", strip.Shape.isValid() and len(strip.Shape.Faces) == 2)
+    check("strip_shape", strip.Shape.isValid() and len(strip.Shape.Solids) == 2,
+          "%d solids" % len(strip.Shape.Solids))
     check("view_provider", type(strip.ViewObject.Proxy).__name__ == "ViewProviderStrip")
     check("tree_icon", os.path.isfile(strip.ViewObject.Proxy.getIcon()))
     check("undo_available", "Bending-active strip" in doc.UndoNames, doc.UndoNames)

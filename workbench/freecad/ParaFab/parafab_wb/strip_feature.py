@@ -7,8 +7,8 @@ is :class:`StripFeature`.  On recompute it
    (:mod:`parafab_wb.geometry`),
 2. calls the C++ solver ``parafab.design_strip`` (SI units),
 3. stores the results (``Feasible``, ``Reason``, ``R``, ``Length``) and builds
-   the shape: a compound of the flat strip and the bent strip
-   (:mod:`parafab_wb.shapes`).
+   the shape: a compound of the flat strip and the bent strip, solids of the
+   strip's thickness unless ``Solids`` is False (:mod:`parafab_wb.shapes`).
 
 Failures (non-planar edge, invalid input rejected by the solver, infeasible
 curve, missing solver module) never crash FreeCAD: ``Feasible`` becomes
@@ -46,7 +46,9 @@ TYPE = "ParaFab::Strip"
 #:    perforated), validation by simulation (Deviation), RFirst, TypeMessage. Version-1
 #:    documents get the new properties with defaults that reproduce their design (no gravity,
 #:    plain strip, no validation).
-VERSION = 2
+#: 3: Solids (the flat and the bent strip as solids of the strip's thickness; default True).
+#:    Older documents get Solids = True: their next recompute builds solids.
+VERSION = 3
 
 #: Material presets: (E [Pa], thickness [m], density [kg/m³]). 200 gsm cardboard: h = 0.3 mm,
 #: 200 g/m² → ρ = 667 kg/m³, and E = 0.773 GPa, the modulus for which βl³ = E h²/(12 ρ g)
@@ -115,6 +117,10 @@ _PROPERTIES = (
      _READ_ONLY | _OUTPUT),
     ("App::PropertyString", "TypeMessage", "Results",
      "Composite / perforated design: feasibility and why not", "", _READ_ONLY | _OUTPUT),
+    # ---- version 3
+    ("App::PropertyBool", "Solids", "Strip",
+     "Build the flat and the bent strip as solids of the strip's thickness (False: surfaces)",
+     True, 0),
 )
 _ENUMERATIONS = {"MaterialPreset": PRESET_NAMES, "StripType": STRIP_TYPES}
 #: Inputs whose manual change turns a preset into "Custom".
@@ -316,7 +322,8 @@ class StripFeature(feature_proxy.FeatureProxy):
         if not result["feasible"]:
             raise StripError("Infeasible curve: %s"
                              % (result.get("reason") or "no reason given"))
-        obj.Shape = shapes.strip_shape(result, curve.frame)
+        obj.Shape = shapes.strip_shape(result, curve.frame,
+                                       solid=bool(getattr(obj, "Solids", True)))
         obj.Feasible = True
         obj.Reason = ""
         self.result = result
