@@ -625,6 +625,44 @@ class TestStripVersion2(StripTestCase):
 
 
 
+class TestStripProfilePlot(StripTestCase):
+    """plot_profile: K(s) and w(s) as a PNG, headless (matplotlib's Agg canvas)."""
+
+    cardboard_strip = TestStripVersion2.cardboard_strip
+
+    def png(self, strip, name):
+        if not self.tmpdir:
+            self.tmpdir = tempfile.mkdtemp(prefix="parafab_")
+        path = os.path.join(self.tmpdir, name)
+        self.assertEqual(strip_feature.plot_profile(strip, path), path)
+        with open(path, "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        self.assertGreater(os.path.getsize(path), 10000)
+        return path
+
+    def test_plain_and_composite_profiles(self):
+        _, strip = self.cardboard_strip()
+        self.assert_feasible_strip(strip)
+        self.png(strip, "plain.png")
+        strip.StripType = "Composite"
+        strip.OuterWidth = "50 mm"
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        self.png(strip, "composite.png")
+
+    def test_reopened_document_is_designed_again(self):
+        _, strip = self.cardboard_strip()
+        strip.Proxy.result = None  # what a reopened document holds
+        self.png(strip, "again.png")
+
+    def test_infeasible_strip_is_an_error(self):
+        _, strip = self.strip_on("S", _s_curve_three_inflections().toShape())
+        self.assertFalse(strip.Feasible)
+        with self.assertRaises(strip_feature.StripError) as cm:
+            strip_feature.plot_profile(strip, os.path.join(tempfile.gettempdir(), "never.png"))
+        self.assertIn("no feasible design to plot", str(cm.exception))
+
+
 class TestStripsFromSections(StripTestCase):
     """Strips from sections: a cylinder r = 15 mm cut by planes z = const and split at y = 0
     gives semicircles, each an equilibrium of a constant-stiffness strip (R = 1)."""
