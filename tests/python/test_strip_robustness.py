@@ -5,12 +5,15 @@ seconds, cases[]}.
 * The baseline (no defect) reproduces the target within 1e-3 of the length.
 * The weight +50 % case of a strip designed under gravity deviates more than the baseline, and
   a larger angle defect more than a smaller one; cases without gravity have no weight case.
+* Every case carries the simulated nodes (edges + 1), starting at the clamp; the baseline's
+  distance to the target recomputed from them matches max_distance.
 * Options map onto the study (custom fractions, edges); bad options name the field.
 * plot_robustness.py writes a PNG.
 
 Run with Debian's /usr/bin/python3; PARAFAB_MODULE_DIR points at the build.
 """
 import json
+import math
 import os
 import subprocess
 import sys
@@ -27,10 +30,21 @@ PLOT = os.path.join(REPO, "workbench", "scripts", "plot_robustness.py")
 
 
 def sample(name, **extra):
-    r = json.load(open(os.path.join(SAMPLES, name + ".json")))
+    with open(os.path.join(SAMPLES, name + ".json")) as f:
+        r = json.load(f)
     r.pop("validate", None)
     r.update(extra)
     return r
+
+
+def target_nodes(result, edges):
+    """The target curve at arc lengths l k / edges: scipy's cubic splines x(s), y(s) through the
+    result's samples."""
+    from scipy.interpolate import CubicSpline
+    s, pts = result["s"], result["points"]
+    fx, fy = CubicSpline(s, [p[0] for p in pts]), CubicSpline(s, [p[1] for p in pts])
+    t = [result["length"] * k / edges for k in range(edges + 1)]
+    return [[float(x), float(y)] for x, y in zip(fx(t), fy(t))]
 
 
 def case(result, name):
@@ -60,8 +74,16 @@ class Robustness(unittest.TestCase):
                                  "gravity-50%", "end_angles_opened_10deg", "end_angles_closed_10deg",
                                  "plastic_top_25%", "plastic_top_50%"])
         for c in rb["cases"]:
-            for key in ("name", "parameter", "value", "deviation", "max_distance", "converged", "message"):
+            for key in ("name", "parameter", "value", "deviation", "max_distance", "converged", "message",
+                        "nodes"):
                 self.assertIn(key, c)
+            self.assertEqual(len(c["nodes"]), rb["edges"] + 1, c["name"])
+            # the clamped start stays where the target starts; the distance to the target, recomputed
+            # here from the nodes at the same arc length, is at most max_distance
+            self.assertLess(math.dist(c["nodes"][0], self.gravity["points"][0]), 1e-9)
+        base = case(self.gravity, "baseline")
+        worst = max(math.dist(p, q) for p, q in zip(base["nodes"], target_nodes(self.gravity, rb["edges"])))
+        self.assertAlmostEqual(worst, base["max_distance"], delta=1e-6 * self.gravity["length"])
         self.assertEqual(case(self.gravity, "gravity+50%")["parameter"], "gravity")
         self.assertAlmostEqual(case(self.gravity, "gravity+50%")["value"], 0.5)
         self.assertAlmostEqual(case(self.gravity, "end_angles_closed_10deg")["value"], -10.0)
@@ -117,13 +139,15 @@ class Robustness(unittest.TestCase):
     def test_plot(self):
         with tempfile.TemporaryDirectory() as d:
             res, png = os.path.join(d, "r.json"), os.path.join(d, "r.png")
-            json.dump([self.gravity, self.plain], open(res, "w"))
+            with open(res, "w") as f:
+                json.dump([self.gravity, self.plain], f)
             p = subprocess.run(["/usr/bin/python3", PLOT, res, png], capture_output=True, text=True, timeout=120)
             self.assertEqual(p.returncode, 0, p.stderr)
             self.assertGreater(os.path.getsize(png), 10000)
             with open(png, "rb") as f:
                 self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
-            json.dump(parafab.design_strip(sample("elliptic_arc")), open(res, "w"))
+            with open(res, "w") as f:
+                json.dump(parafab.design_strip(sample("elliptic_arc")), f)
             p = subprocess.run(["/usr/bin/python3", PLOT, res, png], capture_output=True, text=True, timeout=120)
             self.assertNotEqual(p.returncode, 0)
             self.assertIn("no \"robustness\"", p.stderr)

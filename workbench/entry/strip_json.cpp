@@ -454,6 +454,9 @@ json design_strip_json(const json& request) {
                    {"converged", c.converged}, {"message", c.message}};
         if (parameter == "plastic")
           cj["curvature_limit"] = q.curvature_limit, cj["hardening"] = q.plastic_hardening;
+        json nodes = json::array();
+        for (const auto& p : c.nodes) nodes.push_back(to_json(p));
+        cj["nodes"] = nodes;
         cases.push_back(cj);
       }
       out["robustness"] = {{"baseline", num_or_null(baseline)},

@@ -1,9 +1,10 @@
 """Chart of a strip robustness study (thesis §4.7.2, Fig. 4.15): for each design result that
 carries "robustness" (request field "robustness": true or {...}), one column: the curve with
-its curvature normals, the stiffness profile K(s), and the deviation of the simulated strip
-from the target for each defect (light: smaller / closing / top 25 %, dark: larger /
-opening / top 50 %), with the baseline and the 1e-3 goal as lines. Cases whose simulation did
-not converge are hatched (their deviation is that of the last continuation step).
+its curvature normals, the stiffness profile K(s), one row per defect with the target (dashed)
+and the simulated strips (light: smaller / closing / top 25 %, dark: larger / opening /
+top 50 %), and the deviation of every case from the target as bars, with the baseline and the
+1e-3 goal as lines. Cases whose simulation did not converge are hatched / dotted (their
+curve and deviation are those of the last continuation step).
 
 Usage: /usr/bin/python3 plot_robustness.py RESULT.json [RESULT2.json ...] OUT.png
 (a RESULT file may also hold a JSON list of results; Debian's matplotlib, headless)."""
@@ -42,8 +43,9 @@ def label(c):
 
 def plot(results, png):
     n = len(results)
-    fig, axes = plt.subplots(3, n, figsize=(4.6 * n, 10), squeeze=False,
-                             gridspec_kw={"height_ratios": [1.1, 0.8, 1.3]})
+    rows = 3 + len(GROUPS)
+    fig, axes = plt.subplots(rows, n, figsize=(4.6 * n, 3.0 * rows), squeeze=False,
+                             gridspec_kw={"height_ratios": [1.1, 0.8] + [1.0] * len(GROUPS) + [1.3]})
     for j, r in enumerate(results):
         rb = r["robustness"]
         name = r.get("name", "strip %d" % (j + 1))
@@ -71,7 +73,21 @@ def plot(results, png):
         ax.set_xlabel("s [m]")
         ax.set_ylabel("K / min K")
         ax.set_title("stiffness profile", fontsize=9)
-        ax = axes[2][j]
+        for g, (key, title, cmap) in enumerate(GROUPS):
+            ax = axes[2 + g][j]
+            cases = sorted((c for c in rb["cases"] if c["parameter"] == key), key=lambda c: c["value"])
+            ax.plot(xs, ys, "k--", lw=1.0, label="target")
+            colors = plt.get_cmap(cmap)([0.45 + 0.45 * k / max(1, len(cases) - 1) for k in range(len(cases))])
+            for c, col in zip(cases, colors):
+                if c.get("nodes"):
+                    ax.plot([p[0] for p in c["nodes"]], [p[1] for p in c["nodes"]], "-" if c["converged"] else ":",
+                            color=col, lw=1.5, label="%s (%.1e)" % (label(c), c["deviation"]))
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_title(title.replace("\n", " ").replace(" ±", "") + ("" if cases else ": no case (no gravity)"),
+                         fontsize=9)
+            if cases:
+                ax.legend(fontsize=6, loc="best")
+        ax = axes[-1][j]
         x, ticks, tick_labels = 0.0, [], []
         for key, title, cmap in GROUPS:
             cases = [c for c in rb["cases"] if c["parameter"] == key]
@@ -89,8 +105,8 @@ def plot(results, png):
                 x += 1
             x += 0.6
         ax.set_yscale("log")
-        lo, hi = ax.get_ylim()
-        ax.set_ylim(lo, hi * 4)  # room for the value labels
+        devs = [c["deviation"] for c in rb["cases"] if c["deviation"]] + ([rb["baseline"]] if rb["baseline"] else [])
+        ax.set_ylim(min(devs) / 3, max(devs) * 6)  # the baseline line, and room for the value labels
         if rb["baseline"]:
             ax.axhline(rb["baseline"], color="gray", ls="--", lw=0.8, label="baseline %.1e" % rb["baseline"])
         ax.axhline(1e-3, color="red", lw=0.8, alpha=0.6, label="1e-3")
