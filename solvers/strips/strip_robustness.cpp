@@ -65,6 +65,7 @@ StripRobustness strip_robustness_study(const BSplineCurve2& curve, const StripDe
     c.deviation = val.deviation;
     c.max_distance = val.max_distance;
     c.message = val.message;
+    c.nodes = val.simulation.nodes;
     if (c.converged && c.deviation > out.worst_deviation) out.worst_deviation = c.deviation, out.worst_case = name;
     out.cases.push_back(c);
   }

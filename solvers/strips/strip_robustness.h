@@ -29,6 +29,7 @@ struct StripRobustnessCase {
   double deviation = NAN;   ///< max distance to the target / length
   double max_distance = NAN;  ///< [m]
   std::string message;
+  std::vector<Vec2> nodes;    ///< the simulated strip (edges + 1 nodes, uniform in arc length)
 };
 
 struct StripRobustness {

@@ -5,7 +5,7 @@
 #
 # Installs the workbench (tests/freecad/install_wb.sh) into a throw-away HOME,
 # runs FreeCAD on gui_smoke_macro.py under xvfb-run and checks the status
-# file written by the macro.  Artifacts (status.json, strip.png, analysis.png, analysis_panel.png,
+# file written by the macro (also runs "Plot strip profile").  Artifacts (status.json, strip.png, analysis.png, analysis_panel.png,
 # gui_smoke.FCStd, gui_smoke_analysis.FCStd, analysis_out/, freecad.log) go to
 # $PARAFAB_ARTIFACT_DIR
 # (default: BUILD_DIR/gui-artifacts).  Timeout: $PARAFAB_GUI_TIMEOUT

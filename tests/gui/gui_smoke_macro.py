@@ -258,10 +258,29 @@ def run(check):
     check("strip_created", strip is not None)
     check("strip_valid", strip.isValid(), strip.getStatusString())
     check("strip_feasible", strip.Feasible, strip.Reason)
-    check("strip_shape", strip.Shape.isValid() and len(strip.Shape.Faces) == 2)
+    check("strip_shape", strip.Shape.isValid() and len(strip.Shape.Solids) == 2,
+          "%d solids" % len(strip.Shape.Solids))
     check("view_provider", type(strip.ViewObject.Proxy).__name__ == "ViewProviderStrip")
     check("tree_icon", os.path.isfile(strip.ViewObject.Proxy.getIcon()))
     check("undo_available", "Bending-active strip" in doc.UndoNames, doc.UndoNames)
+
+    # Plot strip profile: K(s) and w(s) in a tab of FreeCAD's Plot module.
+    check("plot_command_registered", "ParaFab_PlotStripProfile" in FreeCADGui.listCommands())
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(doc.Name, strip.Name)
+    FreeCADGui.updateGui()
+    FreeCADGui.runCommand("ParaFab_PlotStripProfile")
+    FreeCADGui.updateGui()
+    import Plot
+    plot = Plot.getPlot()
+    check("plot_profile_shown", plot is not None and len(plot.fig.axes) == 2
+          and plot.windowTitle().startswith("Strip profile"),
+          plot.windowTitle() if plot is not None else "no plot")
+    mdi = Plot.getMdiArea()
+    for sub in mdi.subWindowList():  # back to the 3D view for the screenshot
+        if sub.widget() is plot:
+            sub.close()
+    FreeCADGui.updateGui()
 
     FreeCADGui.Selection.clearSelection()
     gui_doc = FreeCADGui.getDocument(doc.Name)

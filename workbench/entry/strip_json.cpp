@@ -6,6 +6,7 @@
 #include "strips/composite_strip.h"
 #include "strips/perforated_strip.h"
 #include "strips/strip_design.h"
+#include "strips/strip_robustness.h"
 #include "strips/strip_validation.h"
 
 namespace parafab::entry {
@@ -243,6 +244,49 @@ json design_strip_json(const json& request) {
       PARAFAB_INPUT_ERROR("validate must be true, false or {\"edges\": n, \"gravity\": {...}}, got " << v.dump());
     }
   }
+  bool robustness = false;
+  StripRobustnessOptions ro;
+  if (request.contains("robustness")) {
+    const json& v = request["robustness"];
+    if (v.is_boolean()) {
+      robustness = v.get<bool>();
+    } else if (v.is_object()) {
+      const std::string p = "robustness";
+      only_keys(v, p, {"stiffness_change", "gravity_change", "angle_deg", "plastic_fractions",
+                       "plastic_hardening", "edges"});
+      robustness = true;
+      auto fraction = [&](const char* key, double& x) {
+        if (!v.contains(key)) return;
+        x = number(v[key], p + "." + key);
+        if (!(x > 0 && x < 1)) PARAFAB_INPUT_ERROR(p << "." << key << " must lie in (0, 1), got " << x);
+      };
+      fraction("stiffness_change", ro.stiffness_change);
+      fraction("gravity_change", ro.gravity_change);
+      if (v.contains("angle_deg")) {
+        const double a = number(v["angle_deg"], p + ".angle_deg");
+        if (!(a > 0 && a < 90)) PARAFAB_INPUT_ERROR(p << ".angle_deg must lie in (0, 90), got " << a);
+        ro.angle_change = a * M_PI / 180;
+      }
+      if (v.contains("plastic_fractions")) {
+        ro.plastic_fractions = numbers(v["plastic_fractions"], p + ".plastic_fractions");
+        for (size_t i = 0; i < ro.plastic_fractions.size(); ++i)
+          if (!(ro.plastic_fractions[i] > 0 && ro.plastic_fractions[i] < 1))
+            PARAFAB_INPUT_ERROR(p << ".plastic_fractions[" << i << "] must lie in (0, 1), got "
+                                  << ro.plastic_fractions[i]);
+      }
+      if (v.contains("plastic_hardening"))
+        ro.plastic_hardening = positive(v["plastic_hardening"], p + ".plastic_hardening");
+      if (v.contains("edges")) {
+        if (!v["edges"].is_number_integer() || v["edges"].get<long long>() < 4 || v["edges"].get<long long>() > 100000)
+          PARAFAB_INPUT_ERROR(p << ".edges must be an integer 4..100000, got " << v["edges"].dump());
+        ro.validation.rod.edges = v["edges"].get<int>();
+      }
+    } else {
+      PARAFAB_INPUT_ERROR("robustness must be true, false or {\"stiffness_change\", \"gravity_change\", "
+                          "\"angle_deg\", \"plastic_fractions\", \"plastic_hardening\", \"edges\"}, got "
+                          << v.dump());
+    }
+  }
   CompositeStripOptions co;
   double composite_w1 = 0;
   if (request.contains("composite")) {
@@ -383,6 +427,44 @@ json design_strip_json(const json& request) {
                            {"gravity", so.gravity.enabled},
                            {"edges", vo.rod.edges},
                            {"nodes", nodes}};
+    }
+  }
+  if (robustness) {
+    if (!d.feasible) {
+      out["robustness"] = nullptr;
+    } else {
+      const StripRobustness r = strip_robustness_study(curve, d, o, ro);
+      json cases = json::array();
+      double baseline = NAN;
+      size_t plastic = 0;
+      for (const auto& c : r.cases) {
+        // Which defect and its signed size: relative change, degrees, or the plastic fraction
+        // (the plastic cases follow the order of plastic_fractions).
+        const StripPerturbation& q = c.perturbation;
+        std::string parameter = "none";
+        double value = 0;
+        if (q.stiffness_ratio_scale != 1) parameter = "stiffness_range", value = q.stiffness_ratio_scale - 1;
+        else if (q.gravity_scale != 1) parameter = "gravity", value = q.gravity_scale - 1;
+        else if (q.end_angle_offset != 0) parameter = "end_angles", value = q.end_angle_offset * 180 / M_PI;
+        else if (std::isfinite(q.curvature_limit))
+          parameter = "plastic", value = plastic < ro.plastic_fractions.size() ? ro.plastic_fractions[plastic++] : NAN;
+        if (c.name == "baseline") baseline = c.deviation;
+        json cj = {{"name", c.name}, {"parameter", parameter}, {"value", num_or_null(value)},
+                   {"deviation", num_or_null(c.deviation)}, {"max_distance", num_or_null(c.max_distance)},
+                   {"converged", c.converged}, {"message", c.message}};
+        if (parameter == "plastic")
+          cj["curvature_limit"] = q.curvature_limit, cj["hardening"] = q.plastic_hardening;
+        json nodes = json::array();
+        for (const auto& p : c.nodes) nodes.push_back(to_json(p));
+        cj["nodes"] = nodes;
+        cases.push_back(cj);
+      }
+      out["robustness"] = {{"baseline", num_or_null(baseline)},
+                           {"worst_deviation", r.worst_deviation},
+                           {"worst_case", r.worst_case},
+                           {"edges", ro.validation.rod.edges},
+                           {"seconds", r.seconds},
+                           {"cases", cases}};
     }
   }
   if (request.contains("composite")) {

@@ -27,6 +27,7 @@ TEST(StripRobustness, DefectsOfASpiralUnderGravity) {
     std::printf("[ spiral, gravity ] %-24s deviation %.3g (%.2f mm)%s\n", cs.name.c_str(), cs.deviation,
                 1e3 * cs.max_distance, cs.converged ? "" : (" NOT CONVERGED: " + cs.message).c_str());
   ASSERT_EQ(r.cases.size(), 9u);
+  for (const auto& cs : r.cases) EXPECT_EQ(cs.nodes.size(), 801u) << cs.name;  // 800 edges
   EXPECT_LT(find(r, "baseline").deviation, 1e-5);
   for (const auto& cs : r.cases) {
     EXPECT_TRUE(cs.converged) << cs.name << ": " << cs.message;

@@ -16,7 +16,8 @@ class ParaFabWorkbench(FreeCADGui.Workbench):
     Icon = ""
 
     #: Commands shown in the toolbar and the menu.
-    COMMANDS = ["ParaFab_Strip", "ParaFab_StripsFromSections", "ParaFab_RevolutionStrips", "ParaFab_ExportCutSheets", "ParaFab_Rod", "ParaFab_AnalyzePart"]
+    COMMANDS = ["ParaFab_Strip", "ParaFab_StripsFromSections", "ParaFab_RevolutionStrips",
+                "ParaFab_ExportCutSheets", "ParaFab_PlotStripProfile", "ParaFab_Rod", "ParaFab_AnalyzePart"]
 
     def __init__(self):
         import parafab_wb

@@ -10,6 +10,8 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
   and the twist plot with ``write_twist_plot`` (or set its ``PlotFile``).
 * ``ParaFab_ExportCutSheets`` -- "Export cut sheets": DXF and SVG outlines of the
   selected strips (:func:`parafab_wb.strip_feature.export_cut_sheets`).
+* ``ParaFab_PlotStripProfile`` -- "Plot strip profile": K(s) and w(s) of the selected
+  strips in FreeCAD's Plot module (:func:`parafab_wb.strip_feature.plot_profile`).
 * ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
   solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
 """
@@ -144,6 +146,33 @@ class ExportCutSheetsCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_ExportCutSheets", ExportCutSheetsCommand())
+
+
+class PlotStripProfileCommand(object):
+    """Plot K(s) and w(s) of the selected strips in FreeCAD's Plot module."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "MenuText": "Plot strip profile",
+            "ToolTip": "Plot the stiffness profile K(s) and the width w(s) of each selected strip "
+                       "(a Plot tab per strip)",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        for obj in selected_strips():
+            try:
+                strip_feature.plot_profile(obj, show=True)
+            except Exception as exc:
+                import traceback
+                FreeCAD.Console.PrintLog(traceback.format_exc())
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+FreeCADGui.addCommand("ParaFab_PlotStripProfile", PlotStripProfileCommand())
 
 
 class StripsFromSectionsCommand(object):

@@ -10,6 +10,12 @@ Given a feasible :func:`parafab.design_strip` result (SI units) and the
   ``gamma(s) - w(s)/2 n`` (``n`` = plane normal): the strip is bent in the
   plane of the curve, so its width is perpendicular to that plane.
 
+With a thickness ``h`` both become solids (OpenCASCADE does the geometry):
+the flat face is extruded along the plane normal from ``-h/2`` to ``+h/2``,
+the bent face is offset by ``-h/2`` along its normal and that offset is
+thickened by ``h`` (``makeOffsetShape(..., fill=True)``), so the centreline
+lies in the middle of both solids and the volume is ``∫ w(s) h ds``.
+
 Side curves interpolate a subsample of at most :data:`MAX_EDGE_POINTS`
 samples.  The only arithmetic here is unit scaling and placement.
 """
@@ -120,11 +126,47 @@ def flat_layout_offset(points, width, length, scale=M_TO_MM):
     return xmin, ymin - gap - 0.5 * wmax
 
 
-def strip_shape(result, frame, scale=M_TO_MM):
-    """Compound ``[flat strip face, bent strip face]`` of a feasible result."""
+#: Tolerance of OpenCASCADE's offsets (mm).
+OFFSET_TOLERANCE = 1e-4
+
+
+def flat_strip_solid(face, frame, thickness):
+    """The flat face extruded by ``thickness`` (mm) along the plane normal,
+    centred on the plane."""
+    n = frame.normal
+    solid = face.copy()
+    solid.translate(n * (-0.5 * thickness))
+    solid = solid.extrude(n * thickness)
+    if solid.ShapeType != "Solid" or not solid.isValid():
+        raise ValueError("Cannot extrude the flat strip by its thickness %g mm" % thickness)
+    return solid
+
+
+def bent_strip_solid(face, thickness):
+    """The bent (ruled) face thickened by ``thickness`` (mm) along its normal,
+    centred on the face."""
+    try:
+        mid = face.makeOffsetShape(-0.5 * thickness, OFFSET_TOLERANCE)
+        solid = mid.makeOffsetShape(thickness, OFFSET_TOLERANCE, fill=True)
+    except Exception as exc:  # Part.OCCError and friends
+        raise ValueError("Cannot thicken the bent strip by %g mm: %s" % (thickness, exc))
+    if solid.ShapeType == "Compound" and len(solid.Solids) == 1:
+        solid = solid.Solids[0]
+    if solid.ShapeType != "Solid" or not solid.isValid() or solid.Volume <= 0:
+        raise ValueError("Cannot thicken the bent strip by %g mm (a curvature radius below "
+                         "half the thickness?)" % thickness)
+    return solid
+
+
+def strip_shape(result, frame, scale=M_TO_MM, solid=True):
+    """Compound ``[flat strip, bent strip]`` of a feasible result: solids of
+    the result's ``thickness`` when ``solid`` (the default), else faces."""
     offset = flat_layout_offset(result["points"], result["width"],
                                 result["length"], scale)
     flat = flat_strip_face(result["outline"], frame, offset, scale)
     bent = bent_strip_face(result["points"], result["s"], result["width"],
                            frame, scale)
+    if solid:
+        h = float(result["thickness"]) * scale
+        flat, bent = flat_strip_solid(flat, frame, h), bent_strip_solid(bent, h)
     return Part.makeCompound([flat, bent])

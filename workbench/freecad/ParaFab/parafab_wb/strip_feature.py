@@ -7,8 +7,8 @@ is :class:`StripFeature`.  On recompute it
    (:mod:`parafab_wb.geometry`),
 2. calls the C++ solver ``parafab.design_strip`` (SI units),
 3. stores the results (``Feasible``, ``Reason``, ``R``, ``Length``) and builds
-   the shape: a compound of the flat strip and the bent strip
-   (:mod:`parafab_wb.shapes`).
+   the shape: a compound of the flat strip and the bent strip, solids of the
+   strip's thickness unless ``Solids`` is False (:mod:`parafab_wb.shapes`).
 
 Failures (non-planar edge, invalid input rejected by the solver, infeasible
 curve, missing solver module) never crash FreeCAD: ``Feasible`` becomes
@@ -46,7 +46,9 @@ TYPE = "ParaFab::Strip"
 #:    perforated), validation by simulation (Deviation), RFirst, TypeMessage. Version-1
 #:    documents get the new properties with defaults that reproduce their design (no gravity,
 #:    plain strip, no validation).
-VERSION = 2
+#: 3: Solids (the flat and the bent strip as solids of the strip's thickness; default True).
+#:    Older documents get Solids = True: their next recompute builds solids.
+VERSION = 3
 
 #: Material presets: (E [Pa], thickness [m], density [kg/m³]). 200 gsm cardboard: h = 0.3 mm,
 #: 200 g/m² → ρ = 667 kg/m³, and E = 0.773 GPa, the modulus for which βl³ = E h²/(12 ρ g)
@@ -115,6 +117,10 @@ _PROPERTIES = (
      _READ_ONLY | _OUTPUT),
     ("App::PropertyString", "TypeMessage", "Results",
      "Composite / perforated design: feasibility and why not", "", _READ_ONLY | _OUTPUT),
+    # ---- version 3
+    ("App::PropertyBool", "Solids", "Strip",
+     "Build the flat and the bent strip as solids of the strip's thickness (False: surfaces)",
+     True, 0),
 )
 _ENUMERATIONS = {"MaterialPreset": PRESET_NAMES, "StripType": STRIP_TYPES}
 #: Inputs whose manual change turns a preset into "Custom".
@@ -212,19 +218,89 @@ def build_spec(obj, curve):
     return spec
 
 
-def export_cut_sheets(obj, directory):
-    """Write ``<Label>.dxf`` and ``<Label>.svg`` (flat outline at true scale, mm) of strip
-    ``obj`` into ``directory``; returns the two paths. Raises :class:`StripError` when the
-    strip has no feasible design."""
-    proxy = obj.Proxy
-    result = getattr(proxy, "result", None)
+def strip_result(obj, purpose="for this"):
+    """The feasible solver result of strip ``obj``: the one of the last recompute, or (in a
+    reopened document) designed anew. Raises :class:`StripError` when there is none."""
+    result = getattr(obj.Proxy, "result", None)
     if result is None:  # not designed in this session (e.g. a reopened document)
         owner, edge = _linked_edge(obj)
         curve = geometry.planar_curve_from_edge(edge, _plane_hint(owner))
         result = _solver().design_strip(build_spec(obj, curve))
     if not result.get("feasible"):
-        raise StripError("%s has no feasible design to export: %s"
-                         % (obj.Label, result.get("reason") or obj.Reason))
+        raise StripError("%s has no feasible design %s: %s"
+                         % (obj.Label, purpose, result.get("reason") or obj.Reason))
+    return result
+
+
+def draw_profile(fig, result, title=""):
+    """Draw the stiffness profile K(s) and the width w(s) of a feasible result into the
+    matplotlib Figure ``fig`` (two axes sharing s in mm). Composite strips add the narrow
+    strip's width w2(s), perforated strips the outer width."""
+    s = [x * shapes.M_TO_MM for x in result["s"]]
+    ax_k = fig.add_subplot(2, 1, 1)
+    ax_k.plot(s, result["K"], color="tab:blue")
+    ax_k.set_ylabel("K / min K")
+    ax_k.set_title("%s  R = %.4g, length %.1f mm" % (title, result["R"], result["length"] * shapes.M_TO_MM),
+                   fontsize=10)
+    ax_k.grid(True, alpha=0.3)
+    ax_w = fig.add_subplot(2, 1, 2, sharex=ax_k)
+    ax_w.plot(s, [w * shapes.M_TO_MM for w in result["width"]], color="tab:orange", label="w(s)")
+    composite = result.get("composite")
+    if composite and composite.get("feasible") and composite.get("w2"):
+        ax_w.plot(s, [w * shapes.M_TO_MM for w in composite["w2"]], color="tab:green",
+                  label="w2(s), narrow strip")
+        ax_w.axhline(composite["outer_width"] * shapes.M_TO_MM, color="gray", ls="--", label="broad strip")
+    perforations = result.get("perforations")
+    if perforations:
+        ax_w.axhline(perforations["outer_width"] * shapes.M_TO_MM, color="gray", ls="--",
+                     label="outer width (perforated)")
+    ax_w.set_xlabel("s [mm]")
+    ax_w.set_ylabel("width [mm]")
+    ax_w.set_ylim(bottom=0)
+    ax_w.grid(True, alpha=0.3)
+    ax_w.legend(fontsize=8, loc="best")
+    return ax_k, ax_w
+
+
+def plot_profile(obj, png_path=None, show=None):
+    """K(s) and w(s) of strip ``obj``: written to ``png_path`` (headless, matplotlib's Agg
+    canvas, no pyplot state) when given, and shown in FreeCAD's Plot module when ``show``
+    (default: when the GUI is up and Plot imports). Returns ``png_path``."""
+    result = strip_result(obj, "to plot")
+    if png_path:
+        from matplotlib.figure import Figure
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        fig = Figure(figsize=(8, 6))
+        FigureCanvasAgg(fig)
+        draw_profile(fig, result, obj.Label)
+        fig.tight_layout()
+        fig.savefig(png_path, dpi=100)
+    if show is None:
+        show = FreeCAD.GuiUp
+    if show:
+        try:
+            import Plot  # FreeCAD's Plot module (sets matplotlib's Qt backend: GUI only)
+        except ImportError as exc:
+            FreeCAD.Console.PrintWarning("ParaFab: FreeCAD's Plot module is not available (%s)\n" % exc)
+            return png_path
+        win = Plot.figure("Strip profile: %s" % obj.Label)
+        if win is not None:
+            # Not fig.clf(): with matplotlib 3.6 it updates the Plot tab's toolbar, whose
+            # actions PySide has already deleted (RuntimeError).
+            for ax in list(win.fig.axes):
+                win.fig.delaxes(ax)
+            axes = draw_profile(win.fig, result, obj.Label)
+            win.axes, win.axesList = axes[0], list(axes)
+            win.fig.tight_layout()
+            win.update()
+    return png_path
+
+
+def export_cut_sheets(obj, directory):
+    """Write ``<Label>.dxf`` and ``<Label>.svg`` (flat outline at true scale, mm) of strip
+    ``obj`` into ``directory``; returns the two paths. Raises :class:`StripError` when the
+    strip has no feasible design."""
+    result = strip_result(obj, "to export")
     safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in obj.Label) or obj.Name
     paths = []
     for ext in ("dxf", "svg"):
@@ -316,7 +392,8 @@ class StripFeature(feature_proxy.FeatureProxy):
         if not result["feasible"]:
             raise StripError("Infeasible curve: %s"
                              % (result.get("reason") or "no reason given"))
-        obj.Shape = shapes.strip_shape(result, curve.frame)
+        obj.Shape = shapes.strip_shape(result, curve.frame,
+                                       solid=bool(getattr(obj, "Solids", True)))
         obj.Feasible = True
         obj.Reason = ""
         self.result = result
