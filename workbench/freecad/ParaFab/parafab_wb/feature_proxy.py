@@ -24,6 +24,39 @@ def ensure_properties(obj, table, enumerations=None):
             setattr(obj, name, default)
 
 
+def solver_module(error_cls):
+    """The compiled ``parafab`` module; ``error_cls`` (the feature's error) if it is missing."""
+    try:
+        import parafab
+    except ImportError as exc:
+        raise error_cls("The ParaFab solver module 'parafab' cannot be imported (%s); "
+                        "is the workbench installed?" % exc)
+    return parafab
+
+
+def linked_edge(obj, error_cls):
+    """``(owner, edge)`` for the ``Edge`` link of ``obj``, the edge in global coordinates;
+    ``error_cls`` names what is wrong (no link, missing element, not an edge)."""
+    link = obj.Edge
+    if not link or link[0] is None or not link[1]:
+        raise error_cls("No edge linked: set the 'Edge' property")
+    owner, subs = link
+    sub = subs[0]
+    try:
+        edge = owner.Shape.getElement(sub)
+    except Exception as exc:  # OCC / FreeCAD raise various types here
+        raise error_cls("Cannot get %s of %s: %s" % (sub, owner.Label, exc))
+    if edge.ShapeType != "Edge":
+        raise error_cls("%s of %s is not an edge" % (sub, owner.Label))
+    # owner.Shape is expressed in the owner's container (e.g. a PartDesign Body); move the
+    # edge to global coordinates.
+    container = owner.getGlobalPlacement().multiply(owner.Placement.inverse())
+    if not container.isIdentity():
+        edge = edge.copy()
+        edge.Placement = container.multiply(edge.Placement)
+    return owner, edge
+
+
 class FeatureProxy(object):
     """Base proxy: subclasses set TYPE, VERSION, PROPERTIES (and ENUMERATIONS)."""
 

@@ -86,32 +86,13 @@ class RodError(RuntimeError):
 
 
 def _solver():
-    try:
-        import parafab
-    except ImportError as exc:
-        raise RodError("The ParaFab solver module 'parafab' cannot be imported (%s); "
-                       "is the workbench installed?" % exc)
-    return parafab
+    """The compiled solver module, with a useful error if absent."""
+    return feature_proxy.solver_module(RodError)
 
 
 def _linked_edge(obj):
     """The linked edge in global coordinates."""
-    link = obj.Edge
-    if not link or link[0] is None or not link[1]:
-        raise RodError("No edge linked: set the 'Edge' property")
-    owner, subs = link
-    sub = subs[0]
-    try:
-        edge = owner.Shape.getElement(sub)
-    except Exception as exc:  # OCC / FreeCAD raise various types here
-        raise RodError("Cannot get %s of %s: %s" % (sub, owner.Label, exc))
-    if edge.ShapeType != "Edge":
-        raise RodError("%s of %s is not an edge" % (sub, owner.Label))
-    container = owner.getGlobalPlacement().multiply(owner.Placement.inverse())
-    if not container.isIdentity():
-        edge = edge.copy()
-        edge.Placement = container.multiply(edge.Placement)
-    return edge
+    return feature_proxy.linked_edge(obj, RodError)[1]
 
 
 def curve_spec(edge, scale=geometry.MM_TO_M):

@@ -132,35 +132,13 @@ class StripError(RuntimeError):
 
 
 def _solver():
-    """Import the compiled solver module, with a useful error if absent."""
-    try:
-        import parafab
-    except ImportError as exc:
-        raise StripError("The ParaFab solver module 'parafab' cannot be "
-                         "imported (%s); is the workbench installed?" % exc)
-    return parafab
+    """The compiled solver module, with a useful error if absent."""
+    return feature_proxy.solver_module(StripError)
 
 
 def _linked_edge(obj):
-    """Return ``(owner, edge)`` for the ``Edge`` link of ``obj``."""
-    link = obj.Edge
-    if not link or link[0] is None or not link[1]:
-        raise StripError("No edge linked: set the 'Edge' property")
-    owner, subs = link
-    sub = subs[0]
-    try:
-        edge = owner.Shape.getElement(sub)
-    except Exception as exc:  # OCC / FreeCAD raise various types here
-        raise StripError("Cannot get %s of %s: %s" % (sub, owner.Label, exc))
-    if edge.ShapeType != "Edge":
-        raise StripError("%s of %s is not an edge" % (sub, owner.Label))
-    # owner.Shape is expressed in the owner's container (e.g. a PartDesign
-    # Body); move the edge to global coordinates.
-    container = owner.getGlobalPlacement().multiply(owner.Placement.inverse())
-    if not container.isIdentity():
-        edge = edge.copy()
-        edge.Placement = container.multiply(edge.Placement)
-    return owner, edge
+    """``(owner, edge)`` for the ``Edge`` link of ``obj``, in global coordinates."""
+    return feature_proxy.linked_edge(obj, StripError)
 
 
 def _plane_hint(owner):
