@@ -6,27 +6,22 @@
 #include "rods/bspline_curve3.h"
 #include "rods/rod_design.h"
 
+#include "json_fields.h"
+
 namespace parafab::entry {
 
 using nlohmann::json;
 
 namespace {
 
-const json& require(const json& obj, const char* key, const std::string& path) {
-  if (!obj.is_object())
-    PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.type_name());
-  auto it = obj.find(key);
-  if (it == obj.end()) PARAFAB_INPUT_ERROR("missing " << path << "." << key);
-  return *it;
-}
+using fields::require;
 
+// fields::number, with the message rod requests give for null and strings (NaN/inf written
+// as null or text by some JSON writers).
 double number(const json& v, const std::string& path) {
   if (v.is_null() || v.is_string())
     PARAFAB_INPUT_ERROR(path << " is not a finite number (got " << v.dump() << ")");
-  if (!v.is_number()) PARAFAB_INPUT_ERROR(path << " must be a number, got " << v.dump());
-  const double x = v.get<double>();
-  if (!std::isfinite(x)) PARAFAB_INPUT_ERROR(path << " is not finite");
-  return x;
+  return fields::number(v, path);
 }
 
 // obj[key] as a number in the allowed range, or `fallback` when absent.

@@ -1,6 +1,7 @@
 #include "sections_json.h"
 
 #include "common/error.h"
+#include "json_fields.h"
 #include "part_reader.h"
 #include "plane_sections.h"
 #include "strip_json.h"
@@ -11,11 +12,7 @@ using nlohmann::json;
 
 namespace {
 
-Eigen::Vector3d vec3_field(const json& v, const std::string& path) {
-  if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
-    PARAFAB_INPUT_ERROR(path << " must be [x, y, z], got " << v.dump());
-  return Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
-}
+Eigen::Vector3d vec3_field(const json& v, const std::string& path) { return fields::vec3(v, path); }
 
 json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
 

@@ -12,6 +12,7 @@
 #include <fstream>
 
 #include "common/error.h"
+#include "json_fields.h"
 #include "face_lookup.h"
 #include "grid_model.h"
 #include "part_reader.h"
@@ -28,15 +29,8 @@ namespace {
 
 bool model_name_is_linear(const std::string& model) { return model == "linear"; }
 
-double number(const json& v, const std::string& path) {
-  if (!v.is_number()) PARAFAB_INPUT_ERROR(path << " must be a number, got " << v.dump());
-  return v.get<double>();
-}
-
-Vec3 vec3(const json& v, const std::string& path) {
-  if (!v.is_array() || v.size() != 3) PARAFAB_INPUT_ERROR(path << " must be [x, y, z], got " << v.dump());
-  return Vec3(number(v[0], path + "[0]"), number(v[1], path + "[1]"), number(v[2], path + "[2]"));
-}
+using fields::number;
+using fields::vec3;
 
 // A face named by index or by a point on it.
 int face_of(const occ::PartShape& part, const json& item, const std::string& path, double tol) {

@@ -9,26 +9,16 @@
 #include "strips/strip_robustness.h"
 #include "strips/strip_validation.h"
 
+#include "json_fields.h"
+
 namespace parafab::entry {
 
 using nlohmann::json;
 
 namespace {
 
-const json& require(const json& obj, const char* key, const std::string& path) {
-  if (!obj.is_object())
-    PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.type_name());
-  auto it = obj.find(key);
-  if (it == obj.end()) PARAFAB_INPUT_ERROR("missing " << path << "." << key);
-  return *it;
-}
-
-double number(const json& v, const std::string& path) {
-  if (!v.is_number()) PARAFAB_INPUT_ERROR(path << " must be a number, got " << v.dump());
-  const double x = v.get<double>();
-  if (!std::isfinite(x)) PARAFAB_INPUT_ERROR(path << " is not finite");
-  return x;
-}
+using fields::number;
+using fields::require;
 
 double optional_number(const json& obj, const char* key, const std::string& path, double fallback) {
   auto it = obj.find(key);
