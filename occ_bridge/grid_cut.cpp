@@ -619,8 +619,11 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
 
   // Changed regions: faces on a surface no old face lies on (and old ones gone), and edges
   // without an identical old edge (and old ones gone); the dirty box holds them all.
-  Box3 dirty{Vec3::Constant(1e300), Vec3::Constant(-1e300)};
-  auto grow = [&](const Box3& b) { dirty.min = dirty.min.cwiseMin(b.min), dirty.max = dirty.max.cwiseMax(b.max); };
+  // Each changed face or edge adds its box; overlapping boxes are merged into the box around
+  // them (one region per connected change: a hole that grows, a face that moves together with
+  // the faces beside it), so the region between old and new positions is covered.
+  std::vector<Box3> changes;
+  auto grow = [&](const Box3& b) { changes.push_back(b); };
   auto unmatched_faces = [&](const PartShape& from, const PartShape& to) {
     for (int i = 0; i < from.face_count(); ++i) {
       const Box3 fb = tight_box(from.face(i));
@@ -649,6 +652,24 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   for (size_t j = 0; j < old_edges.size(); ++j)
     if (!old_matched[j]) ++R.changed_edges, grow(old_edges[j].box);
   const bool changed = R.changed_faces + R.changed_edges > 0;
+  auto overlap = [&](const Box3& a, const Box3& b) {
+    return !(((a.max - b.min).array() < -tol).any() || ((b.max - a.min).array() < -tol).any());
+  };
+  std::vector<Box3> dirty;  // merged until no two overlap
+  for (Box3 b : changes) {
+    for (bool merged = true; merged;) {
+      merged = false;
+      for (size_t k = 0; k < dirty.size(); ++k)
+        if (overlap(dirty[k], b)) {
+          b.min = b.min.cwiseMin(dirty[k].min), b.max = b.max.cwiseMax(dirty[k].max);
+          dirty.erase(dirty.begin() + static_cast<long>(k));
+          merged = true;
+          break;
+        }
+    }
+    dirty.push_back(b);
+  }
+  R.regions = static_cast<int>(dirty.size());
 
   GridCut g;
   g.grid = old.grid;
@@ -662,7 +683,9 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   auto dirty_block = [&](const std::array<int, 3>& b) {
     if (!changed) return false;
     const Box3 box = blocks_of.block_box(b);
-    return !(((box.max - dirty.min).array() < -tol).any() || ((dirty.max - box.min).array() < -tol).any());
+    for (const Box3& d : dirty)
+      if (overlap(box, d)) return true;
+    return false;
   };
   // Keep what lies in clean blocks.
   std::vector<int> new_sv(old.subvolumes.size(), -1), new_interior(old.interior_cells.size(), -1);

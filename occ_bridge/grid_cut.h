@@ -105,16 +105,18 @@ struct RecutReport {
   std::string message;
   int changed_faces = 0;       ///< faces on a surface no face of the other part lies on (both ways)
   int changed_edges = 0;       ///< edges without an identical edge in the other part (both ways)
+  int regions = 0;             ///< changed regions (boxes of overlapping changes, merged)
   int blocks = 0, blocks_recut = 0;
+  bool verified = true;        ///< rebuild_grid_model: the rules' volume matched OCCT's (else cut again whole)
   int subvolumes_kept = 0, subvolumes_new = 0;
   std::vector<int> kept_from;  ///< for every subvolume of the new cut: its old index, or −1
 };
 
 /// Re-cuts `new_part` on the grid of `old` (cut from `old_part` with block_cells > 0): blocks
 /// that no change touches keep their subvolumes, connections and block faces; only the blocks
-/// inside the box around the changes are split again. Changes are faces whose surface moved
+/// inside the boxes around the changes are split again. Changes are faces whose surface moved
 /// (old and new) and edges that moved (a face on the same surface changes only between its
-/// old and new trimming edges). Falls back
+/// old and new trimming edges); overlapping change boxes merge into one region each. Falls back
 /// to a full cut on the same grid planes when the new part leaves the grid.
 GridCut recut_by_grid(const PartShape& new_part, const GridCut& old, const PartShape& old_part,
                       const GridOptions& options, RecutReport* report = nullptr);

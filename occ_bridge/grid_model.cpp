@@ -3,7 +3,11 @@
 #include <chrono>
 #include <map>
 
+#include <BRepGProp.hxx>
+#include <GProp_GProps.hxx>
+
 #include "common/error.h"
+#include "occt_shape.h"
 
 namespace parafab::occ {
 
@@ -82,6 +86,26 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
     if (r.full || s >= static_cast<int>(r.kept_from.size()) || r.kept_from[s] < 0) return nullptr;
     return &old.elements[old_first_cut + r.kept_from[s]].rule;
   });
+  // Safety net: the rules must integrate the new part's volume (OCCT's). A change the dirty
+  // regions missed would leave whole cells wrong; then the part is cut again whole.
+  double volume = 0;
+  for (const auto& e : m.elements)
+    for (double w : e.rule.weights) volume += w;
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(part.shape, props);
+  if (std::abs(volume - props.Mass()) > 1e-6 * std::abs(props.Mass())) {
+    r.verified = false;
+    r.full = true;
+    r.message = "the re-cut rules missed the new volume by " + std::to_string(volume - props.Mass()) +
+                "; cut again whole";
+    GridModelOptions fo = o;
+    fo.grid.anchored = true;
+    fo.grid.origin = old.cut->grid.min;
+    fo.grid.cell_size = old.cut->cell_size.maxCoeff();
+    GridModel full = build_grid_model(part, fo);
+    full.cut_seconds += m.cut_seconds;
+    return full;
+  }
   return m;
 }
 

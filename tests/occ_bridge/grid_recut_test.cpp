@@ -116,6 +116,8 @@ TEST(GridBlocks, RecutOfAChangedHoleEqualsAFullCut) {
   EXPECT_FALSE(report.full) << report.message;
   EXPECT_EQ(report.changed_faces, 2);  // the old and the new hole face
   EXPECT_EQ(report.changed_edges, 6);  // their two circles and seam each
+  EXPECT_EQ(report.regions, 1);
+  EXPECT_TRUE(report.verified);
   EXPECT_LT(report.blocks_recut, report.blocks / 3);
   EXPECT_GT(report.subvolumes_kept, 3 * report.subvolumes_new);
 
@@ -127,6 +129,57 @@ TEST(GridBlocks, RecutOfAChangedHoleEqualsAFullCut) {
   const double u_recut = max_displacement(recut), u_fresh = max_displacement(fresh);
   EXPECT_NEAR(u_recut, u_fresh, 1e-9 * u_fresh);
   EXPECT_GT(std::abs(u_recut - max_displacement(old_model)), 1e-6 * u_fresh);  // the change matters
+}
+
+// Two holes far apart that both grow: two changed regions, so the blocks between them are
+// kept; the result still equals a fresh cut.
+TEST(GridBlocks, SeparateChangesAreSeparateRegions) {
+  auto plate = [](double r) {
+    TopoDS_Shape s = BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), 120, 40, 10).Shape();
+    for (double x : {15.0, 105.0})
+      s = BRepAlgoAPI_Cut(s, BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(x, 20, -5), gp::DZ()), r, 20).Shape()).Shape();
+    return make_part(s, "plate with two holes");
+  };
+  const auto before = plate(5), after = plate(6);
+  GridModelOptions o;
+  o.grid.cells_longest = 24;
+  o.grid.block_cells = 4;
+  o.grid.perturbation = 0;
+  const GridModel old_model = build_grid_model(*before, o);
+  ASSERT_TRUE(old_model.done) << old_model.message;
+  RecutReport report;
+  const GridModel recut = rebuild_grid_model(*after, old_model, *before, o, &report);
+  ASSERT_TRUE(recut.done) << recut.message;
+  EXPECT_EQ(report.regions, 2);
+  EXPECT_TRUE(report.verified) << report.message;
+  EXPECT_FALSE(report.full);
+  // 2 × 2 blocks around each hole; one box around both would take all 12 blocks.
+  EXPECT_EQ(report.blocks, 12);
+  EXPECT_LE(report.blocks_recut, 8);
+  const GridModel fresh = build_grid_model(*after, o);
+  expect_same_cut(*fresh.cut, *recut.cut, "two holes");
+  EXPECT_NEAR(max_displacement(recut), max_displacement(fresh), 1e-9 * max_displacement(fresh));
+}
+
+// The safety net: when the old model does not belong to the given old part (here: cut from
+// r = 8, but r = 9.5 passed as the old part, so no change is seen), the rules miss the new
+// volume, and the part is cut again whole instead of returning the stale cells.
+TEST(GridBlocks, AMissedChangeIsCaughtByTheVolumeCheck) {
+  const auto r8 = plate_with_hole(8), r95 = plate_with_hole(9.5);
+  GridModelOptions o;
+  o.grid.cells_longest = 12;
+  o.grid.block_cells = 4;
+  o.grid.perturbation = 0;
+  const GridModel stale = build_grid_model(*r8, o);
+  ASSERT_TRUE(stale.done) << stale.message;
+  RecutReport report;
+  const GridModel m = rebuild_grid_model(*r95, stale, *r95, o, &report);
+  ASSERT_TRUE(m.done) << m.message;
+  EXPECT_EQ(report.changed_faces + report.changed_edges, 0);
+  EXPECT_FALSE(report.verified);
+  EXPECT_TRUE(report.full);
+  EXPECT_NE(report.message.find("missed the new volume"), std::string::npos) << report.message;
+  EXPECT_NEAR(model_volume(m), occt_volume(*r95), 1e-9 * occt_volume(*r95));
 }
 
 TEST(GridBlocks, AnUnchangedPartIsNotCutAgain) {

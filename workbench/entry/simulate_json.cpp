@@ -402,7 +402,8 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
   if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << new_part_path << " by the grid: " << model->message);
   model_ = std::move(model);
   const json recut{{"full", rr.full}, {"message", rr.message}, {"changed_faces", rr.changed_faces},
-                   {"changed_edges", rr.changed_edges}, {"blocks", rr.blocks}, {"blocks_recut", rr.blocks_recut},
+                   {"changed_edges", rr.changed_edges}, {"regions", rr.regions}, {"verified", rr.verified},
+                   {"blocks", rr.blocks}, {"blocks_recut", rr.blocks_recut},
                    {"subvolumes_kept", rr.subvolumes_kept}, {"subvolumes_new", rr.subvolumes_new}};
   return solve(out_dir, report, recut);
 }
