@@ -624,21 +624,28 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   // the faces beside it), so the region between old and new positions is covered.
   std::vector<Box3> changes;
   auto grow = [&](const Box3& b) { changes.push_back(b); };
-  auto unmatched_faces = [&](const PartShape& from, const PartShape& to) {
+  auto face_boxes = [](const PartShape& p) {
+    std::vector<Box3> boxes;
+    for (int i = 0; i < p.face_count(); ++i) boxes.push_back(tight_box(p.face(i)));
+    return boxes;
+  };
+  const std::vector<Box3> new_boxes = face_boxes(part), old_boxes = face_boxes(old_part);
+  auto unmatched_faces = [&](const PartShape& from, const std::vector<Box3>& from_boxes, const PartShape& to,
+                             const std::vector<Box3>& to_boxes) {
     for (int i = 0; i < from.face_count(); ++i) {
-      const Box3 fb = tight_box(from.face(i));
+      const Box3& fb = from_boxes[i];
       const std::vector<gp_Pnt> samples = surface_samples(from.face(i));
       bool found = false;
       for (int j = 0; j < to.face_count() && !found; ++j) {
-        const Box3 tb = tight_box(to.face(j));  // cheap reject: boxes must overlap
+        const Box3& tb = to_boxes[j];  // cheap reject: boxes must overlap
         if (((fb.max - tb.min).array() < -tol).any() || ((tb.max - fb.min).array() < -tol).any()) continue;
         found = on_surface_of(samples, to.face(j), tol);
       }
       if (!found) ++R.changed_faces, grow(fb);
     }
   };
-  unmatched_faces(part, old_part);
-  unmatched_faces(old_part, part);
+  unmatched_faces(part, new_boxes, old_part, old_boxes);
+  unmatched_faces(old_part, old_boxes, part, new_boxes);
   std::vector<EdgeSignature> old_edges, new_edges;
   for (int i = 0; i < old_part.edge_count(); ++i) old_edges.push_back(edge_signature(old_part.edge(i)));
   for (int i = 0; i < part.edge_count(); ++i) new_edges.push_back(edge_signature(part.edge(i)));

@@ -4,17 +4,11 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "common/gauss_legendre.h"
 
 namespace parafab {
 
 namespace {
-// 8-point Gauss–Legendre nodes and weights on [-1, 1].
-constexpr double kGaussX[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
-                               -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,
-                               0.7966664774136267,  0.9602898564975363};
-constexpr double kGaussW[8] = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873,
-                               0.3626837833783620, 0.3626837833783620, 0.3137066458778873,
-                               0.2223810344533745, 0.1012285362903763};
 constexpr int kSubdivisionsPerSpan = 16;
 double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 }  // namespace
@@ -44,7 +38,7 @@ double PlaneCurve::speed(double u) const { return curve_.derivatives(u)[1].norm(
 double PlaneCurve::integrate_speed(double u0, double u1) const {
   const double h = 0.5 * (u1 - u0), m = 0.5 * (u1 + u0);
   double sum = 0.0;
-  for (int q = 0; q < 8; ++q) sum += kGaussW[q] * speed(m + h * kGaussX[q]);
+  for (int q = 0; q < 8; ++q) sum += kGauss8W[q] * speed(m + h * kGauss8X[q]);
   return sum * h;
 }
 

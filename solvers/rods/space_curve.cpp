@@ -4,17 +4,9 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "common/gauss_legendre.h"
 
 namespace parafab {
-
-namespace {
-constexpr double kGaussX[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
-                               -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,
-                               0.7966664774136267,  0.9602898564975363};
-constexpr double kGaussW[8] = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873,
-                               0.3626837833783620, 0.3626837833783620, 0.3137066458778873,
-                               0.2223810344533745, 0.1012285362903763};
-}  // namespace
 
 SpaceCurve::SpaceCurve(CurveDerivatives derivatives, double t0, double t1, int table_intervals)
     : derivatives_(std::move(derivatives)), t0_(t0), t1_(t1) {
@@ -49,7 +41,7 @@ SpaceCurve::SpaceCurve(CurveDerivatives derivatives, double t0, double t1, int t
 double SpaceCurve::integrate_speed(double a, double b) const {
   const double h = 0.5 * (b - a), m = 0.5 * (a + b);
   double sum = 0;
-  for (int q = 0; q < 8; ++q) sum += kGaussW[q] * speed(m + h * kGaussX[q]);
+  for (int q = 0; q < 8; ++q) sum += kGauss8W[q] * speed(m + h * kGauss8X[q]);
   return sum * h;
 }
 

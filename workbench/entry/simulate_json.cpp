@@ -413,8 +413,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   const Setup& S = *setup_;
   const occ::GridModel& grid = *model_;
   const auto& mat = S.mat;
-  const occ::PartInfo info = occ::part_info(*part_);
-  const double diag = (info.bbox_max - info.bbox_min).norm();
+  const double diag = S.extent.norm();
   report("assemble", 0.6);
   xfem::LinearXfemResult r;
   json newton = nullptr;
