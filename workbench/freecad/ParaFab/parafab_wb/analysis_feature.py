@@ -33,7 +33,6 @@ import FreeCAD
 import Part
 
 from . import feature_proxy
-from . import icon_path
 from . import result_display
 
 TYPE = "ParaFab::Analysis"
@@ -298,18 +297,11 @@ def apply_run(obj, inputs, outcome, result=None, out_dir=None, message=""):
         obj.Status = "error: %s" % message
 
 
-class ViewProviderAnalysis(object):
+class ViewProviderAnalysis(feature_proxy.IconViewProvider):
     """View provider of the ``Analysis`` feature (GUI only): icon, the result mesh as its child,
     and the task panel on double-click."""
 
-    def __init__(self, vobj):
-        vobj.Proxy = self
-
-    def attach(self, vobj):
-        self.Object = vobj.Object
-
-    def getIcon(self):
-        return icon_path("ParaFab_Analysis.svg")
+    ICON = "ParaFab_Analysis.svg"
 
     def claimChildren(self):
         mesh = getattr(self.Object, "ResultMesh", None)
@@ -340,14 +332,6 @@ class ViewProviderAnalysis(object):
             mesh.Document.removeObject(mesh.Name)
         return True
 
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
-
-    dumps = __getstate__
-    loads = __setstate__
 
 
 def _default_output_dir(obj):

@@ -34,76 +34,84 @@ def selected_edge():
     return None
 
 
-class StripCommand(object):
-    """Create a bending-active strip on the selected edge."""
+def in_transaction(doc, title, action):
+    """Run ``action()`` inside the undo transaction ``title``; on failure, undo it and print
+    the error (the document stays as it was). Returns the action's result, or None."""
+    doc.openTransaction(title)
+    try:
+        result = action()
+    except Exception as exc:
+        doc.abortTransaction()
+        FreeCAD.Console.PrintError("ParaFab: %s failed: %s\n" % (title, exc))
+        return None
+    doc.commitTransaction()
+    return result
+
+
+class EdgeFeatureCommand(object):
+    """A command that creates a feature on the selected edge (strip, rod)."""
+
+    RESOURCES = {}
+    TITLE = ""
+
+    def make(self, owner, element, doc):
+        raise NotImplementedError
 
     def GetResources(self):
         """Icon, menu text and tooltip."""
-        return {
-            "Pixmap": icon_path("ParaFab_Strip.svg"),
-            "MenuText": "Bending-active strip",
-            "ToolTip": "Design a bending-active strip whose bent shape follows "
-                       "the selected planar edge",
-        }
+        return self.RESOURCES
 
     def IsActive(self):
         """Enabled when a document is open and an edge is selected."""
         return FreeCAD.ActiveDocument is not None and selected_edge() is not None
 
     def Activated(self):
-        """Create and recompute the strip inside an undo transaction."""
-        selection = selected_edge()
-        if selection is None:
-            FreeCAD.Console.PrintError("ParaFab: select a planar edge first\n")
-            return
-        owner, element = selection
-        doc = owner.Document
-        doc.openTransaction("Bending-active strip")
-        try:
-            strip_feature.make_strip(owner, element, doc)
-            doc.recompute()
-        except Exception as exc:
-            doc.abortTransaction()
-            FreeCAD.Console.PrintError("ParaFab: cannot create strip: %s\n" % exc)
-            return
-        doc.commitTransaction()
-
-
-FreeCADGui.addCommand("ParaFab_Strip", StripCommand())
-
-
-class RodCommand(object):
-    """Create a Kirchhoff rod on the selected space-curve edge."""
-
-    def GetResources(self):
-        return {
-            "Pixmap": icon_path("ParaFab_Rod.svg"),
-            "MenuText": "Kirchhoff rod",
-            "ToolTip": "Design a Kirchhoff rod (elliptical sections, twist, clamped end frames) whose "
-                       "equilibrium follows the selected 3D edge. The shape holds the deformed and the "
-                       "straight rod; export both as STEP with parafab_wb.rod_feature.export_step(obj, path)",
-        }
-
-    def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and selected_edge() is not None
-
-    def Activated(self):
-        from . import rod_feature
+        """Create and recompute the feature inside an undo transaction."""
         selection = selected_edge()
         if selection is None:
             FreeCAD.Console.PrintError("ParaFab: select an edge first\n")
             return
         owner, element = selection
         doc = owner.Document
-        doc.openTransaction("Kirchhoff rod")
-        try:
-            rod_feature.make_rod(owner, element, doc)
+
+        def create():
+            self.make(owner, element, doc)
             doc.recompute()
-        except Exception as exc:
-            doc.abortTransaction()
-            FreeCAD.Console.PrintError("ParaFab: cannot create rod: %s\n" % exc)
-            return
-        doc.commitTransaction()
+        in_transaction(doc, self.TITLE, create)
+
+
+class StripCommand(EdgeFeatureCommand):
+    """Create a bending-active strip on the selected edge."""
+
+    TITLE = "Bending-active strip"
+    RESOURCES = {
+        "Pixmap": icon_path("ParaFab_Strip.svg"),
+        "MenuText": "Bending-active strip",
+        "ToolTip": "Design a bending-active strip whose bent shape follows the selected planar edge",
+    }
+
+    def make(self, owner, element, doc):
+        strip_feature.make_strip(owner, element, doc)
+
+
+FreeCADGui.addCommand("ParaFab_Strip", StripCommand())
+
+
+class RodCommand(EdgeFeatureCommand):
+    """Create a Kirchhoff rod on the selected space-curve edge."""
+
+    TITLE = "Kirchhoff rod"
+    RESOURCES = {
+        "Pixmap": icon_path("ParaFab_Rod.svg"),
+        "MenuText": "Kirchhoff rod",
+        "ToolTip": "Design a Kirchhoff rod (elliptical sections, twist, clamped end frames) whose "
+                   "equilibrium follows the selected 3D edge. The shape holds the deformed and the "
+                   "straight rod; export both as STEP with parafab_wb.rod_feature.export_step(obj, path)",
+    }
+
+    def make(self, owner, element, doc):
+        from . import rod_feature
+        rod_feature.make_rod(owner, element, doc)
 
 
 FreeCADGui.addCommand("ParaFab_Rod", RodCommand())
@@ -203,14 +211,11 @@ class StripsFromSectionsCommand(object):
         split_normal = [1.0 if a == shortest else 0.0 for a in range(3)]
         split_offset = [box.Center.x, box.Center.y, box.Center.z][shortest]
         doc = obj.Document
-        doc.openTransaction("Strips from sections")
-        try:
-            _, report = sections.strips_from_sections(obj, normal, 5, split=(split_normal, split_offset))
-        except Exception as exc:
-            doc.abortTransaction()
-            FreeCAD.Console.PrintError("ParaFab: cannot take sections: %s\n" % exc)
+        done = in_transaction(doc, "Strips from sections", lambda: sections.strips_from_sections(
+            obj, normal, 5, split=(split_normal, split_offset)))
+        if done is None:
             return
-        doc.commitTransaction()
+        report = done[1]
         FreeCAD.Console.PrintMessage("ParaFab: %d strips designed, %d infeasible, %d failed\n"
                                      % (report["designed"], report["infeasible"], report["failed"]))
 
@@ -236,15 +241,8 @@ class RevolutionStripsCommand(object):
     def Activated(self):
         from . import revolution_feature
         doc = FreeCAD.ActiveDocument
-        doc.openTransaction("Surface of revolution strips")
-        try:
-            revolution_feature.make_revolution_strips(doc)
-            doc.recompute()
-        except Exception as exc:
-            doc.abortTransaction()
-            FreeCAD.Console.PrintError("ParaFab: cannot create revolution strips: %s\n" % exc)
-            return
-        doc.commitTransaction()
+        in_transaction(doc, "Surface of revolution strips",
+                       lambda: (revolution_feature.make_revolution_strips(doc), doc.recompute()))
 
 
 FreeCADGui.addCommand("ParaFab_RevolutionStrips", RevolutionStripsCommand())

@@ -93,3 +93,33 @@ class FeatureProxy(object):
 
     def loads(self, state):
         return self.__setstate__(state)
+
+
+class IconViewProvider(object):
+    """Base view provider (GUI only): the tree icon ``ICON`` from resources/icons, and no
+    state of its own to save. Subclasses keep their class names, which saved documents name."""
+
+    ICON = ""
+
+    def __init__(self, vobj):
+        vobj.Proxy = self
+
+    def attach(self, vobj):
+        """Called when the view provider is created or restored."""
+        self.Object = vobj.Object
+
+    def getIcon(self):
+        """Tree icon."""
+        from . import icon_path
+        return icon_path(self.ICON)
+
+    def __getstate__(self):
+        """Nothing to store."""
+        return None
+
+    def __setstate__(self, state):
+        """Nothing to restore."""
+        return None
+
+    dumps = __getstate__
+    loads = __setstate__

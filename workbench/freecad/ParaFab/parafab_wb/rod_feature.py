@@ -31,7 +31,6 @@ import Part
 
 from . import feature_proxy
 from . import geometry
-from . import icon_path
 from . import rod_shapes
 
 #: Proxy type tag stored in documents.
@@ -198,26 +197,10 @@ def export_step(obj, path):
     return path
 
 
-class ViewProviderRod(object):
+class ViewProviderRod(feature_proxy.IconViewProvider):
     """View provider of the ``Rod`` feature (GUI only)."""
 
-    def __init__(self, vobj):
-        vobj.Proxy = self
-
-    def attach(self, vobj):
-        self.Object = vobj.Object
-
-    def getIcon(self):
-        return icon_path("ParaFab_Rod.svg")
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
-
-    dumps = __getstate__
-    loads = __setstate__
+    ICON = "ParaFab_Rod.svg"
 
 
 def make_rod(edge_owner_obj, subname, doc=None):

@@ -34,7 +34,6 @@ import FreeCAD
 import Part
 
 from . import geometry
-from . import icon_path
 from . import shapes
 from . import feature_proxy
 
@@ -393,30 +392,10 @@ class StripFeature(feature_proxy.FeatureProxy):
                 obj.TypeMessage = "%s strip infeasible: %s" % (kind, part.get("message", ""))
 
 
-class ViewProviderStrip(object):
+class ViewProviderStrip(feature_proxy.IconViewProvider):
     """View provider of the ``Strip`` feature (GUI only)."""
 
-    def __init__(self, vobj):
-        vobj.Proxy = self
-
-    def attach(self, vobj):
-        """Called when the view provider is created or restored."""
-        self.Object = vobj.Object
-
-    def getIcon(self):
-        """Tree icon."""
-        return icon_path("ParaFab_Strip.svg")
-
-    def __getstate__(self):
-        """Nothing to store."""
-        return None
-
-    def __setstate__(self, state):
-        """Nothing to restore."""
-        return None
-
-    dumps = __getstate__
-    loads = __setstate__
+    ICON = "ParaFab_Strip.svg"
 
 
 def make_strip(edge_owner_obj, subname, doc=None):
