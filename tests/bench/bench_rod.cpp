@@ -19,25 +19,15 @@
 #include <nlohmann/json.hpp>
 
 #include "rods/rod_design.h"
+#include "../solvers/rods/rod_test_curves.h"
 
 using namespace parafab;
 
 namespace {
 
+// The thesis's light-sculpture curve (scaled 0.2 m), segment k of three (as the rod tests).
 SpaceCurve light_sculpture_segment(int k) {
-  const double scale = 0.2, r1 = 1, r2 = 0.25, p = 0.45, a = 0.4;
-  return SpaceCurve(
-      [=](double t) {
-        const double u = t / 2 + p, cu = std::cos(u), su = std::sin(u);
-        const double c = std::cos(t), s = std::sin(t), c3 = std::cos(1.5 * t), s3 = std::sin(1.5 * t);
-        std::array<Vec3, 4> d;
-        d[0] = scale * Vec3(r1 * c + r2 * cu, r1 * s + r2 * su, a * c3);
-        d[1] = scale * Vec3(-r1 * s - r2 / 2 * su, r1 * c + r2 / 2 * cu, -1.5 * a * s3);
-        d[2] = scale * Vec3(-r1 * c - r2 / 4 * cu, -r1 * s - r2 / 4 * su, -2.25 * a * c3);
-        d[3] = scale * Vec3(r1 * s + r2 / 8 * su, -r1 * c - r2 / 8 * cu, 3.375 * a * s3);
-        return d;
-      },
-      k * 4 * M_PI / 3, (k + 1) * 4 * M_PI / 3);
+  return rod_test::light_sculpture(0.2, k * 4 * M_PI / 3, (k + 1) * 4 * M_PI / 3);
 }
 
 double median(std::vector<double> v) {

@@ -14,9 +14,8 @@ import json
 import os
 
 import FreeCAD
-import Part
 
-from parafab_wb import rod_feature
+from parafab_wb import geometry, rod_feature
 
 M_TO_MM = 1000.0
 folder = os.environ["PARAFAB_RESULTS"]
@@ -30,16 +29,7 @@ for path in sorted(glob.glob(os.path.join(folder, "*.result.json"))):
     with open(path.replace(".result.json", ".request.json")) as f:
         request = json.load(f)
     spec = result["bspline"]
-    knots, mults = [], []
-    for k in spec["knots"]:
-        if knots and k == knots[-1]:
-            mults[-1] += 1
-        else:
-            knots.append(k)
-            mults.append(1)
-    poles = [FreeCAD.Vector(x * M_TO_MM, y * M_TO_MM + y_offset, z * M_TO_MM) for x, y, z in spec["poles"]]
-    curve = Part.BSplineCurve()
-    curve.buildFromPolesMultsKnots(poles, mults, knots, False, spec["degree"], spec.get("weights"))
+    curve = geometry.bspline_from_spec(spec, lambda p: FreeCAD.Vector(p[0] * M_TO_MM, p[1] * M_TO_MM + y_offset, p[2] * M_TO_MM))
     owner = doc.addObject("Part::Feature", name)
     owner.Shape = curve.toShape()
     rod = rod_feature.make_rod(owner, "Edge1", doc)

@@ -11,8 +11,8 @@ import json
 import os
 
 import FreeCAD
-import Part
 
+from parafab_wb import geometry
 from parafab_wb.strip_feature import make_strip
 
 M_TO_MM = 1000.0
@@ -25,16 +25,7 @@ for path in results:
     with open(path) as f:
         result = json.load(f)
     spec = result["bspline"]
-    knots, mults = [], []
-    for k in spec["knots"]:
-        if knots and k == knots[-1]:
-            mults[-1] += 1
-        else:
-            knots.append(k)
-            mults.append(1)
-    poles = [FreeCAD.Vector(x * M_TO_MM, y * M_TO_MM + y_offset, 0) for x, y in spec["poles"]]
-    curve = Part.BSplineCurve()
-    curve.buildFromPolesMultsKnots(poles, mults, knots, False, spec["degree"], spec.get("weights"))
+    curve = geometry.bspline_from_spec(spec, lambda p: FreeCAD.Vector(p[0] * M_TO_MM, p[1] * M_TO_MM + y_offset, 0))
     owner = doc.addObject("Part::Feature", name)
     owner.Shape = curve.toShape()
     strip = make_strip(owner, "Edge1", doc)

@@ -220,3 +220,20 @@ def planar_curve_from_edge(edge, hint=None):
     weights = bs.getWeights() if bs.isRational() else None
     return PlanarCurve(frame, bs.Degree, list(bs.KnotSequence),
                        [frame.to_2d(p) for p in poles], weights)
+
+
+def bspline_from_spec(spec, pole_to_point):
+    """A ``Part.BSplineCurve`` from the solvers' JSON B-spline (``degree``, flat ``knots`` with
+    repeats, ``poles``, optional ``weights``); ``pole_to_point`` maps each JSON pole (metres,
+    2D or 3D) to a ``FreeCAD.Vector`` (mm, placed)."""
+    knots, mults = [], []
+    for k in spec["knots"]:
+        if knots and abs(k - knots[-1]) < 1e-15:
+            mults[-1] += 1
+        else:
+            knots.append(k)
+            mults.append(1)
+    curve = Part.BSplineCurve()
+    curve.buildFromPolesMultsKnots([pole_to_point(p) for p in spec["poles"]], mults, knots, False,
+                                   spec["degree"], spec.get("weights"))
+    return curve

@@ -15,6 +15,7 @@ import tempfile
 import FreeCAD
 import Part
 
+from . import geometry
 from . import strip_feature
 
 
@@ -37,17 +38,7 @@ def _spline_in_space(bspline, frame):
     """The solver's quartic B-spline (2D, metres, in the section plane's frame) as a 3D
     ``Part.BSplineCurve`` in mm: the curve the strip was designed for, not a re-fit."""
     o, u, v = (FreeCAD.Vector(*frame[k]) for k in ("origin", "u", "v"))
-    poles = [o + u * (1000.0 * x) + v * (1000.0 * y) for x, y in bspline["poles"]]
-    knots, mults = [], []
-    for k in bspline["knots"]:
-        if knots and abs(k - knots[-1]) < 1e-15:
-            mults[-1] += 1
-        else:
-            knots.append(k)
-            mults.append(1)
-    spline = Part.BSplineCurve()
-    spline.buildFromPolesMultsKnots(poles, mults, knots, False, bspline["degree"], bspline.get("weights"))
-    return spline
+    return geometry.bspline_from_spec(bspline, lambda p: o + u * (1000.0 * p[0]) + v * (1000.0 * p[1]))
 
 
 def strips_from_sections(shape_obj, normal=(0, 0, 1), count=5, offsets=None, split=None, samples=60, doc=None):
