@@ -1,6 +1,7 @@
 #include "face_lookup.h"
 
 #include <BRepBuilderAPI_MakeVertex.hxx>
+#include <BRepClass3d_SolidClassifier.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
 #include <BRepGProp.hxx>
 #include <GProp_GProps.hxx>
@@ -32,6 +33,23 @@ double face_area(const PartShape& part, int index) {
   GProp_GProps g;
   BRepGProp::SurfaceProperties(part.face(index), g);
   return g.Mass();
+}
+
+struct PointClassifier::Impl {
+  mutable BRepClass3d_SolidClassifier classifier;
+  double tolerance;
+};
+
+PointClassifier::PointClassifier(const PartShape& part, double tolerance) : impl_(new Impl{{}, tolerance}) {
+  impl_->classifier.Load(part.shape);
+}
+
+PointClassifier::~PointClassifier() = default;
+
+bool PointClassifier::in_material(const xfem::Vec3& X) const {
+  impl_->classifier.Perform(gp_Pnt(X.x(), X.y(), X.z()), impl_->tolerance);
+  const TopAbs_State s = impl_->classifier.State();
+  return s == TopAbs_IN || s == TopAbs_ON;
 }
 
 }  // namespace parafab::occ

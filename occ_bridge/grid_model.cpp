@@ -1,7 +1,9 @@
 #include "grid_model.h"
 
 #include <chrono>
+#include <algorithm>
 #include <map>
+#include <sstream>
 
 #include <BRepGProp.hxx>
 #include <GProp_GProps.hxx>
@@ -31,13 +33,31 @@ void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused
   for (const auto& sv : g.subvolumes) {
     xfem::GridElement e;
     e.box = sv.cell;
-    const xfem::QuadratureRule3* rule = reused(static_cast<int>(m.elements.size()) - first_cut);
-    e.rule = rule ? *rule : xfem::volume_rule(sv, o.rule).rule;
+    const int s = static_cast<int>(m.elements.size()) - first_cut;
+    const xfem::QuadratureRule3* rule = reused(s);
+    if (rule) {
+      e.rule = *rule;
+    } else {
+      try {
+        xfem::VolumeRule vr = xfem::volume_rule(sv, o.rule);
+        if (vr.status != xfem::RuleStatus::Ok) {
+          std::ostringstream msg;
+          msg << xfem::to_string(vr.status) << " (volume fraction " << vr.volume / sv.cell.volume()
+              << ", moment residual " << vr.moment_residual << ", flux error estimate " << vr.flux_error_estimate
+              << ", refinement depth " << vr.flux_depth << ")";
+          m.rule_failures.push_back({{0, 0, 0}, s, msg.str()});
+        }
+        e.rule = std::move(vr.rule);
+      } catch (const Error& err) {  // a degenerate subvolume: no rule, reported
+        m.rule_failures.push_back({{0, 0, 0}, s, std::string("no rule: ") + err.what()});
+      }
+    }
     e.subvolume = &sv;
     m.elements.push_back(std::move(e));
   }
   for (const auto& cell : g.cut_cells)
     for (int s : cell.subvolumes) m.elements[first_cut + s].cell = cell.index;
+  for (auto& f : m.rule_failures) f.cell = m.elements[first_cut + f.subvolume].cell;
   // Adjacency: interior–interior neighbours, cut–cut and cut–interior connections.
   for (const auto& [ijk, e] : interior)
     for (int a = 0; a < 3; ++a) {
@@ -86,6 +106,14 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
     if (r.full || s >= static_cast<int>(r.kept_from.size()) || r.kept_from[s] < 0) return nullptr;
     return &old.elements[old_first_cut + r.kept_from[s]].rule;
   });
+  // Failures of kept rules stay reported.
+  const size_t first_cut = m.elements.size() - m.cut->subvolumes.size();
+  for (const auto& f : old.rule_failures)
+    for (size_t s = 0; s < r.kept_from.size() && !r.full; ++s)
+      if (r.kept_from[s] == f.subvolume)
+        m.rule_failures.push_back({m.elements[first_cut + s].cell, static_cast<int>(s), f.message});
+  std::sort(m.rule_failures.begin(), m.rule_failures.end(),
+            [](const RuleFailure& a, const RuleFailure& b) { return a.subvolume < b.subvolume; });
   // Safety net: the rules must integrate the new part's volume (OCCT's). A change the dirty
   // regions missed would leave whole cells wrong; then the part is cut again whole.
   double volume = 0;

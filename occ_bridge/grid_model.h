@@ -21,12 +21,22 @@ struct GridModelOptions {
   int interior_points = 2;  ///< Gauss points per direction in uncut cells (exact for hex8 stiffness)
 };
 
+/// A cut subvolume whose volume rule did not come out Ok (status other than Ok, or the rule
+/// threw): the element stays in the model (with the rule it got, possibly empty) and the
+/// entries report it (simulate's `rule_failures`); it is never dropped silently.
+struct RuleFailure {
+  std::array<int, 3> cell{0, 0, 0};
+  int subvolume = -1;  ///< index into cut->subvolumes
+  std::string message;
+};
+
 struct GridModel {
   bool done = false;
   std::string message;
   std::unique_ptr<GridCut> cut;             ///< owns the subvolumes the elements point to
   std::vector<xfem::GridElement> elements;  ///< interior cells first, then cut subvolumes
   std::vector<std::array<int, 2>> adjacent; ///< element pairs sharing a grid face
+  std::vector<RuleFailure> rule_failures;   ///< ordered by subvolume
   double cut_seconds = 0, rule_seconds = 0;
 };
 

@@ -60,6 +60,35 @@ class Integrate(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertEqual(out["error"]["kind"], "usage")
 
+    def test_too_large_grid_is_refused_with_its_estimate(self):
+        # 100000 cells along the bracket: ~1e14 cells; refused before cutting, as simulate does,
+        # with the estimate in the message and how to override it (--force).
+        path = os.path.join(PARTS, "l_bracket.step")
+        code, out = cli(path, "--cells", "100000")
+        self.assertEqual(code, 2, out)
+        msg = out["error"]["message"]
+        for expected in ("cells", "MB", "memory", "--force", "--cells"):
+            self.assertIn(expected, msg)
+        with self.assertRaisesRegex(parafab.Error, "force=True"):
+            parafab.integrate_part(path, cells=100000)
+        # the estimate alone: cells per axis from the bounding box (60 x 40 x 40 mm part on
+        # 100000 / 60 mm cells: 66667 x 66667 x 100000 would be the bracket's; check the product)
+        code, est = cli(path, "--cells", "100000", "--estimate")
+        self.assertEqual(code, 0, est)
+        e = est["estimate"]
+        self.assertFalse(e["fits"])
+        self.assertAlmostEqual(e["cells_total"], e["cells"][0] * e["cells"][1] * e["cells"][2], delta=1e-6 * e["cells_total"])
+        self.assertEqual(max(e["cells"]), 100000)
+        self.assertGreater(e["memory_mb"], e["physical_mb"])
+        # a small grid fits, and its estimate is near the cut it then makes
+        code, small = cli(path, "--cells", "12")
+        self.assertEqual(code, 0, small)
+        self.assertTrue(small["estimate"]["fits"])
+        self.assertEqual(small["estimate"]["cells"], small["grid"]["cells"])
+        ratio = small["estimate"]["cut_cells"] / small["grid"]["cut_cells"]
+        print("cut cells estimated / made at 12 cells: %.2f" % ratio)
+        self.assertTrue(0.5 < ratio < 2, ratio)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -37,6 +37,7 @@ does not depend on the number of load steps (1, 4, 8 give the same digits),
 and Nitsche beta = 1000 moves it by < 0.2 %.
 """
 
+import math
 import os
 import shutil
 import sys
@@ -49,6 +50,7 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(ROOT, "build", "workbench", "entry"))
 import calculix_reference as cr  # noqa: E402
+import numpy as np  # noqa: E402
 
 try:
     import parafab  # noqa: E402
@@ -63,20 +65,48 @@ PROBES = [[SIDE, SIDE / 2, SIDE / 2],      # mid-face bulge
 PF_CELLS = (8, 12)
 CCX_SIZES = (4.0, 2.5)
 TOL = 0.02            # relative, see docstring
+TURN_TOL = 0.02       # turned block against CalculiX h = 2.5 (measured: see docstring)
 MIN_NONLINEAR = 0.10  # neo-Hooke bulge at least 10 % above linear
 
 
-def parafab_job(cells, model):
-    return {
+# The turned variant: the block turned TURN_DEG about a skew axis through its centre and the
+# grid shifted, so that every face cuts cells; prescribed displacement and probes turned with it,
+# the bulge read along the turned x axis.
+TURN_AXIS, TURN_DEG = (1.0, 0.6, 0.3), 21.0
+TURN_CELLS = 12
+TURN_ORIGIN = [0.37, 0.61, 0.13]   # grid planes through these points (mm)
+
+
+def rotation(axis, degrees):
+    k = np.asarray(axis, float) / np.linalg.norm(axis)
+    a = math.radians(degrees)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
+
+
+def parafab_job(cells, model, turned=False):
+    R = rotation(TURN_AXIS, TURN_DEG if turned else 0.0)
+    c = np.full(3, SIDE / 2)
+    turn = lambda p: (c + R @ (np.asarray(p, float) - c)).tolist()  # noqa: E731
+    job = {
         "material": {"E": E, "nu": NU, "density": 1.1e-9, "model": model},
         "grid": {"cells": cells},
-        "supports": [{"point": [SIDE / 2, SIDE / 2, 0.0]},
-                     {"point": [SIDE / 2, SIDE / 2, SIDE],
-                      "displacement": [0.0, 0.0, DZ]}],
+        "supports": [{"point": turn([SIDE / 2, SIDE / 2, 0.0])},
+                     {"point": turn([SIDE / 2, SIDE / 2, SIDE]),
+                      "displacement": (R @ [0.0, 0.0, DZ]).tolist()}],
         "loads": [],
         "load_steps": 4,
-        "probes": PROBES,
+        "probes": [turn(p) for p in PROBES],
     }
+    if turned:
+        job["rotate"] = {"axis": list(TURN_AXIS), "center": c.tolist(), "degrees": TURN_DEG}
+        job["grid"]["origin"] = TURN_ORIGIN
+    return job
+
+
+def local(u, turned):
+    """Displacement in the block's own axes."""
+    return (rotation(TURN_AXIS, TURN_DEG if turned else 0.0).T @ np.asarray(u)).tolist()
 
 
 def ccx_job(step, size, model):
@@ -108,6 +138,7 @@ class ClampedRubberBlockTest(unittest.TestCase):
         cls.step = cr.make_box_step(os.path.join(cls.tmp, "block.step"),
                                     (SIDE, SIDE, SIDE))
         cls.pf, cls.ccx, cls.newton = {}, {}, {}
+        cls.turned, cls.turned_cut_cells = {}, {}
         cls.seconds = {}
         for model, ccx_model in (("neo_hooke_isochoric", "neo_hooke"),
                                  ("linear", "linear")):
@@ -117,6 +148,11 @@ class ClampedRubberBlockTest(unittest.TestCase):
                 cls.seconds[("pf", model, n)] = time.time() - t0
                 cls.pf[model, n] = [p["displacement"] for p in r["probes"]]
                 cls.newton[model, n] = r.get("newton")
+            t0 = time.time()
+            r = parafab.simulate(cls.step, parafab_job(TURN_CELLS, model, turned=True))
+            cls.seconds[("pf", model, "turned")] = time.time() - t0
+            cls.turned[model] = [local(p["displacement"], True) for p in r["probes"]]
+            cls.turned_cut_cells[model] = r["grid"]["cut_cells"]
             for h in CCX_SIZES:
                 r = cr.run_job(ccx_job(cls.step, h, ccx_model))
                 if r.get("status") != "ok":
@@ -139,6 +175,10 @@ class ClampedRubberBlockTest(unittest.TestCase):
                 print("  parafab  %-20s cells %4d : %.4f  %.4f   (%.1f s)"
                       % (model, n, u[0][0], u[1][0],
                          cls.seconds[("pf", model, n)]))
+            u = cls.turned[model]
+            print("  parafab  %-20s turned %4d: %.4f  %.4f   (%.1f s, %d cut cells)"
+                  % (model, TURN_CELLS, u[0][0], u[1][0],
+                     cls.seconds[("pf", model, "turned")], cls.turned_cut_cells[model]))
             for h in CCX_SIZES:
                 p = cls.ccx[model, h]
                 print("  calculix %-20s h %7.1f : %.4f  %.4f   (%.1f s)"
@@ -186,6 +226,17 @@ class ClampedRubberBlockTest(unittest.TestCase):
                 self.assertLess(rel(upf, uccx), TOL,
                                 "%s probe %s: parafab(%d) %.4f vs ccx(%.1f)"
                                 " %.4f" % (model, PROBES[i], n, upf, h, uccx))
+
+    def test_turned_block_cuts_cells_and_matches_calculix(self):
+        # turned in the grid: the same bulge as CalculiX on the block (which does not turn)
+        h = CCX_SIZES[-1]
+        for model in ("neo_hooke_isochoric", "linear"):
+            self.assertGreater(self.turned_cut_cells[model], 0)
+            for i in range(2):
+                upf, uccx = self.turned[model][i][0], self.ccx[model, h][i]["u"][0]
+                self.assertLess(rel(upf, uccx), TURN_TOL,
+                                "%s turned, probe %s: parafab(%d) %.4f vs ccx(%.1f) %.4f"
+                                % (model, PROBES[i], TURN_CELLS, upf, h, uccx))
 
     def test_neo_hooke_bulge_matches_calculix(self):
         self._compare("neo_hooke_isochoric")

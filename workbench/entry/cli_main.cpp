@@ -91,6 +91,10 @@ int main(int argc, char** argv) {
   integrate->add_flag("--non-negative", "Non-negative weights (NNLS fit) for the cut-cell rules");
   integrate->add_flag("--nurbs", integrate_options.integration.grid.nurbs,
                       "Convert faces to NURBS before cutting (patches then use the face model's NURBS)");
+  integrate->add_flag("--estimate", integrate_options.estimate_only,
+                      "Only print the size estimate {cells, cut_cells, memory_mb, seconds, fits}; do not cut");
+  integrate->add_flag("--force", integrate_options.force,
+                      "Run even when the estimate exceeds 70% of the memory (refused by default)");
   integrate->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* simulate = app.add_subcommand("simulate", "Linear elastic XFEM simulation of a part on a fixed grid (JSON job)");
   std::string job_path, out_dir;

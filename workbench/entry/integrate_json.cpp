@@ -1,6 +1,7 @@
 #include "integrate_json.h"
 
 #include "common/error.h"
+#include "grid_estimate.h"
 
 namespace parafab::entry {
 
@@ -18,12 +19,19 @@ json properties(const xfem::MassProperties& p) {
 json integrate_part_json(const std::string& path, const IntegrateOptions& options) {
   const auto part = occ::read_part(path, options.read);
   const occ::PartInfo info = occ::part_info(*part);
+  const GridEstimate estimate = estimate_grid(info, options.integration.grid);
+  json part_json = {{"source", info.source}, {"name", info.name}, {"faces", info.face_count},
+                    {"bbox", {vec(info.bbox_min), vec(info.bbox_max)}}};
+  if (options.estimate_only) return {{"part", part_json}, {"estimate", to_json(estimate)}};
+  if (!options.force)
+    refuse_if_too_big(estimate, "this grid",
+                      "use fewer cells (--cells) or a larger --cell-size, or --force (Python: force=True) to run anyway");
   const occ::IntegrationResult r = occ::integrate_part(*part, options.integration);
   if (!r.done) PARAFAB_INPUT_ERROR("cannot cut " << path << " by the grid: " << r.message);
   const occ::GridCut& g = r.cut;
   json out;
-  out["part"] = {{"source", info.source}, {"name", info.name}, {"faces", info.face_count},
-                 {"bbox", {vec(info.bbox_min), vec(info.bbox_max)}}};
+  out["part"] = part_json;
+  out["estimate"] = to_json(estimate);
   out["grid"] = {{"cells", g.cells},
                  {"cell_size", g.cell_size.x()},
                  {"box", {vec(g.grid.min), vec(g.grid.max)}},

@@ -104,9 +104,12 @@ PYBIND11_MODULE(parafab, m) {
       "Face model of a STEP/BREP part (same JSON as `parafab inspect`).");
   m.def(
       "integrate_part",
-      [](const std::string& path, int cells, double cell_size, const std::string& segments, int solid) {
+      [](const std::string& path, int cells, double cell_size, const std::string& segments, int solid,
+         bool estimate_only, bool force) {
         parafab::entry::IntegrateOptions o;
         o.read.solid_index = solid;
+        o.estimate_only = estimate_only;
+        o.force = force;
         o.integration.grid.cells_longest = cells;
         o.integration.grid.cell_size = cell_size;
         if (segments != "parabolic" && segments != "linear")
@@ -120,8 +123,10 @@ PYBIND11_MODULE(parafab, m) {
         return to_python(out);
       },
       py::arg("path"), py::arg("cells") = 8, py::arg("cell_size") = 0.0, py::arg("segments") = "parabolic",
-      py::arg("solid") = -1,
-      "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`).");
+      py::arg("solid") = -1, py::arg("estimate_only") = false, py::arg("force") = false,
+      "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`). "
+      "A grid estimated above 70% of the memory is refused (parafab.Error with the estimate) unless "
+      "force=True; estimate_only=True returns only {part, estimate}.");
   m.def(
       "simulate",
       [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress) {

@@ -14,6 +14,7 @@
 #include "common/error.h"
 #include "json_fields.h"
 #include "face_lookup.h"
+#include "grid_estimate.h"
 #include "grid_model.h"
 #include "part_reader.h"
 #include "surface_mesh.h"
@@ -186,6 +187,8 @@ struct SimulationSession::Setup {
   double target = 0;   ///< relative accuracy target (grid.target); 0: the given grid
   int max_cells = 64;  ///< refinement stops here (grid.max_cells)
   Vec3 extent{0, 0, 0};
+  occ::PartInfo info;
+  GridEstimate cut_estimate;  ///< cutting and rules (grid_estimate.h)
   void set_estimate();
 };
 
@@ -237,6 +240,17 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   go.grid.cell_size = number(grid_job.value("cell_size", json(0.0)), "grid.cell_size");
   go.grid.block_cells = static_cast<int>(number(grid_job.value("block_cells", json(8)), "grid.block_cells"));
   if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
+  if (grid_job.contains("origin")) {  // grid planes through this point (default: centred on the part)
+    go.grid.anchored = true;
+    go.grid.origin = vec3(grid_job["origin"], "grid.origin");
+  }
+  // Volume-rule tuning (thesis §6.3.3): flux refinement of curved patches.
+  const json quad = job.value("quadrature", json::object());
+  go.rule.max_depth = static_cast<int>(number(quad.value("max_depth", json(go.rule.max_depth)), "quadrature.max_depth"));
+  go.rule.flux_tolerance = number(quad.value("flux_tolerance", json(go.rule.flux_tolerance)), "quadrature.flux_tolerance");
+  if (go.rule.max_depth < 0) PARAFAB_INPUT_ERROR("quadrature.max_depth must be >= 0, got " << go.rule.max_depth);
+  if (!(go.rule.flux_tolerance >= 0))
+    PARAFAB_INPUT_ERROR("quadrature.flux_tolerance must be >= 0, got " << go.rule.flux_tolerance);
   if (go.grid.block_cells < 0) PARAFAB_INPUT_ERROR("grid.block_cells must be >= 0");
 
   const json supports = job.value("supports", json::array());
@@ -262,6 +276,10 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   }
   if (job.contains("gravity")) S->fo.gravity = vec3(job["gravity"], "gravity");
   if (job.contains("nitsche_beta")) S->fo.nitsche_beta = number(job["nitsche_beta"], "nitsche_beta");
+  if (job.contains("incompatible_modes")) {  // linear model only; Newton uses plain hexahedra
+    if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
+    S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();
+  }
   S->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
   if (S->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1");
 
@@ -273,6 +291,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   if (S->target > 0 && go.grid.cell_size > 0) PARAFAB_INPUT_ERROR("grid.target chooses the cells: drop grid.cell_size");
   if (S->target > 0 && !grid_job.contains("cells")) go.grid.cells_longest = 8;
   S->extent = info.bbox_max - info.bbox_min;
+  S->info = info;
   S->physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
   S->set_estimate();
   return S;
@@ -285,11 +304,13 @@ void SimulationSession::Setup::set_estimate() {
   const double nodes = (std::ceil(ext.x() / h) + 1) * (std::ceil(ext.y() / h) + 1) * (std::ceil(ext.z() / h) + 1);
   dofs = 3 * nodes * 1.2;  // enriched copies at cut cells
   factor_mb = 8.0 * dofs * 40.0 * std::cbrt(dofs) / 1e6;  // nested-dissection fill ~ n^{4/3}
+  cut_estimate = estimate_grid(info, go.grid);
 }
 
 json SimulationSession::estimate() const {
   return {{"unknowns", setup_->dofs}, {"factor_mb", setup_->factor_mb}, {"memory_mb", setup_->physical_mb},
-          {"fits", setup_->factor_mb <= 0.7 * setup_->physical_mb}};
+          {"fits", setup_->factor_mb <= 0.7 * setup_->physical_mb && setup_->cut_estimate.fits},
+          {"cut", to_json(setup_->cut_estimate)}};
 }
 
 void SimulationSession::refuse_if_too_big() const {
@@ -298,6 +319,7 @@ void SimulationSession::refuse_if_too_big() const {
     PARAFAB_INPUT_ERROR("this grid needs about " << S.factor_mb << " MB for the factorization (" << S.dofs
                                                  << " unknowns), more than 70% of the " << S.physical_mb
                                                  << " MB of memory: use fewer cells");
+  entry::refuse_if_too_big(S.cut_estimate, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
 }
 
 json SimulationSession::run(const std::string& out_dir, const ProgressFn& progress) {
@@ -337,7 +359,7 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
     }
     S.go.grid.cells_longest = cells;
     S.set_estimate();
-    if (S.factor_mb > 0.7 * S.physical_mb) {
+    if (S.factor_mb > 0.7 * S.physical_mb || !S.cut_estimate.fits) {
       stop = "the next grid (" + std::to_string(cells) + " cells) would not fit in memory";
       break;
     }
@@ -444,16 +466,51 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   }
   if (!r.solved) PARAFAB_INPUT_ERROR("the simulation could not be solved: " << r.message);
   report("results", 0.9);
+  // Largest displacement (at element corners and quadrature points) and von Mises stress (at
+  // quadrature points), from points in the material only: uncut cells lie inside; the corners
+  // of cut cells and the rule points of cut subvolumes (which fill the fitting box, not the
+  // subvolume) count only where OCCT classifies them inside or on the part. The field
+  // extrapolated outside the part can exceed anything the material sees.
+  struct Candidate {
+    double value;
+    int element;
+    Vec3 X;
+  };
   double umax = 0, vmmax = 0;
+  std::vector<Candidate> cut_u, cut_vm;
   xfem::MassAccumulator acc;
   for (size_t e = 0; e < grid.elements.size(); ++e) {
     const auto& el = grid.elements[e];
+    const int ei = static_cast<int>(e);
     acc.add(el.rule.points, el.rule.weights);
+    auto add_u = [&](const Vec3& X) {
+      const double u = r.displacement(grid.elements, ei, X).norm();
+      if (!el.subvolume) umax = std::max(umax, u);
+      else if (u > umax) cut_u.push_back({u, ei, X});
+    };
+    for (int k = 0; k < 8; ++k) add_u(xfem::corner(el.box, k));
     for (const Vec3& X : el.rule.points) {
-      umax = std::max(umax, r.displacement(grid.elements, static_cast<int>(e), X).norm());
-      vmmax = std::max(vmmax, xfem::von_mises(stress(static_cast<int>(e), X)));
+      add_u(X);
+      const double vm = xfem::von_mises(stress(ei, X));
+      if (!el.subvolume) vmmax = std::max(vmmax, vm);
+      else if (vm > vmmax) cut_vm.push_back({vm, ei, X});
     }
   }
+  const occ::PointClassifier classifier(*part_, 1e-7 * diag);
+  int classified = 0;
+  auto largest_inside = [&](std::vector<Candidate>& c, double& best) {
+    std::sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) { return a.value > b.value; });
+    for (const Candidate& k : c) {
+      if (k.value <= best) break;
+      ++classified;
+      if (classifier.in_material(k.X)) {
+        best = k.value;
+        break;
+      }
+    }
+  };
+  largest_inside(cut_u, umax);
+  largest_inside(cut_vm, vmmax);
   const ElementLocator locator(grid);
   json probes = json::array();
   if (job_.contains("probes"))
@@ -467,15 +524,21 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                         {"von_mises", xfem::von_mises(s)},
                         {"stress", {s(0), s(1), s(2), s(3), s(4), s(5)}}});
     }
+  json rule_failures = json::array();
+  for (const auto& f : grid.rule_failures)
+    rule_failures.push_back({{"cell", f.cell}, {"subvolume", f.subvolume}, {"message", f.message}});
   const xfem::MassProperties mp = acc.result();
   json out{{"part", part_path_},
            {"grid", {{"cells", grid.cut->cells}, {"cell_size", grid.cut->cell_size.x()},
                      {"cut_cells", grid.cut->cut_cells.size()}, {"subvolumes", grid.cut->subvolumes.size()},
                      {"interior_cells", grid.cut->interior_cells.size()}}},
            {"dofs", r.dofs},
-           {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}}},
+           {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}, {"cut", to_json(S.cut_estimate)}}},
            {"max_displacement", umax},
            {"max_von_mises", vmmax},
+           {"points_classified", classified},
+           {"status", grid.rule_failures.empty() ? "ok" : "rule_failures"},
+           {"rule_failures", rule_failures},
            {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant
            {"material_model", S.model},
            {"aggregated_nodes", r.aggregated_nodes},

@@ -1,0 +1,50 @@
+#include "grid_estimate.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+
+namespace parafab::entry {
+
+// Measured with `/usr/bin/time -v parafab integrate` on the samples (see the notes of issue 11):
+// peak memory grows by about kMbPerCutCell per cut cell above a base, and the cut plus rules
+// take about kSecondsPerCutCell per cut cell (the splitter dominates).
+constexpr double kMbPerCutCell = 0.25;
+constexpr double kMbPerCell = 0.0005;
+constexpr double kSecondsPerCutCell = 3e-3;
+
+GridEstimate estimate_grid(const occ::PartInfo& part, const occ::GridOptions& grid) {
+  GridEstimate e;
+  const Eigen::Vector3d ext = part.bbox_max - part.bbox_min;
+  const double h = grid.cell_size > 0 ? grid.cell_size : ext.maxCoeff() / std::max(grid.cells_longest, 1);
+  e.cells_total = 1;
+  for (int a = 0; a < 3; ++a) {
+    e.cells[a] = std::max(1.0, std::ceil(ext[a] / h - 1e-9) + (grid.anchored ? 1 : 0));
+    e.cells_total *= e.cells[a];
+  }
+  e.cut_cells = std::min(e.cells_total, 1.5 * part.area / (h * h));
+  e.memory_mb = kMbPerCutCell * e.cut_cells + kMbPerCell * e.cells_total;
+  e.seconds = kSecondsPerCutCell * e.cut_cells;
+  e.physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
+  e.fits = e.memory_mb <= 0.7 * e.physical_mb;
+  return e;
+}
+
+nlohmann::json to_json(const GridEstimate& e) {
+  return {{"cells", e.cells},         {"cells_total", e.cells_total}, {"cut_cells", e.cut_cells},
+          {"memory_mb", e.memory_mb}, {"seconds", e.seconds},         {"physical_mb", e.physical_mb},
+          {"fits", e.fits}};
+}
+
+void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint) {
+  if (e.fits) return;
+  PARAFAB_INPUT_ERROR(what << " has about " << e.cells_total << " cells (" << e.cells[0] << " x " << e.cells[1]
+                           << " x " << e.cells[2] << ", about " << e.cut_cells << " of them cut) and needs about "
+                           << e.memory_mb << " MB and " << e.seconds << " s for cutting, more than 70% of the "
+                           << e.physical_mb << " MB of memory: " << override_hint);
+}
+
+}  // namespace parafab::entry

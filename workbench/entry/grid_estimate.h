@@ -1,0 +1,32 @@
+// Size of a grid before it is built (thesis §6.3 cutting, §6.4 simulation): every entry that
+// builds a grid (`parafab integrate`, `parafab simulate`) estimates first and refuses a job
+// that would not fit in memory, with the estimate in the error and how to override it.
+#pragma once
+
+#include <array>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "grid_cut.h"
+#include "part_reader.h"
+
+namespace parafab::entry {
+
+struct GridEstimate {
+  std::array<double, 3> cells{0, 0, 0};  ///< cells per axis
+  double cells_total = 0;
+  double cut_cells = 0;    ///< ≈ 1.5 · area / h² (a face crosses (|n_x|+|n_y|+|n_z|)/h² cells per area)
+  double memory_mb = 0;    ///< cutting and rules: per cut cell and per cell (measured, see .cpp)
+  double seconds = 0;      ///< cutting and rules, one core (measured per cut cell, see .cpp)
+  double physical_mb = 0;  ///< the machine's memory
+  bool fits = true;        ///< memory_mb ≤ 70 % of physical_mb
+};
+
+GridEstimate estimate_grid(const occ::PartInfo& part, const occ::GridOptions& grid);
+
+nlohmann::json to_json(const GridEstimate& e);
+
+/// Throws parafab::Error with the estimate and `override_hint` unless e.fits.
+void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint);
+
+}  // namespace parafab::entry
