@@ -102,9 +102,12 @@ class RingNitscheBeta(unittest.TestCase):
             self.assertGreater(err[beta], 0.3)
         for beta in (10, 100, 1e4, 1e6):
             self.assertEqual(msg[beta], "")
-        self.assertLess(err[10], 0.15)
-        self.assertGreater(err[1e4], 1.2 * err[10])            # locking
-        self.assertAlmostEqual(err[1e6], err[1e4], delta=0.01)  # the penalty limit: stable, not blowing up
+        # Measured against CalculiX (12 cells): 0.356 / 2.85 (β = 0.1 / 1), 0.135 (10), 0.179 (100),
+        # 0.184 (1e4 and 1e6).
+        self.assertLess(err[10], 0.145)
+        self.assertLess(err[100], 0.19)
+        self.assertGreater(err[1e4], 1.25 * err[10])            # locking
+        self.assertAlmostEqual(err[1e6], err[1e4], delta=0.005)  # the penalty limit: stable, not blowing up
 
 
 if __name__ == "__main__":

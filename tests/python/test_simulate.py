@@ -66,16 +66,19 @@ class Simulate(unittest.TestCase):
         self.assertGreaterEqual(r["newton"]["iterations"], 2)
         self.assertLess(r["newton"]["residuals"][-1], 1e-6 * max(r["newton"]["residuals"]))
         # Small strains (500 N on steel): the same deflection as plain linear hexahedra (Newton
-        # has no incompatible modes) within 0.1 %, at every probe.
+        # has no incompatible modes) within 5e-4, at every probe.
         job["material"]["model"] = "linear"
         job["incompatible_modes"] = False
         lin = parafab.simulate(BRACKET, job)
         for p, q in zip(r["probes"], lin["probes"]):
+            print("probe %s: neo-Hooke u_z %.6f, linear hex8 %.6f (ratio %.5f)"
+                  % (p["point"], p["displacement"][2], q["displacement"][2], p["displacement"][2] / q["displacement"][2]))
             self.assertLess(p["displacement"][2], 0)
-            self.assertAlmostEqual(p["displacement"][2] / q["displacement"][2], 1.0, delta=1e-3)
+            self.assertAlmostEqual(p["displacement"][2] / q["displacement"][2], 1.0, delta=5e-4)  # measured 1.3e-4
         # and the linear solve is not the same code path in disguise: incompatible modes change it
         job["incompatible_modes"] = True
         modes = parafab.simulate(BRACKET, job)
+        print("with incompatible modes: %.6f" % modes["probes"][0]["displacement"][2])
         self.assertGreater(abs(modes["probes"][0]["displacement"][2] / lin["probes"][0]["displacement"][2] - 1), 0.01)
 
     def test_nitsche_beta_too_small_is_reported_and_large_is_stable(self):
