@@ -9,10 +9,13 @@
 
 namespace parafab::entry {
 
-// Measured with `/usr/bin/time -v parafab integrate` on the samples (see the notes of issue 11):
-// peak memory grows by about kMbPerCutCell per cut cell above a base, and the cut plus rules
-// take about kSecondsPerCutCell per cut cell (the splitter dominates).
-constexpr double kMbPerCutCell = 0.25;
+// Measured with `/usr/bin/time -f %M parafab integrate PART --cells 16|32` (l_bracket, ring,
+// housing; 2026-11-23): peak memory grows by 0.006–0.009 MB per cut cell above a base of about
+// 45 MB, and the cut plus rules take 2.5 ms per cut cell on a quiet machine (README, cut-cell
+// benchmark; the splitter dominates). The cut-cell count 1.0 · area / h² was 1.4–1.6× the
+// cells actually cut at 32 cells (2.2× at 16 on the housing): on the safe side.
+constexpr double kBaseMb = 45;
+constexpr double kMbPerCutCell = 0.012;
 constexpr double kMbPerCell = 0.0005;
 constexpr double kSecondsPerCutCell = 3e-3;
 
@@ -25,8 +28,8 @@ GridEstimate estimate_grid(const occ::PartInfo& part, const occ::GridOptions& gr
     e.cells[a] = std::max(1.0, std::ceil(ext[a] / h - 1e-9) + (grid.anchored ? 1 : 0));
     e.cells_total *= e.cells[a];
   }
-  e.cut_cells = std::min(e.cells_total, 1.5 * part.area / (h * h));
-  e.memory_mb = kMbPerCutCell * e.cut_cells + kMbPerCell * e.cells_total;
+  e.cut_cells = std::min(e.cells_total, part.area / (h * h));
+  e.memory_mb = kBaseMb + kMbPerCutCell * e.cut_cells + kMbPerCell * e.cells_total;
   e.seconds = kSecondsPerCutCell * e.cut_cells;
   e.physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
   e.fits = e.memory_mb <= 0.7 * e.physical_mb;

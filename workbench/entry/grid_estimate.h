@@ -15,7 +15,7 @@ namespace parafab::entry {
 struct GridEstimate {
   std::array<double, 3> cells{0, 0, 0};  ///< cells per axis
   double cells_total = 0;
-  double cut_cells = 0;    ///< ≈ 1.5 · area / h² (a face crosses (|n_x|+|n_y|+|n_z|)/h² cells per area)
+  double cut_cells = 0;    ///< ≈ area / h² (measured 1.4–2.2× the cells actually cut: an upper estimate)
   double memory_mb = 0;    ///< cutting and rules: per cut cell and per cell (measured, see .cpp)
   double seconds = 0;      ///< cutting and rules, one core (measured per cut cell, see .cpp)
   double physical_mb = 0;  ///< the machine's memory
