@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <cstdio>
 
@@ -102,7 +103,7 @@ TEST(XfemParallel, NewtonIdenticalForOneAndTwoThreads) {
 // its own (a one-element assembly, which has nothing to copy) gives the same block.
 TEST(XfemParallel, SharedInteriorCellMatrixEqualsPerCellIntegration) {
   const Bracket b = turned_bracket();
-  const GridModel m = model_with_threads(*b.part, 12, 2);
+  const GridModel m = model_with_threads(*b.part, 16, 2);
   ASSERT_TRUE(m.done) << m.message;
   int count = 0;
   const auto node = xfem::number_dof_nodes(m.elements, m.adjacent, count);

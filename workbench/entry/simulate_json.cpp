@@ -15,7 +15,7 @@
 #include <chrono>
 #include <fstream>
 #include <optional>
-#include <sstream>
+#include <charconv>
 
 #include "common/error.h"
 #include "json_fields.h"
@@ -56,18 +56,36 @@ int face_of(const occ::PartShape& part, const json& item, const std::string& pat
 
 using StressFn = std::function<Eigen::Matrix<double, 6, 1>(int, const Vec3&)>;
 
-// Lines for items [0, n), formatted by line(i, os) in parallel chunks (TBB) and written in
-// order: the same bytes as one sequential stream.
+// Text as a default std::ostream prints it (doubles as printf's %.6g, integers in decimal),
+// through std::to_chars: several times faster than a stream.
+struct Text {
+  std::string s;
+  Text& operator<<(double v) {
+    char b[40];
+    s.append(b, std::to_chars(b, b + sizeof b, v, std::chars_format::general, 6).ptr);
+    return *this;
+  }
+  Text& operator<<(int v) {
+    char b[16];
+    s.append(b, std::to_chars(b, b + sizeof b, v).ptr);
+    return *this;
+  }
+  Text& operator<<(char c) {
+    s.push_back(c);
+    return *this;
+  }
+};
+
+// Lines for items [0, n), formatted by line(i, text) in parallel chunks (TBB) and written in
+// order: the same bytes for every thread count.
 template <class Line>
 void write_lines(std::ostream& f, size_t n, const Line& line) {
   const size_t chunk = 8192, chunks = (n + chunk - 1) / chunk;
-  std::vector<std::string> text(chunks);
+  std::vector<Text> text(chunks);
   tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
-    std::ostringstream os;
-    for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) line(i, os);
-    text[c] = os.str();
+    for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) line(i, text[c]);
   });
-  for (const auto& t : text) f << t;
+  for (const auto& t : text) f << t.s;
 }
 
 void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& elements,
@@ -112,21 +130,21 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
     << "<UnstructuredGrid><Piece NumberOfPoints=\"" << pts.size() << "\" NumberOfCells=\"" << ncells << "\">\n"
     << "<PointData Vectors=\"displacement\" Scalars=\"von_mises\">\n"
     << "<DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  write_lines(f, disp.size(), [&](size_t i, std::ostream& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
+  write_lines(f, disp.size(), [&](size_t i, Text& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
-  write_lines(f, vm.size(), [&](size_t i, std::ostream& os) { os << vm[i] << '\n'; });
+  write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
   f << "</DataArray>\n</PointData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  write_lines(f, pts.size(), [&](size_t i, std::ostream& os) { os << pts[i].x() << ' ' << pts[i].y() << ' ' << pts[i].z() << '\n'; });
+  write_lines(f, pts.size(), [&](size_t i, Text& os) { os << pts[i].x() << ' ' << pts[i].y() << ' ' << pts[i].z() << '\n'; });
   f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
-  write_lines(f, hexes.size(), [&](size_t i, std::ostream& os) {
+  write_lines(f, hexes.size(), [&](size_t i, Text& os) {
     for (int k : hexes[i]) os << k << ' ';
     os << '\n';
   });
-  for (int v : vertices) f << v << '\n';
+  write_lines(f, vertices.size(), [&](size_t i, Text& os) { os << vertices[i] << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
-  int off = 0;
-  for (size_t i = 0; i < hexes.size(); ++i) f << (off += 8) << '\n';
-  for (size_t i = 0; i < vertices.size(); ++i) f << (off += 1) << '\n';
+  const int hex_end = 8 * static_cast<int>(hexes.size());
+  write_lines(f, hexes.size(), [&](size_t i, Text& os) { os << 8 * (static_cast<int>(i) + 1) << '\n'; });
+  write_lines(f, vertices.size(), [&](size_t i, Text& os) { os << hex_end + static_cast<int>(i) + 1 << '\n'; });
   f << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
   for (size_t i = 0; i < hexes.size(); ++i) f << "12\n";
   for (size_t i = 0; i < vertices.size(); ++i) f << "1\n";
@@ -191,17 +209,17 @@ void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, co
     << "<UnstructuredGrid><Piece NumberOfPoints=\"" << mesh.points.size() << "\" NumberOfCells=\""
     << mesh.triangles.size() << "\">\n<PointData Vectors=\"displacement\" Scalars=\"von_mises\">\n"
     << "<DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  write_lines(f, disp.size(), [&](size_t i, std::ostream& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
+  write_lines(f, disp.size(), [&](size_t i, Text& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
-  write_lines(f, vm.size(), [&](size_t i, std::ostream& os) { os << vm[i] << '\n'; });
+  write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
   f << "</DataArray>\n</PointData>\n<CellData Scalars=\"face\">\n<DataArray type=\"Int32\" Name=\"face\" format=\"ascii\">\n";
   for (int fi : mesh.triangle_face) f << fi << '\n';
   f << "</DataArray>\n</CellData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  write_lines(f, mesh.points.size(), [&](size_t i, std::ostream& os) {
+  write_lines(f, mesh.points.size(), [&](size_t i, Text& os) {
     os << mesh.points[i].x() << ' ' << mesh.points[i].y() << ' ' << mesh.points[i].z() << '\n';
   });
   f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
-  write_lines(f, mesh.triangles.size(), [&](size_t i, std::ostream& os) {
+  write_lines(f, mesh.triangles.size(), [&](size_t i, Text& os) {
     os << mesh.triangles[i][0] << ' ' << mesh.triangles[i][1] << ' ' << mesh.triangles[i][2] << '\n';
   });
   f << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
