@@ -248,9 +248,9 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
   Vec24 f_ref;
   if (reference >= 0) element_matrix(reference, K_ref, f_ref);
   auto element_or_copy = [&](size_t e, Mat24& Ke, Vec24& fe) {
-    if (reference >= 0 && same_uncut_shape(elements[reference], elements[e])) {
+    if (reference >= 0 && (static_cast<int>(e) == reference || same_uncut_shape(elements[reference], elements[e]))) {
       Ke = K_ref, fe = f_ref;
-      return true;
+      return static_cast<int>(e) != reference;  // counts copies, not the integrated one
     }
     element_matrix(e, Ke, fe);
     return false;

@@ -39,7 +39,8 @@ def median(v):
 
 
 def run_child(cli, cells, threads, out_dir):
-    """One CLI run in a child process: (result JSON, wall seconds, peak RSS in MB)."""
+    """One CLI run in a child process: (result JSON, wall seconds, peak RSS in MB); the
+    child's CPU time (user + system) is added to the result as "cpu_seconds"."""
     job = json.load(open(JOB))
     job["grid"] = {"cells": cells}
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
@@ -57,6 +58,7 @@ def run_child(cli, cells, threads, out_dir):
             stdout.seek(0)
             text = stdout.read()
         result = json.loads(text)
+        result["cpu_seconds"] = usage.ru_utime + usage.ru_stime
         if p.returncode != 0:
             raise RuntimeError(f"{cells} cells, {threads} threads: {result}")
         return result, wall, usage.ru_maxrss / 1024.0
@@ -72,7 +74,7 @@ def speedup(cli, grids, repeats):
             for threads in (1, 2):  # alternate, so load changes hit both alike
                 with tempfile.TemporaryDirectory() as d:
                     r, wall, _ = run_child(cli, cells, threads, d)
-                times[threads].append(dict(r["seconds"], wall=wall))
+                times[threads].append(dict(r["seconds"], wall=wall, cpu=r["cpu_seconds"]))
                 dofs = r["dofs"]
         row = {"cells": cells, "dofs": dofs, "repeats": repeats, "phases": {}}
         for phase in PHASES + ["wall"]:
@@ -86,8 +88,11 @@ def speedup(cli, grids, repeats):
         t16 = sum(row["phases"][ph]["t1"] / row["phases"][ph]["speedup16"] for ph in PHASES
                   if row["phases"][ph]["t1"] > 0)
         row["run16"] = {"seconds": t16, "speedup": sum(row["phases"][ph]["t1"] for ph in PHASES) / t16}
+        # CPU time over wall time: about the thread count on an idle machine; far below it when
+        # other processes share the cores (then the speed-ups above say little).
+        row["cpu_share"] = {t: median([x["cpu"] / x["wall"] for x in times[t]]) for t in (1, 2)}
         rows.append(row)
-        print(f"{cells} cells, {dofs} dofs: " + ", ".join(
+        print(f"cpu share {row['cpu_share']}; {cells} cells, {dofs} dofs: " + ", ".join(
             f"{ph} {row['phases'][ph]['t1']:.3f}/{row['phases'][ph]['t2']:.3f}s ({row['phases'][ph]['speedup2']:.2f}x)"
             for ph in PHASES + ["wall"]), flush=True)
     return rows
@@ -114,11 +119,11 @@ def scale(cli, grids, max_seconds, fit_min_dofs, threads):
                 stopped = str(e)
                 print("scale: stopped:", stopped, flush=True)
                 break
-        row = {"cells": cells, "dofs": r["dofs"], "wall": wall, "peak_mb": rss,
+        row = {"cells": cells, "dofs": r["dofs"], "wall": wall, "peak_mb": rss, "cpu": r["cpu_seconds"],
                "seconds": {ph: r["seconds"].get(ph, 0.0) for ph in PHASES},
                "cut_cells": r["grid"]["cut_cells"], "interior_cells": r["grid"]["interior_cells"]}
         rows.append(row)
-        print(f"scale: {cells} cells, {r['dofs']} dofs, {wall:.2f} s, {rss:.0f} MB: " +
+        print(f"scale: {cells} cells, {r['dofs']} dofs, {wall:.2f} s (cpu {r['cpu_seconds']:.2f} s), {rss:.0f} MB: " +
               ", ".join(f"{ph} {row['seconds'][ph]:.3f}" for ph in PHASES), flush=True)
         if wall > max_seconds:
             stopped = f"{cells} cells took {wall:.0f} s > --max-seconds"
@@ -126,6 +131,7 @@ def scale(cli, grids, max_seconds, fit_min_dofs, threads):
     fit = [row for row in rows if row["dofs"] >= fit_min_dofs]
     exponents = {ph: fit_exponent([r["dofs"] for r in fit], [r["seconds"][ph] for r in fit]) for ph in PHASES}
     exponents["wall"] = fit_exponent([r["dofs"] for r in fit], [r["wall"] for r in fit])
+    exponents["cpu"] = fit_exponent([r["dofs"] for r in fit], [r["cpu"] for r in fit])
     exponents["peak_mb"] = fit_exponent([r["dofs"] for r in fit], [r["peak_mb"] for r in fit])
     # Cut cells grow like the surface (n^(2/3) of the unknowns): cut and rules per cut cell.
     exponents["cut_cells"] = fit_exponent([r["dofs"] for r in fit], [r["cut_cells"] for r in fit])
