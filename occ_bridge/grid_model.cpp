@@ -1,5 +1,8 @@
 #include "grid_model.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <chrono>
 #include <algorithm>
 #include <map>
@@ -20,55 +23,76 @@ template <class Reused>
 void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused) {
   const auto t0 = std::chrono::steady_clock::now();
   const GridCut& g = *m.cut;
-  std::map<std::array<int, 3>, int> interior;
-  for (const auto& ijk : g.interior_cells) {
-    xfem::GridElement e;
-    e.cell = ijk;
-    e.box = g.cell_box(ijk);
-    e.rule = xfem::tensor_gauss_rule(e.box, o.interior_points);
-    interior[ijk] = static_cast<int>(m.elements.size());
-    m.elements.push_back(std::move(e));
-  }
-  const int first_cut = static_cast<int>(m.elements.size());
-  for (const auto& sv : g.subvolumes) {
-    xfem::GridElement e;
-    e.box = sv.cell;
-    const int s = static_cast<int>(m.elements.size()) - first_cut;
-    const xfem::QuadratureRule3* rule = reused(s);
-    if (rule) {
-      e.rule = *rule;
-    } else {
-      try {
-        xfem::VolumeRule vr = xfem::volume_rule(sv, o.rule);
-        if (vr.status != xfem::RuleStatus::Ok) {
-          std::ostringstream msg;
-          msg << xfem::to_string(vr.status) << " (volume fraction " << vr.volume / sv.cell.volume()
-              << ", moment residual " << vr.moment_residual << ", flux error estimate " << vr.flux_error_estimate
-              << ", refinement depth " << vr.flux_depth << ")";
-          m.rule_failures.push_back({{0, 0, 0}, s, msg.str()});
-        }
-        e.rule = std::move(vr.rule);
-      } catch (const Error& err) {  // a degenerate subvolume: no rule, reported
-        m.rule_failures.push_back({{0, 0, 0}, s, std::string("no rule: ") + err.what()});
-      }
+  // Element of every interior cell, by dense cell index (−1: none); i-major like std::map's
+  // lexicographic order, so adjacency lists keep their order.
+  const std::array<int, 3> nc = g.cells;
+  auto cell_id = [&](const std::array<int, 3>& c) { return (static_cast<size_t>(c[0]) * nc[1] + c[1]) * nc[2] + c[2]; };
+  std::vector<int> interior(static_cast<size_t>(nc[0]) * nc[1] * nc[2], -1);
+  const int n_interior = static_cast<int>(g.interior_cells.size());
+  const int first_cut = static_cast<int>(m.elements.size()) + n_interior;
+  m.elements.resize(first_cut + g.subvolumes.size());
+  for (int i = 0; i < n_interior; ++i) interior.at(cell_id(g.interior_cells[i])) = first_cut - n_interior + i;
+  // Rules in parallel (TBB): every element's rule depends on its cell or subvolume only, so the
+  // model is the same for every thread count.
+  tbb::parallel_for(tbb::blocked_range<int>(0, n_interior, 256), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      xfem::GridElement& e = m.elements[first_cut - n_interior + i];
+      e.cell = g.interior_cells[i];
+      e.box = g.cell_box(e.cell);
+      e.rule = xfem::tensor_gauss_rule(e.box, o.interior_points);
     }
-    e.subvolume = &sv;
-    m.elements.push_back(std::move(e));
-  }
+  });
+  // Rule failures are collected per subvolume and reported in subvolume order.
+  std::vector<std::string> failure(g.subvolumes.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(g.subvolumes.size()), 1),
+                    [&](const tbb::blocked_range<int>& r) {
+    for (int s = r.begin(); s != r.end(); ++s) {
+      const xfem::Subvolume& sv = g.subvolumes[s];
+      xfem::GridElement& e = m.elements[first_cut + s];
+      e.box = sv.cell;
+      const xfem::QuadratureRule3* rule = reused(s);
+      if (rule) {
+        e.rule = *rule;
+      } else {
+        try {
+          xfem::VolumeRule vr = xfem::volume_rule(sv, o.rule);
+          if (vr.status != xfem::RuleStatus::Ok) {
+            std::ostringstream msg;
+            msg << xfem::to_string(vr.status) << " (volume fraction " << vr.volume / sv.cell.volume()
+                << ", moment residual " << vr.moment_residual << ", flux error estimate " << vr.flux_error_estimate
+                << ", refinement depth " << vr.flux_depth << ")";
+            failure[s] = msg.str();
+          }
+          e.rule = std::move(vr.rule);
+        } catch (const Error& err) {  // a degenerate subvolume: no rule, reported
+          failure[s] = std::string("no rule: ") + err.what();
+        }
+      }
+      e.subvolume = &sv;
+    }
+  });
+  for (size_t s = 0; s < failure.size(); ++s)
+    if (!failure[s].empty()) m.rule_failures.push_back({{0, 0, 0}, static_cast<int>(s), failure[s]});
   for (const auto& cell : g.cut_cells)
     for (int s : cell.subvolumes) m.elements[first_cut + s].cell = cell.index;
   for (auto& f : m.rule_failures) f.cell = m.elements[first_cut + f.subvolume].cell;
   // Adjacency: interior–interior neighbours, cut–cut and cut–interior connections.
-  for (const auto& [ijk, e] : interior)
-    for (int a = 0; a < 3; ++a) {
-      std::array<int, 3> n = ijk;
-      ++n[a];
-      auto it = interior.find(n);
-      if (it != interior.end()) m.adjacent.push_back({e, it->second});
-    }
+  for (int i = 0; i < nc[0]; ++i)
+    for (int j = 0; j < nc[1]; ++j)
+      for (int k = 0; k < nc[2]; ++k) {
+        const std::array<int, 3> ijk{i, j, k};
+        const int e = interior[cell_id(ijk)];
+        if (e < 0) continue;
+        for (int a = 0; a < 3; ++a) {
+          std::array<int, 3> n = ijk;
+          if (++n[a] >= nc[a]) continue;
+          const int o = interior[cell_id(n)];
+          if (o >= 0) m.adjacent.push_back({e, o});
+        }
+      }
   for (const auto& [a, b] : g.connections) m.adjacent.push_back({first_cut + a, first_cut + b});
   for (const auto& [s, c] : g.interior_connections)
-    m.adjacent.push_back({first_cut + s, interior.at(g.interior_cells[c])});
+    m.adjacent.push_back({first_cut + s, interior.at(cell_id(g.interior_cells[c]))});
   m.rule_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   m.done = true;
 }

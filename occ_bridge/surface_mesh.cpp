@@ -14,12 +14,12 @@
 
 namespace parafab::occ {
 
-SurfaceMesh triangulate_part(const PartShape& part, double deflection, double max_edge) {
+SurfaceMesh triangulate_part(const PartShape& part, double deflection, double max_edge, bool parallel) {
   PARAFAB_VERIFY(deflection > 0, "surface mesh: deflection must be positive, got " << deflection);
   // Work on a copy so the caller's shape keeps no triangulation (and no shared state changes).
   TopoDS_Shape shape = part.shape;
   BRepTools::Clean(shape);
-  BRepMesh_IncrementalMesh mesher(shape, deflection, /*isRelative=*/false, /*angle=*/0.3, /*parallel=*/false);
+  BRepMesh_IncrementalMesh mesher(shape, deflection, /*isRelative=*/false, /*angle=*/0.3, parallel);
   SurfaceMesh m;
   for (int i = 0; i < part.face_count(); ++i) {
     const TopoDS_Face& face = part.face(i);

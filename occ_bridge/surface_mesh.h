@@ -22,7 +22,8 @@ struct SurfaceMesh {
 /// triangle longer than that is split uniformly into k² triangles (k from its longest edge),
 /// so fields evaluated at the vertices are resolved on large flat faces too (neighbouring
 /// triangles may then meet with hanging vertices: a display mesh). Throws parafab::Error if
-/// a face cannot be triangulated.
-SurfaceMesh triangulate_part(const PartShape& part, double deflection, double max_edge = 0);
+/// a face cannot be triangulated. `parallel`: OCCT meshes the faces in parallel (the same
+/// triangulation either way).
+SurfaceMesh triangulate_part(const PartShape& part, double deflection, double max_edge = 0, bool parallel = true);
 
 }  // namespace parafab::occ

@@ -1,8 +1,10 @@
 #include "xfem/linear_xfem.h"
 
-#include <Eigen/CholmodSupport>
 #include <Eigen/Dense>
-#include <Eigen/SparseLU>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
 #include <chrono>
 #include <numeric>
 
@@ -102,6 +104,28 @@ void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6
   Ke.noalias() -= Kau.transpose() * ldlt.solve(Kau);
 }
 
+// The first uncut element (no subvolume), or −1.
+int first_interior_element(const std::vector<GridElement>& elements) {
+  for (size_t e = 0; e < elements.size(); ++e)
+    if (!elements[e].subvolume) return static_cast<int>(e);
+  return -1;
+}
+
+// Uncut element b has the box size and rule of uncut element a (up to a translation, to
+// 1e-12 relative): then their matrices are equal to round-off.
+bool same_uncut_shape(const GridElement& a, const GridElement& b) {
+  if (b.subvolume || a.subvolume || a.rule.points.size() != b.rule.points.size()) return false;
+  const Vec3 ha = a.box.size(), hb = b.box.size();
+  if (((ha - hb).array().abs() > 1e-12 * ha.array().abs()).any()) return false;
+  const double volume = a.box.volume();
+  for (size_t q = 0; q < a.rule.points.size(); ++q) {
+    const Vec3 xa = (a.rule.points[q] - a.box.min).cwiseQuotient(ha), xb = (b.rule.points[q] - b.box.min).cwiseQuotient(hb);
+    if ((xa - xb).cwiseAbs().maxCoeff() > 1e-12 || std::abs(a.rule.weights[q] - b.rule.weights[q]) > 1e-12 * volume)
+      return false;
+  }
+  return true;
+}
+
 struct UnionFind {
   std::vector<int> parent;
   explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
@@ -172,12 +196,13 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
   Eigen::VectorXd f = Eigen::VectorXd::Zero(ndof);
   SurfaceRuleOptions so;
   so.area.degree = options.surface_degree;
-  Eigen::Matrix<double, 8, 1> N;
-  Eigen::Matrix<double, 8, 3> G;
-  for (size_t e = 0; e < elements.size(); ++e) {
+  // The matrix and load vector of element e (thread-safe: reads only).
+  auto element_matrix = [&](size_t e, Mat24& Ke, Vec24& fe) {
     const GridElement& el = elements[e];
-    Mat24 Ke = Mat24::Zero();
-    Vec24 fe = Vec24::Zero();
+    Eigen::Matrix<double, 8, 1> N;
+    Eigen::Matrix<double, 8, 3> G;
+    Ke.setZero();
+    fe.setZero();
     for (size_t q = 0; q < el.rule.points.size(); ++q) {
       trilinear_shape(el.box, el.rule.points[q], N, G);
       if (include_bulk) {
@@ -215,6 +240,22 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
         }
       }
     }
+  };
+  // Uncut interior cells share one box size and rule, hence one matrix: integrated once (for
+  // the first interior element) and copied to every element of the same shape.
+  const int reference = first_interior_element(elements);
+  Mat24 K_ref;
+  Vec24 f_ref;
+  if (reference >= 0) element_matrix(reference, K_ref, f_ref);
+  auto element_or_copy = [&](size_t e, Mat24& Ke, Vec24& fe) {
+    if (reference >= 0 && (static_cast<int>(e) == reference || same_uncut_shape(elements[reference], elements[e]))) {
+      Ke = K_ref, fe = f_ref;
+      return static_cast<int>(e) != reference;  // counts copies, not the integrated one
+    }
+    element_matrix(e, Ke, fe);
+    return false;
+  };
+  auto scatter = [&](size_t e, const Mat24& Ke, const Vec24& fe) {
     for (int a = 0; a < 8; ++a)
       for (int da = 0; da < 3; ++da) {
         const int ra = 3 * node[e][a] + da;
@@ -223,11 +264,28 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
           for (int db = 0; db < 3; ++db)
             if (Ke(3 * a + da, 3 * b + db) != 0.0) trip.emplace_back(ra, 3 * node[e][b] + db, Ke(3 * a + da, 3 * b + db));
       }
+  };
+  // Element matrices in parallel, a chunk at a time; the scatter runs in element order, so
+  // the triplets, K and f are bit-identical for every thread count.
+  const size_t n = elements.size(), chunk = 4096;
+  if (include_bulk) trip.reserve(576 * n);
+  std::vector<Mat24, Eigen::aligned_allocator<Mat24>> Kc(std::min(n, chunk));
+  std::vector<Vec24, Eigen::aligned_allocator<Vec24>> fc(std::min(n, chunk));
+  std::atomic<int> copies{0};
+  for (size_t begin = 0; begin < n; begin += chunk) {
+    const size_t end = std::min(n, begin + chunk);
+    tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 16), [&](const tbb::blocked_range<size_t>& r) {
+      int c = 0;
+      for (size_t e = r.begin(); e != r.end(); ++e) c += element_or_copy(e, Kc[e - begin], fc[e - begin]);
+      copies += c;
+    });
+    for (size_t e = begin; e < end; ++e) scatter(e, Kc[e - begin], fc[e - begin]);
   }
   LinearSystem sys;
   sys.K.resize(ndof, ndof);
   sys.K.setFromTriplets(trip.begin(), trip.end());
   sys.f = std::move(f);
+  sys.reused_element_matrices = copies;
   return sys;
 }
 
@@ -246,6 +304,16 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<DirichletCondition>& dirichlet,
                               const std::vector<TractionCondition>& tractions,
                               const LinearXfemOptions& options) {
+  LinearXfemSolver solver;
+  return solver.solve(elements, adjacent, material, dirichlet, tractions, options);
+}
+
+LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& elements,
+                                         const std::vector<std::array<int, 2>>& adjacent,
+                                         const ElasticMaterial& material,
+                                         const std::vector<DirichletCondition>& dirichlet,
+                                         const std::vector<TractionCondition>& tractions,
+                                         const LinearXfemOptions& options) {
   LinearXfemResult r;
   auto t0 = std::chrono::steady_clock::now();
   int count = 0;
@@ -253,38 +321,42 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
   r.dofs = 3 * count;
   r.elements = static_cast<int>(elements.size());
   for (const auto& e : elements) r.cut_elements += e.subvolume != nullptr;
-  const LinearSystem full = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options);
-  const Eigen::SparseMatrix<double> T = aggregation_map(elements, adjacent, r.node, count, options.aggregation_fraction,
-                                                        &r.aggregated_nodes);
-  LinearSystem sys;
-  sys.K = T.transpose() * full.K * T;
-  sys.f = T.transpose() * full.f;
+  LinearSystem sys = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options);
+  r.reused_element_matrices = sys.reused_element_matrices;
+  Eigen::SparseMatrix<double> T = aggregation_map(elements, adjacent, r.node, count, options.aggregation_fraction,
+                                                  &r.aggregated_nodes);
+  if (r.aggregated_nodes > 0) {  // otherwise T = I: no TᵀKT
+    sys.K = Eigen::SparseMatrix<double>(T.transpose() * sys.K * T);
+    sys.f = T.transpose() * sys.f;
+    r.aggregation = std::move(T);
+  }
   r.assemble_seconds = seconds_since(t0);
   t0 = std::chrono::steady_clock::now();
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
-  llt.compute(sys.K);
-  if (llt.info() == Eigen::Success) {
-    r.u = llt.solve(sys.f);
-    for (int k = 0; k < 2; ++k) r.u += llt.solve(sys.f - sys.K * r.u);  // iterative refinement
-    r.solved = llt.info() == Eigen::Success;
-  }
-  if (!r.solved) {  // not positive definite: too small a Nitsche β, or no support
-    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
-    lu.compute(sys.K);
-    if (lu.info() == Eigen::Success) {
-      r.u = lu.solve(sys.f);
-      r.solved = lu.info() == Eigen::Success;
+  SparseCholesky& chol = *cholesky_;
+  chol.factorize(sys.K);
+  if (chol.IsDone()) {
+    // Cholesky: two steps of iterative refinement; the LU fallback solves once, as before.
+    r.u = chol.solve(sys.f, chol.status() == SparseCholesky::Status::Factorized ? 2 : 0);
+    r.solved = r.u.allFinite();
+    if (chol.status() == SparseCholesky::Status::FactorizedByLU)
       r.message = "stiffness matrix not positive definite (Nitsche β too small, or too few supports); solved by LU";
-    } else {
-      r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
-    }
   }
+  if (!r.solved) r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
   r.solve_seconds = seconds_since(t0);
   if (r.solved) {
     r.energy = 0.5 * r.u.dot(sys.K * r.u) - sys.f.dot(r.u);
-    r.u = T * r.u;  // back to every DOF node (aggregated ones extrapolated)
+    if (r.aggregated_nodes > 0) r.u = r.aggregation * r.u;  // back to every DOF node (aggregated ones extrapolated)
+    r.factorization = cholesky_;
   }
   return r;
+}
+
+Eigen::VectorXd LinearXfemResult::solve_again(const Eigen::VectorXd& f) const {
+  PARAFAB_VERIFY(factorization && factorization->IsDone(), "solve_again: the linear solve kept no factorization");
+  PARAFAB_VERIFY(f.size() == dofs, "solve_again: load vector of size " << f.size() << ", expected " << dofs);
+  const int refine = factorization->status() == SparseCholesky::Status::Factorized ? 2 : 0;
+  if (aggregation.size() == 0) return factorization->solve(f, refine);
+  return aggregation * factorization->solve(aggregation.transpose() * f, refine);
 }
 
 Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,

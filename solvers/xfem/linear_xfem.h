@@ -8,11 +8,13 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "xfem/cut_geometry.h"
 #include "xfem/quadrature_rule.h"
+#include "xfem/sparse_cholesky.h"
 
 namespace parafab::xfem {
 
@@ -71,6 +73,19 @@ struct LinearXfemResult {
   double assemble_seconds = 0, solve_seconds = 0;
   double energy = 0;                     ///< ½ uᵀKu − fᵀu at the solution
   int aggregated_nodes = 0;              ///< DOF nodes tied to a neighbour (small cut cells)
+  /// Elements whose stiffness was copied from the one uncut interior cell integrated (all
+  /// interior cells of a grid have the same box size and rule, hence the same matrix).
+  int reused_element_matrices = 0;
+  /// The factorization of the reduced stiffness TᵀKT (null if the solve failed). Shared with
+  /// the LinearXfemSolver that made it: its next solve factorizes again in place.
+  std::shared_ptr<const SparseCholesky> factorization;
+  /// The aggregation map T (u = T u_reduced); empty (0 × 0) when nothing is aggregated (T = I).
+  Eigen::SparseMatrix<double> aggregation;
+
+  /// The displacement (every DOF node) under another load vector f (size dofs, e.g. an adjoint
+  /// right-hand side) with the kept factorization: T (TᵀKT)⁻¹ Tᵀ f. Throws parafab::Error when
+  /// there is no factorization or f has the wrong size.
+  Eigen::VectorXd solve_again(const Eigen::VectorXd& f) const;
 
   /// Displacement at X inside element e (trilinear interpolation of its DOF nodes).
   Vec3 displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const;
@@ -90,10 +105,13 @@ std::vector<std::array<int, 8>> number_dof_nodes(const std::vector<GridElement>&
                                                  const std::vector<std::array<int, 2>>& adjacent,
                                                  int& count);
 
-/// Assembled stiffness and load (no Dirichlet conditions folded in unless given).
+/// Assembled stiffness and load (no Dirichlet conditions folded in unless given). Element
+/// matrices are computed in parallel (TBB) and scattered in element order: the result is
+/// bit-identical for every thread count. Uncut interior cells of one size get one matrix.
 struct LinearSystem {
   Eigen::SparseMatrix<double> K;
   Eigen::VectorXd f;
+  int reused_element_matrices = 0;  ///< uncut elements given the one interior cell matrix
 };
 LinearSystem assemble_linear(const std::vector<GridElement>& elements,
                              const std::vector<std::array<int, 8>>& node, int node_count,
@@ -115,6 +133,21 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<DirichletCondition>& dirichlet,
                               const std::vector<TractionCondition>& tractions,
                               const LinearXfemOptions& options = {});
+
+/// solve_linear with a kept sparse Cholesky: a later solve whose reduced stiffness has the
+/// same pattern (the same grid: a re-solve after a load or material change, an unchanged
+/// re-cut) reuses the symbolic analysis; every result shares the factorization.
+class LinearXfemSolver {
+ public:
+  LinearXfemSolver() : cholesky_(std::make_shared<SparseCholesky>()) {}
+  LinearXfemResult solve(const std::vector<GridElement>& elements, const std::vector<std::array<int, 2>>& adjacent,
+                         const ElasticMaterial& material, const std::vector<DirichletCondition>& dirichlet,
+                         const std::vector<TractionCondition>& tractions, const LinearXfemOptions& options = {});
+  const SparseCholesky& cholesky() const { return *cholesky_; }
+
+ private:
+  std::shared_ptr<SparseCholesky> cholesky_;
+};
 
 }  // namespace parafab::xfem
 

@@ -1,12 +1,14 @@
 #include "xfem/nonlinear_xfem.h"
 
-#include <Eigen/CholmodSupport>
-#include <Eigen/SparseLU>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <chrono>
 #include <cmath>
 #include <limits>
 
 #include "common/error.h"
+#include "xfem/sparse_cholesky.h"
 
 namespace parafab::xfem {
 
@@ -20,16 +22,22 @@ struct Evaluation {
 };
 
 // Bulk terms: Σ ∫ Ψ(F), its gradient and Hessian (vec(F) column-major: F(i, a) ↔ i + 3a).
+// Elements in parallel (TBB), a chunk at a time; energies, gradients and Hessian triplets are
+// gathered in element order, so the result is bit-identical for every thread count.
 Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::vector<std::array<int, 8>>& node,
                          const Material& material, const Eigen::VectorXd& u, bool with_hessian) {
   Evaluation ev;
   ev.gradient = Eigen::VectorXd::Zero(u.size());
-  for (size_t e = 0; e < elements.size(); ++e) {
+  using Vec24 = Eigen::Matrix<double, 24, 1>;
+  using Mat24 = Eigen::Matrix<double, 24, 24>;
+  // Element e's energy, gradient and Hessian; false if Ψ is not finite (J ≤ 0).
+  auto element = [&](size_t e, double& energy, Vec24& ge, Mat24& He) {
     const GridElement& el = elements[e];
-    Eigen::Matrix<double, 24, 1> ue;
+    Vec24 ue;
     for (int k = 0; k < 8; ++k) ue.segment<3>(3 * k) = u.segment<3>(3 * node[e][k]);
-    Eigen::Matrix<double, 24, 1> ge = Eigen::Matrix<double, 24, 1>::Zero();
-    Eigen::Matrix<double, 24, 24> He = Eigen::Matrix<double, 24, 24>::Zero();
+    energy = 0;
+    ge.setZero();
+    if (with_hessian) He.setZero();
     for (size_t q = 0; q < el.rule.points.size(); ++q) {
       const double w = el.rule.weights[q];
       Eigen::Matrix<double, 8, 1> N;
@@ -38,11 +46,8 @@ Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::ve
       Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
       for (int k = 0; k < 8; ++k) F += ue.segment<3>(3 * k) * G.row(k);
       const double psi = material.energy(F);
-      if (!std::isfinite(psi)) {
-        ev.finite = false;
-        return ev;
-      }
-      ev.energy += w * psi;
+      if (!std::isfinite(psi)) return false;
+      energy += w * psi;
       const Eigen::Matrix3d P = material.stress(F);
       for (int k = 0; k < 8; ++k) ge.segment<3>(3 * k) += w * P * G.row(k).transpose();
       if (with_hessian) {
@@ -55,14 +60,38 @@ Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::ve
         He.noalias() += w * dF.transpose() * A * dF;
       }
     }
-    for (int a = 0; a < 8; ++a)
-      for (int da = 0; da < 3; ++da) {
-        const int ra = 3 * node[e][a] + da;
-        ev.gradient(ra) += ge(3 * a + da);
-        if (with_hessian)
-          for (int b = 0; b < 8; ++b)
-            for (int db = 0; db < 3; ++db) ev.hessian.emplace_back(ra, 3 * node[e][b] + db, He(3 * a + da, 3 * b + db));
+    return true;
+  };
+  const size_t n = elements.size(), chunk = 4096;
+  if (with_hessian) ev.hessian.reserve(576 * n);
+  std::vector<double> energy(std::min(n, chunk));
+  std::vector<char> finite(std::min(n, chunk));
+  std::vector<Vec24, Eigen::aligned_allocator<Vec24>> ge(std::min(n, chunk));
+  std::vector<Mat24, Eigen::aligned_allocator<Mat24>> He(with_hessian ? std::min(n, chunk) : 0);
+  for (size_t begin = 0; begin < n; begin += chunk) {
+    const size_t end = std::min(n, begin + chunk);
+    tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 16), [&](const tbb::blocked_range<size_t>& r) {
+      Mat24 local;
+      for (size_t e = r.begin(); e != r.end(); ++e)
+        finite[e - begin] = element(e, energy[e - begin], ge[e - begin], with_hessian ? He[e - begin] : local);
+    });
+    for (size_t e = begin; e < end; ++e) {
+      if (!finite[e - begin]) {
+        ev.finite = false;
+        ev.hessian.clear();
+        return ev;
       }
+      ev.energy += energy[e - begin];
+      for (int a = 0; a < 8; ++a)
+        for (int da = 0; da < 3; ++da) {
+          const int ra = 3 * node[e][a] + da;
+          ev.gradient(ra) += ge[e - begin](3 * a + da);
+          if (with_hessian)
+            for (int b = 0; b < 8; ++b)
+              for (int db = 0; db < 3; ++db)
+                ev.hessian.emplace_back(ra, 3 * node[e][b] + db, He[e - begin](3 * a + da, 3 * b + db));
+        }
+    }
   }
   return ev;
 }
@@ -98,28 +127,30 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
   // tiny cut cells touch follow their neighbours and the Hessian stays well conditioned.
   const Eigen::SparseMatrix<double> T = aggregation_map(elements, adjacent, r.node, count,
                                                         options.boundary.aggregation_fraction, &r.aggregated_nodes);
-  const Eigen::SparseMatrix<double> Tt = T.transpose();
-  const Eigen::SparseMatrix<double> K_boundary = Tt * boundary.K * T;
+  // Without aggregated nodes T = I: the products with T are skipped.
+  const bool reduce = r.aggregated_nodes > 0;
+  const Eigen::SparseMatrix<double> Tt = reduce ? Eigen::SparseMatrix<double>(T.transpose()) : Eigen::SparseMatrix<double>();
+  const Eigen::SparseMatrix<double> K_boundary = reduce ? Eigen::SparseMatrix<double>(Tt * boundary.K * T) : boundary.K;
   Eigen::VectorXd ur = Eigen::VectorXd::Zero(T.cols());
   r.u = Eigen::VectorXd::Zero(r.dofs);
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
-  bool analyzed = false;
+  SparseCholesky llt;  // symbolic analysis once: every Newton Hessian has the same pattern
   for (int step = 1; step <= options.load_steps; ++step) {
     const double lambda = static_cast<double>(step) / options.load_steps;
-    const Eigen::VectorXd f = lambda * (Tt * boundary.f);
+    const Eigen::VectorXd f = lambda * (reduce ? Eigen::VectorXd(Tt * boundary.f) : boundary.f);
     // Energy of the reduced unknowns x (u = T x); gradient and Hessian reduced by T.
     Eigen::SparseMatrix<double> H_bulk;
     auto total = [&](const Eigen::VectorXd& x, bool hess, Evaluation& ev) {
-      ev = evaluate_bulk(elements, r.node, material, T * x, hess);
+      ev = evaluate_bulk(elements, r.node, material, reduce ? Eigen::VectorXd(T * x) : x, hess);
       if (!ev.finite) return std::numeric_limits<double>::infinity();
       if (hess) {
         Eigen::SparseMatrix<double> H(r.dofs, r.dofs);
         H.setFromTriplets(ev.hessian.begin(), ev.hessian.end());
         ev.hessian.clear();
-        H_bulk = Tt * H * T;
+        ev.hessian.shrink_to_fit();
+        H_bulk = reduce ? Eigen::SparseMatrix<double>(Tt * H * T) : std::move(H);
       }
       const Eigen::VectorXd Kx = K_boundary * x;
-      ev.gradient = Tt * ev.gradient + Kx - f;
+      ev.gradient = (reduce ? Eigen::VectorXd(Tt * ev.gradient) : ev.gradient) + Kx - f;
       return ev.energy + 0.5 * x.dot(Kx) - f.dot(x);
     };
     Evaluation ev;
@@ -133,22 +164,19 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
         break;
       }
       const Eigen::SparseMatrix<double> H = H_bulk + K_boundary;
-      if (!analyzed) llt.analyzePattern(H), analyzed = true;  // symbolic analysis reused
-      llt.factorize(H);
+      llt.factorize(H);  // reuses the symbolic analysis while the pattern stays
       Eigen::VectorXd d;
-      if (llt.info() == Eigen::Success) {
-        d = -llt.solve(ev.gradient);
+      if (llt.status() == SparseCholesky::Status::Factorized) {
         // Iterative refinement: tiny cut cells make H ill-conditioned (no stabilization yet),
         // and one triangular solve then leaves a linear residual that stalls Newton.
-        for (int k = 0; k < 3; ++k) d += llt.solve(-ev.gradient - H * d);
+        d = llt.solve(-ev.gradient, 3);
       } else {  // indefinite (buckling, too small β): LU step, still checked by the line search
-        Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(H);
-        if (lu.info() != Eigen::Success) {
+        if (!llt.IsDone()) {
           r.message = "Newton system singular at load step " + std::to_string(step);
           r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
           return r;
         }
-        d = -lu.solve(ev.gradient);
+        d = -llt.solve(ev.gradient, 0);
         if (d.dot(ev.gradient) > 0) d = -ev.gradient;  // not a descent direction
       }
       // Backtracking (Armijo) on the total energy; infinite energy (J ≤ 0) rejects a step.
@@ -180,7 +208,7 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
         break;
       }
     }
-    r.u = T * ur;
+    r.u = reduce ? Eigen::VectorXd(T * ur) : ur;
     if (!step_done) {
       if (r.message.empty())
         r.message = "Newton did not converge in " + std::to_string(options.max_iterations) +

@@ -102,6 +102,10 @@ int main(int argc, char** argv) {
   simulate->add_option("job", job_path, "Job JSON: material, grid, supports, loads, gravity, probes")->required();
   simulate->add_option("-o,--output", out_dir, "Folder for result.json, result.vtu and surface.vtu");
   bool show_progress = false, estimate_only = false;
+  int simulate_threads = -1;
+  simulate->add_option("--threads", simulate_threads,
+                       "Threads for rules, assembly and result writing (overrides the job's \"threads\"; "
+                       "default: all cores)")->check(CLI::PositiveNumber);
   simulate->add_flag("--estimate", estimate_only,
                      "Only print the size estimate {unknowns, factor_mb, memory_mb, fits}; do not run");
   simulate->add_flag("--progress", show_progress,
@@ -141,9 +145,10 @@ int main(int argc, char** argv) {
           std::cerr << json{{"progress", {{"phase", phase}, {"fraction", fraction}}}}.dump() << std::endl;
           return true;
         };
-      if (estimate_only)
-        return emit(parafab::entry::SimulationSession(in_path, read_json_file(job_path)).estimate(), "");
-      return emit(parafab::entry::simulate_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
+      json job = read_json_file(job_path);
+      if (simulate_threads > 0 && job.is_object()) job["threads"] = simulate_threads;
+      if (estimate_only) return emit(parafab::entry::SimulationSession(in_path, job).estimate(), "");
+      return emit(parafab::entry::simulate_part_json(in_path, job, out_dir, progress), "");
     }
     if (*revolution) return emit(parafab::entry::revolution_strips_json(read_json_file(in_path)), out_path);
     if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);

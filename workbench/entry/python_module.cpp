@@ -129,8 +129,11 @@ PYBIND11_MODULE(parafab, m) {
       "force=True; estimate_only=True returns only {part, estimate}.");
   m.def(
       "simulate",
-      [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress) {
-        const nlohmann::json in = to_json(job);
+      [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress,
+         int threads) {
+        nlohmann::json in = to_json(job);
+        if (threads < 0) throw parafab::Error("simulate: threads must be >= 0 (0: the job's, else all cores), got " + std::to_string(threads));
+        if (threads > 0) in["threads"] = threads;
         const auto report = progress_function(progress);
         nlohmann::json out;
         {
@@ -140,8 +143,10 @@ PYBIND11_MODULE(parafab, m) {
         return to_python(out);
       },
       py::arg("path"), py::arg("job"), py::arg("out_dir") = "", py::arg("progress") = py::none(),
+      py::arg("threads") = 0,
       "Linear elastic or hyperelastic XFEM simulation of a part (same job and result JSON as `parafab "
       "simulate`); writes result.json, result.vtu and surface.vtu into out_dir when given. "
+      "threads > 0 overrides the job's \"threads\" (default: all cores). "
       "progress(phase, fraction) is called at phase boundaries; returning False cancels the run "
       "(parafab.Error 'simulation cancelled by the user').");
   // A simulation that keeps its grid: update(new_part) re-cuts only the blocks a change touches.

@@ -1,5 +1,8 @@
 #include "simulate_json.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 #include <unistd.h>
 
 #include <Eigen/Dense>
@@ -9,7 +12,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <chrono>
 #include <fstream>
+#include <optional>
+#include <charconv>
 
 #include "common/error.h"
 #include "json_fields.h"
@@ -30,6 +36,10 @@ namespace {
 
 bool model_name_is_linear(const std::string& model) { return model == "linear"; }
 
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 using fields::number;
 using fields::vec3;
 
@@ -47,12 +57,44 @@ int face_of(const occ::PartShape& part, const json& item, const std::string& pat
 
 using StressFn = std::function<Eigen::Matrix<double, 6, 1>(int, const Vec3&)>;
 
+// Text as a default std::ostream prints it (doubles as printf's %.6g, integers in decimal),
+// through std::to_chars: several times faster than a stream.
+struct Text {
+  std::string s;
+  Text& operator<<(double v) {
+    char b[40];
+    s.append(b, std::to_chars(b, b + sizeof b, v, std::chars_format::general, 6).ptr);
+    return *this;
+  }
+  Text& operator<<(int v) {
+    char b[16];
+    s.append(b, std::to_chars(b, b + sizeof b, v).ptr);
+    return *this;
+  }
+  Text& operator<<(char c) {
+    s.push_back(c);
+    return *this;
+  }
+};
+
+// Lines for items [0, n), formatted by line(i, text) in parallel chunks (TBB) and written in
+// order: the same bytes for every thread count.
+template <class Line>
+void write_lines(std::ostream& f, size_t n, const Line& line) {
+  const size_t chunk = 8192, chunks = (n + chunk - 1) / chunk;
+  std::vector<Text> text(chunks);
+  tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+    for (size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) line(i, text[c]);
+  });
+  for (const auto& t : text) f << t.s;
+}
+
 void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& elements,
                const xfem::LinearXfemResult& r, const StressFn& stress) {
   // Uncut cells as hexahedra; cut subvolumes as their quadrature points (VTK_VERTEX), each
   // with displacement and von Mises stress.
-  std::vector<Vec3> pts, disp;
-  std::vector<double> vm;
+  std::vector<Vec3> pts;
+  std::vector<int> owner;  // element of every point
   std::vector<std::array<int, 8>> hexes;
   std::vector<int> vertices;
   static const int vtk_order[8] = {0, 1, 3, 2, 4, 5, 7, 6};
@@ -61,22 +103,27 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
     if (!el.subvolume) {
       std::array<int, 8> h{};
       for (int k = 0; k < 8; ++k) {
-        const Vec3 X = xfem::corner(el.box, vtk_order[k]);
         h[k] = static_cast<int>(pts.size());
-        pts.push_back(X);
-        disp.push_back(r.displacement(elements, static_cast<int>(e), X));
-        vm.push_back(xfem::von_mises(stress(static_cast<int>(e), X)));
+        pts.push_back(xfem::corner(el.box, vtk_order[k]));
+        owner.push_back(static_cast<int>(e));
       }
       hexes.push_back(h);
     } else {
       for (const Vec3& X : el.rule.points) {
         vertices.push_back(static_cast<int>(pts.size()));
         pts.push_back(X);
-        disp.push_back(r.displacement(elements, static_cast<int>(e), X));
-        vm.push_back(xfem::von_mises(stress(static_cast<int>(e), X)));
+        owner.push_back(static_cast<int>(e));
       }
     }
   }
+  std::vector<Vec3> disp(pts.size());
+  std::vector<double> vm(pts.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, pts.size(), 1024), [&](const tbb::blocked_range<size_t>& b) {
+    for (size_t i = b.begin(); i != b.end(); ++i) {
+      disp[i] = r.displacement(elements, owner[i], pts[i]);
+      vm[i] = xfem::von_mises(stress(owner[i], pts[i]));
+    }
+  });
   std::ofstream f(path);
   if (!f) PARAFAB_INPUT_ERROR("cannot write " << path);
   const size_t ncells = hexes.size() + vertices.size();
@@ -84,21 +131,21 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
     << "<UnstructuredGrid><Piece NumberOfPoints=\"" << pts.size() << "\" NumberOfCells=\"" << ncells << "\">\n"
     << "<PointData Vectors=\"displacement\" Scalars=\"von_mises\">\n"
     << "<DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (const auto& d : disp) f << d.x() << ' ' << d.y() << ' ' << d.z() << '\n';
+  write_lines(f, disp.size(), [&](size_t i, Text& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
-  for (double v : vm) f << v << '\n';
+  write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
   f << "</DataArray>\n</PointData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (const auto& p : pts) f << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  write_lines(f, pts.size(), [&](size_t i, Text& os) { os << pts[i].x() << ' ' << pts[i].y() << ' ' << pts[i].z() << '\n'; });
   f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
-  for (const auto& h : hexes) {
-    for (int k : h) f << k << ' ';
-    f << '\n';
-  }
-  for (int v : vertices) f << v << '\n';
+  write_lines(f, hexes.size(), [&](size_t i, Text& os) {
+    for (int k : hexes[i]) os << k << ' ';
+    os << '\n';
+  });
+  write_lines(f, vertices.size(), [&](size_t i, Text& os) { os << vertices[i] << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
-  int off = 0;
-  for (size_t i = 0; i < hexes.size(); ++i) f << (off += 8) << '\n';
-  for (size_t i = 0; i < vertices.size(); ++i) f << (off += 1) << '\n';
+  const int hex_end = 8 * static_cast<int>(hexes.size());
+  write_lines(f, hexes.size(), [&](size_t i, Text& os) { os << 8 * (static_cast<int>(i) + 1) << '\n'; });
+  write_lines(f, vertices.size(), [&](size_t i, Text& os) { os << hex_end + static_cast<int>(i) + 1 << '\n'; });
   f << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
   for (size_t i = 0; i < hexes.size(); ++i) f << "12\n";
   for (size_t i = 0; i < vertices.size(); ++i) f << "1\n";
@@ -110,8 +157,15 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
 // cells when X lies on a cell face), the one with the rule point nearest to X.
 class ElementLocator {
  public:
-  explicit ElementLocator(const occ::GridModel& grid) : grid_(grid) {
-    for (size_t e = 0; e < grid.elements.size(); ++e) by_cell_[grid.elements[e].cell].push_back(static_cast<int>(e));
+  // Elements by dense cell index (CSR: first_[c] .. first_[c + 1] in list_).
+  explicit ElementLocator(const occ::GridModel& grid) : grid_(grid), cells_(grid.cut->cells) {
+    const size_t n = static_cast<size_t>(cells_[0]) * cells_[1] * cells_[2];
+    first_.assign(n + 1, 0);
+    for (const auto& el : grid.elements) ++first_[id(el.cell) + 1];
+    for (size_t c = 0; c < n; ++c) first_[c + 1] += first_[c];
+    list_.resize(grid.elements.size());
+    std::vector<int> fill(first_.begin(), first_.end() - 1);
+    for (size_t e = 0; e < grid.elements.size(); ++e) list_[fill[id(grid.elements[e].cell)]++] = static_cast<int>(e);
   }
   int find(const Vec3& X) const {
     const auto& cut = *grid_.cut;
@@ -126,9 +180,9 @@ class ElementLocator {
       for (int dj = -1; dj <= 1; ++dj)
         for (int dk = -1; dk <= 1; ++dk) {
           const std::array<int, 3> n{c[0] + di, c[1] + dj, c[2] + dk};
-          auto it = by_cell_.find(n);
-          if (it == by_cell_.end()) continue;
-          for (int e : it->second) {
+          if (n[0] < 0 || n[1] < 0 || n[2] < 0 || n[0] >= cells_[0] || n[1] >= cells_[1] || n[2] >= cells_[2]) continue;
+          for (int i = first_[id(n)]; i < first_[id(n) + 1]; ++i) {
+            const int e = list_[i];
             const auto& el = grid_.elements[e];
             const Vec3 slack = 1e-6 * el.box.size();
             if (((X - el.box.min + slack).array() < 0).any() || ((el.box.max + slack - X).array() < 0).any()) continue;
@@ -140,8 +194,10 @@ class ElementLocator {
   }
 
  private:
+  size_t id(const std::array<int, 3>& c) const { return (static_cast<size_t>(c[0]) * cells_[1] + c[1]) * cells_[2] + c[2]; }
   const occ::GridModel& grid_;
-  std::map<std::array<int, 3>, std::vector<int>> by_cell_;
+  std::array<int, 3> cells_;
+  std::vector<int> first_, list_;
 };
 
 // The part's B-rep faces triangulated, each vertex with its displacement and von Mises stress
@@ -154,15 +210,19 @@ void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, co
     << "<UnstructuredGrid><Piece NumberOfPoints=\"" << mesh.points.size() << "\" NumberOfCells=\""
     << mesh.triangles.size() << "\">\n<PointData Vectors=\"displacement\" Scalars=\"von_mises\">\n"
     << "<DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (const auto& d : disp) f << d.x() << ' ' << d.y() << ' ' << d.z() << '\n';
+  write_lines(f, disp.size(), [&](size_t i, Text& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
-  for (double v : vm) f << v << '\n';
+  write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
   f << "</DataArray>\n</PointData>\n<CellData Scalars=\"face\">\n<DataArray type=\"Int32\" Name=\"face\" format=\"ascii\">\n";
   for (int fi : mesh.triangle_face) f << fi << '\n';
   f << "</DataArray>\n</CellData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (const auto& p : mesh.points) f << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  write_lines(f, mesh.points.size(), [&](size_t i, Text& os) {
+    os << mesh.points[i].x() << ' ' << mesh.points[i].y() << ' ' << mesh.points[i].z() << '\n';
+  });
   f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
-  for (const auto& t : mesh.triangles) f << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
+  write_lines(f, mesh.triangles.size(), [&](size_t i, Text& os) {
+    os << mesh.triangles[i][0] << ' ' << mesh.triangles[i][1] << ' ' << mesh.triangles[i][2] << '\n';
+  });
   f << "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
   for (size_t i = 0; i < mesh.triangles.size(); ++i) f << 3 * (i + 1) << '\n';
   f << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
@@ -186,6 +246,7 @@ struct SimulationSession::Setup {
   double dofs = 0, factor_mb = 0, physical_mb = 0;
   double target = 0;   ///< relative accuracy target (grid.target); 0: the given grid
   int max_cells = 64;  ///< refinement stops here (grid.max_cells)
+  int threads = 0;     ///< "threads": 0 = all cores
   Vec3 extent{0, 0, 0};
   occ::PartInfo info;
   GridEstimate cut_estimate;  ///< cutting and rules (grid_estimate.h)
@@ -280,6 +341,8 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();
   }
+  S->threads = static_cast<int>(number(job.value("threads", json(0)), "threads"));
+  if (S->threads < 0) PARAFAB_INPUT_ERROR("threads must be >= 1 (or 0: all cores), got " << S->threads);
   S->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
   if (S->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1");
 
@@ -327,6 +390,8 @@ json SimulationSession::run(const std::string& out_dir, const ProgressFn& progre
     if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
   };
   refuse_if_too_big();
+  std::optional<tbb::global_control> threads;  // for the whole run
+  if (setup_->threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->threads);
   if (setup_->target > 0) return run_to_target(out_dir, report);
   report("cut", 0.05);
   auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, setup_->go));
@@ -418,6 +483,8 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
     throw;
   }
   refuse_if_too_big();
+  std::optional<tbb::global_control> threads;  // for the whole update
+  if (setup_->threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->threads);
   report("cut", 0.05);
   occ::RecutReport rr;
   auto model = std::make_unique<occ::GridModel>(occ::rebuild_grid_model(*part_, *model_, *old_part, setup_->go, &rr));
@@ -442,7 +509,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   StressFn stress;
   report(model_name_is_linear(S.model) ? "solve" : "newton", 0.65);
   if (model_name_is_linear(S.model)) {
-    r = xfem::solve_linear(grid.elements, grid.adjacent, mat, S.dirichlet, S.tractions, S.fo);
+    if (!linear_solver_) linear_solver_ = std::make_unique<xfem::LinearXfemSolver>();
+    r = linear_solver_->solve(grid.elements, grid.adjacent, mat, S.dirichlet, S.tractions, S.fo);
     stress = [&](int e, const Vec3& X) { return xfem::stress_at(r, grid.elements, mat, e, X); };
   } else {
     xfem::NonlinearXfemOptions no;
@@ -466,6 +534,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   }
   if (!r.solved) PARAFAB_INPUT_ERROR("the simulation could not be solved: " << r.message);
   report("results", 0.9);
+  const auto t_results = std::chrono::steady_clock::now();
   // Largest displacement (at element corners and quadrature points) and von Mises stress (at
   // quadrature points), from points in the material only: uncut cells lie inside; the corners
   // of cut cells and the rule points of cut subvolumes (which fill the fitting box, not the
@@ -551,24 +620,34 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"seconds", {{"cut", grid.cut_seconds}, {"rules", grid.rule_seconds},
                         {"assemble", r.assemble_seconds}, {"solve", r.solve_seconds}}},
            {"units", "those of the part and material (e.g. mm, N, MPa)"}};
+  out["seconds"]["results"] = seconds_since(t_results);
+  out["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  if (linear_solver_ && model_name_is_linear(S.model))
+    out["solver"] = {{"analyses", linear_solver_->cholesky().analyses},
+                     {"factorizations", linear_solver_->cholesky().factorizations},
+                     {"reused_element_matrices", r.reused_element_matrices}};
   if (!out_dir.empty()) {
+    const auto t_write = std::chrono::steady_clock::now();
     std::filesystem::create_directories(out_dir);
     report("write", 0.95);
     write_vtu(out_dir + "/result.vtu", grid.elements, r, stress);
     // The exact boundary, triangulated to a tenth of a cell and to edges of at most half a
-    // cell, with the fields at its vertices.
+    // cell, with the fields at its vertices (located through the grid, evaluated in parallel).
     const double cell = grid.cut->cell_size.x();
-    const occ::SurfaceMesh mesh = occ::triangulate_part(*part_, 0.1 * cell, 0.5 * cell);
+    const occ::SurfaceMesh mesh = occ::triangulate_part(*part_, 0.1 * cell, 0.5 * cell, out["threads"].get<int>() > 1);
     std::vector<Vec3> sdisp(mesh.points.size(), Vec3::Zero());
     std::vector<double> svm(mesh.points.size(), 0.0);
-    for (size_t i = 0; i < mesh.points.size(); ++i) {
-      const int e = locator.find(mesh.points[i]);
-      if (e < 0) continue;  // cannot happen for points of the part; keep zero rather than fail
-      sdisp[i] = r.displacement(grid.elements, e, mesh.points[i]);
-      svm[i] = xfem::von_mises(stress(e, mesh.points[i]));
-    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.points.size(), 256), [&](const tbb::blocked_range<size_t>& b) {
+      for (size_t i = b.begin(); i != b.end(); ++i) {
+        const int e = locator.find(mesh.points[i]);
+        if (e < 0) continue;  // cannot happen for points of the part; keep zero rather than fail
+        sdisp[i] = r.displacement(grid.elements, e, mesh.points[i]);
+        svm[i] = xfem::von_mises(stress(e, mesh.points[i]));
+      }
+    });
     write_surface_vtu(out_dir + "/surface.vtu", mesh, sdisp, svm);
     out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu", out_dir + "/surface.vtu"};
+    out["seconds"]["write"] = seconds_since(t_write);
     std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
   }
   return out;

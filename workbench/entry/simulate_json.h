@@ -12,6 +12,9 @@ namespace parafab::occ {
 struct PartShape;
 struct GridModel;
 }  // namespace parafab::occ
+namespace parafab::xfem {
+class LinearXfemSolver;
+}  // namespace parafab::xfem
 
 namespace parafab::entry {
 
@@ -55,8 +58,13 @@ class SimulationSession {
   std::shared_ptr<const occ::PartShape> part_;
   std::unique_ptr<Setup> setup_;
   std::unique_ptr<occ::GridModel> model_;
+  /// Kept between runs and updates: a re-solve whose stiffness has the analyzed pattern reuses
+  /// CHOLMOD's symbolic analysis.
+  std::unique_ptr<xfem::LinearXfemSolver> linear_solver_;
 };
 
+/// The job's "threads" (N > 0; default: all cores) bounds the threads of every phase of run()
+/// and update() (a tbb::global_control for their duration); results do not depend on it.
 /// Throws parafab::Error naming the offending job field for invalid input, or when the run
 /// would not fit in memory (with the estimate). Writes result.json, result.vtu (cells and
 /// cut-cell rule points) and surface.vtu (the triangulated B-rep with the fields) to out_dir.

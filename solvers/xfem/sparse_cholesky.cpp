@@ -1,0 +1,86 @@
+// The kept sparse factorization of the XFEM systems (thesis §6.4, Eq. 6.22 and 6.17–6.18).
+#include "xfem/sparse_cholesky.h"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseLU>
+#include <chrono>
+
+#include "common/error.h"
+
+namespace parafab::xfem {
+
+struct SparseCholesky::Impl {
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  std::unique_ptr<Eigen::SparseLU<Eigen::SparseMatrix<double>>> lu;
+  Eigen::SparseMatrix<double> K;  // for iterative refinement
+};
+
+SparseCholesky::SparseCholesky() : impl_(std::make_unique<Impl>()) {}
+SparseCholesky::~SparseCholesky() = default;
+SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
+SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
+
+bool SparseCholesky::same_pattern(const Eigen::SparseMatrix<double>& K) const {
+  if (status_ == Status::Empty || K.rows() != rows_ || K.cols() != rows_ || !K.isCompressed()) return false;
+  if (static_cast<size_t>(K.nonZeros()) != inner_.size()) return false;
+  return std::equal(outer_.begin(), outer_.end(), K.outerIndexPtr()) &&
+         std::equal(inner_.begin(), inner_.end(), K.innerIndexPtr());
+}
+
+void SparseCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
+  PARAFAB_VERIFY(pattern.rows() == pattern.cols(),
+                 "sparse Cholesky: the matrix must be square, got " << pattern.rows() << " × " << pattern.cols());
+  const auto t0 = std::chrono::steady_clock::now();
+  Eigen::SparseMatrix<double> P = pattern;
+  P.makeCompressed();
+  impl_->llt.analyzePattern(P);
+  impl_->lu.reset();
+  rows_ = static_cast<int>(P.rows());
+  outer_.assign(P.outerIndexPtr(), P.outerIndexPtr() + P.outerSize() + 1);
+  inner_.assign(P.innerIndexPtr(), P.innerIndexPtr() + P.nonZeros());
+  status_ = Status::Analyzed;
+  message_.clear();
+  ++analyses;
+  analyze_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+bool SparseCholesky::factorize(const Eigen::SparseMatrix<double>& K_in) {
+  Eigen::SparseMatrix<double> K = K_in;
+  K.makeCompressed();
+  if (!same_pattern(K)) analyze(K);
+  const auto t0 = std::chrono::steady_clock::now();
+  impl_->lu.reset();
+  impl_->llt.factorize(K);
+  ++factorizations;
+  if (impl_->llt.info() == Eigen::Success) {
+    status_ = Status::Factorized;
+    message_.clear();
+  } else {  // not positive definite: too small a Nitsche β, an indefinite Newton step, no support
+    auto lu = std::make_unique<Eigen::SparseLU<Eigen::SparseMatrix<double>>>();
+    lu->compute(K);
+    if (lu->info() == Eigen::Success) {
+      impl_->lu = std::move(lu);
+      status_ = Status::FactorizedByLU;
+      message_ = "matrix not positive definite; factorized by sparse LU";
+    } else {
+      status_ = Status::Failed;
+      message_ = "matrix singular (" + std::to_string(rows_) + " unknowns): " + lu->lastErrorMessage();
+    }
+  }
+  impl_->K = std::move(K);
+  factorize_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return IsDone();
+}
+
+Eigen::VectorXd SparseCholesky::solve(const Eigen::VectorXd& b, int refinements) const {
+  PARAFAB_VERIFY(IsDone(), "sparse Cholesky: solve without a factorization (" << (message_.empty() ? "not factorized" : message_) << ")");
+  PARAFAB_VERIFY(b.size() == rows_, "sparse Cholesky: right-hand side of size " << b.size() << ", expected " << rows_);
+  auto apply = [&](const Eigen::VectorXd& r) -> Eigen::VectorXd {
+    return impl_->lu ? Eigen::VectorXd(impl_->lu->solve(r)) : Eigen::VectorXd(impl_->llt.solve(r));
+  };
+  Eigen::VectorXd x = apply(b);
+  for (int k = 0; k < refinements; ++k) x += apply(b - impl_->K * x);
+  return x;
+}
+
+}  // namespace parafab::xfem

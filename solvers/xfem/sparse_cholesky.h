@@ -1,0 +1,64 @@
+// The sparse solve of the XFEM systems (thesis §6.4, the linear systems of Eq. 6.22 and the
+// Newton steps of Eq. 6.17–6.18): CHOLMOD's supernodal Cholesky kept as an object, so that
+// the symbolic analysis (fill-reducing ordering, supernodes) is done once per sparsity
+// pattern and the numeric factorization once per matrix. Later right-hand sides (an adjoint
+// solve, another load case) reuse the factorization; later matrices with the same pattern
+// (Newton iterations, a re-solve on an unchanged grid) reuse the analysis.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace parafab::xfem {
+
+class SparseCholesky {
+ public:
+  enum class Status {
+    Empty,               ///< nothing analyzed yet
+    Analyzed,            ///< symbolic analysis done, no numeric factorization
+    Factorized,          ///< Cholesky factorization of a positive definite matrix
+    FactorizedByLU,      ///< not positive definite: sparse LU fallback (solve still works)
+    Failed               ///< singular (message says why); solve() throws
+  };
+
+  SparseCholesky();
+  ~SparseCholesky();
+  SparseCholesky(SparseCholesky&&) noexcept;
+  SparseCholesky& operator=(SparseCholesky&&) noexcept;
+
+  /// Symbolic analysis of K's pattern (square, both triangles stored as Eigen's
+  /// SparseMatrix; only the pattern is read). Throws parafab::Error for a non-square matrix.
+  void analyze(const Eigen::SparseMatrix<double>& pattern);
+  /// Numeric factorization of K. Analyzes first when nothing is analyzed or K's pattern differs
+  /// from the analyzed one (a same-pattern matrix reuses the analysis). Falls back to sparse LU
+  /// when K is not positive definite. Returns IsDone(). Keeps a copy of K for refinement.
+  bool factorize(const Eigen::SparseMatrix<double>& K);
+  /// x with K x = b, plus `refinements` steps of iterative refinement (x += K⁻¹(b − K x)).
+  /// Throws parafab::Error when nothing is factorized or b has the wrong size.
+  Eigen::VectorXd solve(const Eigen::VectorXd& b, int refinements = 2) const;
+
+  /// A factorization is held (Cholesky or the LU fallback): solve() works.
+  bool IsDone() const { return status_ == Status::Factorized || status_ == Status::FactorizedByLU; }
+  Status status() const { return status_; }
+  const std::string& message() const { return message_; }
+  int rows() const { return rows_; }
+  /// True if K has exactly the analyzed pattern (same size, outer and inner indices).
+  bool same_pattern(const Eigen::SparseMatrix<double>& K) const;
+
+  // Diagnostics: how often each step ran, and its accumulated wall time.
+  int analyses = 0, factorizations = 0;
+  double analyze_seconds = 0, factorize_seconds = 0;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  Status status_ = Status::Empty;
+  std::string message_;
+  int rows_ = 0;
+  std::vector<int> outer_, inner_;  // the analyzed pattern (compressed)
+};
+
+}  // namespace parafab::xfem
