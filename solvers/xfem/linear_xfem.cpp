@@ -445,6 +445,17 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
       for (double w : elements[o].rule.weights) v += w;
       if (v > host_volume[s]) host_volume[s] = v, host[s] = o;
     }
+  // Small elements whose face neighbours are all small (corner slivers where two cut faces meet
+  // a grid plane) take the host of a small neighbour that has one, level by level.
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::vector<int> next = host;
+    for (const auto& [a, b] : adjacent)
+      for (const auto& [s, o] : {std::pair<int, int>{a, b}, std::pair<int, int>{b, a}})
+        if (small[s] && small[o] && host[s] < 0 && host[o] >= 0 && host_volume[o] > host_volume[s])
+          next[s] = host[o], host_volume[s] = host_volume[o], changed = true;
+    host = std::move(next);
+  }
   std::vector<int> reduced(count, -1);
   int m = 0;
   std::vector<std::array<int, 2>> source(count, {-1, -1});  // (small element, its node) of a floating DOF node
