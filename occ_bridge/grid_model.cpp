@@ -112,6 +112,16 @@ GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
   return m;
 }
 
+GridModelOptions rules_for_element(xfem::ElementType element, GridModelOptions o) {
+  if (element == xfem::ElementType::Hex27) {
+    o.interior_points = std::max(o.interior_points, 3);
+    o.rule.degree = std::max(o.rule.degree, 10);
+    o.rule.points_per_direction = std::max(o.rule.points_per_direction, o.rule.degree + 1);
+    o.rule.patch.degree = std::max(o.rule.patch.degree, 10);
+  }
+  return o;
+}
+
 GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const PartShape& old_part,
                              const GridModelOptions& o, RecutReport* report) {
   PARAFAB_VERIFY(old.done, "rebuild_grid_model: the old model is not done");

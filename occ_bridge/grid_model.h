@@ -42,6 +42,16 @@ struct GridModel {
 
 GridModel build_grid_model(const PartShape& part, const GridModelOptions& options = {});
 
+/// `options` with rules of the degree `element` needs. Hex8: unchanged (2×2×2 Gauss in uncut
+/// cells, moment fitting of degree 4: exact for the trilinear stiffness). Hex27: 3×3×3 Gauss in
+/// uncut cells (exact for the triquadratic stiffness, degree 4 per coordinate) and moment
+/// fitting of total degree 10 on 11³ points in cut cells, flux patches of degree 10: the
+/// stiffness integrand (x⁴y⁴z² and the like) is then integrated exactly. Lower degrees leave
+/// the moment-fitted rules (weights of either sign) inexact for it, and the stiffness of small
+/// cut cells indefinite: with degree 6 or 8, CHOLMOD found turned beams not positive definite
+/// whatever the Nitsche β (measured, tests/occ_bridge/quadratic_xfem_test.cpp).
+GridModelOptions rules_for_element(xfem::ElementType element, GridModelOptions options = {});
+
 /// The model of `part`, a changed `old_part`, on the grid of `old`: only blocks around the
 /// changed faces are cut again and get new rules; the rest are reused (recut_by_grid).
 GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const PartShape& old_part,

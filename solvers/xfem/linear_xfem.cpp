@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <numeric>
+#include <string>
 
 #include "common/error.h"
 #include "xfem/area_rules.h"
@@ -16,18 +17,17 @@ namespace parafab::xfem {
 namespace {
 
 using Mat24 = Eigen::Matrix<double, 24, 24>;
-using Vec24 = Eigen::Matrix<double, 24, 1>;
 using Mat6x24 = Eigen::Matrix<double, 6, 24>;
-using Mat3x24 = Eigen::Matrix<double, 3, 24>;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // Strain–displacement matrix, Voigt order (xx, yy, zz, xy, yz, xz) with engineering shears.
-Mat6x24 strain_matrix(const Eigen::Matrix<double, 8, 3>& G) {
-  Mat6x24 B = Mat6x24::Zero();
-  for (int k = 0; k < 8; ++k) {
+template <int NN>
+Eigen::Matrix<double, 6, 3 * NN> strain_matrix(const Eigen::Matrix<double, NN, 3>& G) {
+  Eigen::Matrix<double, 6, 3 * NN> B = Eigen::Matrix<double, 6, 3 * NN>::Zero();
+  for (int k = 0; k < NN; ++k) {
     const int c = 3 * k;
     B(0, c) = G(k, 0);
     B(1, c + 1) = G(k, 1);
@@ -39,11 +39,34 @@ Mat6x24 strain_matrix(const Eigen::Matrix<double, 8, 3>& G) {
   return B;
 }
 
-Mat3x24 value_matrix(const Eigen::Matrix<double, 8, 1>& N) {
-  Mat3x24 M = Mat3x24::Zero();
-  for (int k = 0; k < 8; ++k)
+template <int NN>
+Eigen::Matrix<double, 3, 3 * NN> value_matrix(const Eigen::Matrix<double, NN, 1>& N) {
+  Eigen::Matrix<double, 3, 3 * NN> M = Eigen::Matrix<double, 3, 3 * NN>::Zero();
+  for (int k = 0; k < NN; ++k)
     for (int d = 0; d < 3; ++d) M(d, 3 * k + d) = N(k);
   return M;
+}
+
+template <int NN>
+void shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, NN, 1>& N, Eigen::Matrix<double, NN, 3>& G) {
+  if constexpr (NN == 8) trilinear_shape(box, X, N, G);
+  else triquadratic_shape(box, X, N, G);
+}
+
+// Shape functions of an element with `nodes` nodes (8 or 27), dynamic size.
+void shape_dynamic(const Box3& box, int nodes, const Vec3& X, Eigen::VectorXd& N, Eigen::MatrixXd& G) {
+  if (nodes == 27) {
+    Eigen::Matrix<double, 27, 1> n;
+    Eigen::Matrix<double, 27, 3> g;
+    triquadratic_shape(box, X, n, g);
+    N = n, G = g;
+  } else {
+    PARAFAB_VERIFY(nodes == 8, "element with " << nodes << " nodes (8 or 27 expected)");
+    Eigen::Matrix<double, 8, 1> n;
+    Eigen::Matrix<double, 8, 3> g;
+    trilinear_shape(box, X, n, g);
+    N = n, G = g;
+  }
 }
 
 Eigen::Matrix<double, 6, 6> elasticity(const ElasticMaterial& m) {
@@ -70,7 +93,7 @@ Eigen::Matrix<double, 3, 6> traction_operator(const Vec3& n) {
 // over the element's rule (Taylor's correction), so constant strain is still reproduced on
 // any subvolume (patch test). Removes the bending locking of trilinear hexahedra.
 void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D,
-                            double min_fraction, Mat24& Ke) {
+                            double min_fraction, Eigen::MatrixXd& Ke) {
   double volume = 0;
   for (double w : el.rule.weights) volume += w;
   if (!(volume > min_fraction * el.box.volume())) return;  // tiny pieces: K_aa near singular
@@ -90,11 +113,11 @@ void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6
   Eigen::Matrix<double, 8, 3> G;
   for (size_t q = 0; q < nq; ++q) {
     trilinear_shape(el.box, el.rule.points[q], N, G);
-    const Mat6x24 Bu = strain_matrix(G);
+    const Mat6x24 Bu = strain_matrix<8>(G);
     // Mode m of component c: displacement e_c φ_m; only ∂φ_m/∂x_m ≠ 0.
     Eigen::Matrix<double, 8, 3> Gm = Eigen::Matrix<double, 8, 3>::Zero();  // rows 0..2 used
     for (int m = 0; m < 3; ++m) Gm(m, m) = grad[q][m] - mean[m];
-    const Mat6x24 Bfull = strain_matrix(Gm);  // columns 3m + c: mode m, component c
+    const Mat6x24 Bfull = strain_matrix<8>(Gm);  // columns 3m + c: mode m, component c
     const Eigen::Matrix<double, 6, 9> Ba = Bfull.leftCols<9>();
     Kaa.noalias() += el.rule.weights[q] * Ba.transpose() * D * Ba;
     Kau.noalias() += el.rule.weights[q] * Ba.transpose() * D * Bu;
@@ -126,6 +149,81 @@ bool same_uncut_shape(const GridElement& a, const GridElement& b) {
   return true;
 }
 
+template <int NN>
+ElementSystem element_system_n(const GridElement& el, const ElasticMaterial& material,
+                               const std::vector<DirichletCondition>& dirichlet,
+                               const std::vector<TractionCondition>& tractions, const LinearXfemOptions& options,
+                               bool include_bulk) {
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  const double E = material.youngs_modulus, nu = material.poisson_ratio;
+  const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+  const double beta = options.nitsche_beta > 0 ? options.nitsche_beta : 100.0;
+  constexpr int n = 3 * NN;
+  ElementSystem s;
+  s.K = Eigen::MatrixXd::Zero(n, n);
+  s.f = Eigen::VectorXd::Zero(n);
+  Eigen::Matrix<double, NN, 1> N;
+  Eigen::Matrix<double, NN, 3> G;
+  const int nq = static_cast<int>(el.rule.points.size());
+  const bool gravity = material.density != 0 && options.gravity.squaredNorm() > 0;
+  std::array<Eigen::Matrix<double, NN, Eigen::Dynamic>, 3> P;  // P[i](a, q) = ∂N_a/∂x_i at point q
+  for (auto& p : P) p.resize(NN, nq);
+  for (int q = 0; q < nq; ++q) {
+    shape<NN>(el.box, el.rule.points[q], N, G);
+    for (int i = 0; i < 3; ++i) P[i].col(q) = G.col(i);
+    if (gravity)
+      for (int a = 0; a < NN; ++a) s.f.template segment<3>(3 * a) += el.rule.weights[q] * material.density * N(a) * options.gravity;
+  }
+  if (include_bulk && nq > 0) {
+    // Isotropic stiffness by node pairs: K(3a+i, 3b+j) = λ C_ij + μ C_ji + μ δ_ij Σ_k C_kk at
+    // (a, b), C_ij(a, b) = Σ_q w_q ∂_i N_a ∂_j N_b (9 products NN × nq × NN instead of B_qᵀ D B_q).
+    const Eigen::Map<const Eigen::VectorXd> w(el.rule.weights.data(), nq);
+    std::array<std::array<Eigen::Matrix<double, NN, NN>, 3>, 3> C;
+    for (int i = 0; i < 3; ++i) {
+      const Eigen::Matrix<double, NN, Eigen::Dynamic> Pw = P[i] * w.asDiagonal();
+      for (int j = 0; j < 3; ++j) C[i][j].noalias() = Pw * P[j].transpose();
+    }
+    const Eigen::Matrix<double, NN, NN> trace = C[0][0] + C[1][1] + C[2][2];
+    for (int a = 0; a < NN; ++a)
+      for (int b = 0; b < NN; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            s.K(3 * a + i, 3 * b + j) = lambda * C[i][j](a, b) + mu * C[j][i](a, b) + (i == j ? mu * trace(a, b) : 0.0);
+    if constexpr (NN == 8)
+      if (options.incompatible_modes) add_incompatible_modes(el, D, options.incompatible_min_fraction, s.K);
+  }
+  if (el.subvolume) {
+    const double h = el.box.size().minCoeff();
+    SurfaceRuleOptions so;
+    so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
+    for (const CutPatch& patch : el.subvolume->patches) {
+      if (patch.source_face < 0) continue;
+      const DirichletCondition* dc = nullptr;
+      for (const auto& d : dirichlet) if (d.face == patch.source_face) dc = &d;
+      const TractionCondition* tc = nullptr;
+      for (const auto& t : tractions) if (t.face == patch.source_face) tc = &t;
+      if (!dc && !tc) continue;
+      const SurfaceRule sr = surface_rule(patch, so);
+      for (size_t q = 0; q < sr.points.size(); ++q) {
+        shape<NN>(el.box, sr.points[q], N, G);
+        const Eigen::Matrix<double, 3, n> Nm = value_matrix<NN>(N);
+        const double wq = sr.weights[q];
+        if (tc) s.f.noalias() += wq * Nm.transpose() * tc->traction;
+        if (dc) {
+          const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
+          const Vec3 g = dc->field ? dc->field(sr.points[q]) : Vec3(dc->offset + dc->gradient * sr.points[q]);
+          const double penalty = beta * material.youngs_modulus / h;
+          const Eigen::Matrix3d M = dc->components.asDiagonal();  // prescribed components
+          const Eigen::Matrix<double, 3, n> MNm = M * Nm, MT = M * T;
+          s.K.noalias() += wq * (penalty * Nm.transpose() * MNm - Nm.transpose() * MT - T.transpose() * MNm);
+          s.f.noalias() += wq * (penalty * Nm.transpose() * (M * g) - T.transpose() * (M * g));
+        }
+      }
+    }
+  }
+  return s;
+}
+
 struct UnionFind {
   std::vector<int> parent;
   explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
@@ -134,6 +232,34 @@ struct UnionFind {
 };
 
 }  // namespace
+
+ElementType element_type_from_name(const std::string& name, const std::string& field) {
+  if (name == "hex8") return ElementType::Hex8;
+  if (name == "hex27") return ElementType::Hex27;
+  PARAFAB_INPUT_ERROR(field << " must be \"hex8\" (trilinear) or \"hex27\" (triquadratic), got \"" << name << "\"");
+}
+
+const char* element_type_name(ElementType type) { return type == ElementType::Hex27 ? "hex27" : "hex8"; }
+
+int nodes_per_element(ElementType type) { return type == ElementType::Hex27 ? 27 : 8; }
+
+SparseAccumulator::SparseAccumulator(int rows, int cols, size_t chunk) : matrix_(rows, cols), chunk_(chunk) {
+  triplets_.reserve(std::min<size_t>(chunk_, size_t(1) << 16));
+}
+
+void SparseAccumulator::flush() {
+  if (triplets_.empty()) return;
+  Eigen::SparseMatrix<double> part(matrix_.rows(), matrix_.cols());
+  part.setFromTriplets(triplets_.begin(), triplets_.end());
+  triplets_.clear();
+  if (matrix_.nonZeros() == 0) matrix_ = std::move(part);
+  else matrix_ += part;
+}
+
+Eigen::SparseMatrix<double> SparseAccumulator::finish() {
+  flush();
+  return std::move(matrix_);
+}
 
 void trilinear_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>& N,
                      Eigen::Matrix<double, 8, 3>& G) {
@@ -149,39 +275,83 @@ void trilinear_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>
   }
 }
 
+void triquadratic_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 27, 1>& N,
+                        Eigen::Matrix<double, 27, 3>& G) {
+  const Vec3 h = box.size();
+  const Vec3 xi = (X - box.min).cwiseQuotient(h);
+  double L[3][3], dL[3][3];  // 1D quadratic Lagrange at 0, ½, 1 and their x-derivatives
+  for (int d = 0; d < 3; ++d) {
+    const double t = xi[d];
+    L[d][0] = (1 - t) * (1 - 2 * t), L[d][1] = 4 * t * (1 - t), L[d][2] = t * (2 * t - 1);
+    dL[d][0] = (4 * t - 3) / h[d], dL[d][1] = (4 - 8 * t) / h[d], dL[d][2] = (4 * t - 1) / h[d];
+  }
+  for (int l = 0; l < 3; ++l)
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) {
+        const int k = i + 3 * j + 9 * l;
+        N(k) = L[0][i] * L[1][j] * L[2][l];
+        G(k, 0) = dL[0][i] * L[1][j] * L[2][l];
+        G(k, 1) = L[0][i] * dL[1][j] * L[2][l];
+        G(k, 2) = L[0][i] * L[1][j] * dL[2][l];
+      }
+}
+
 Vec3 corner(const Box3& box, int k) {
   return Vec3((k & 1) ? box.max.x() : box.min.x(), (k & 2) ? box.max.y() : box.min.y(),
               (k & 4) ? box.max.z() : box.min.z());
 }
 
-std::vector<std::array<int, 8>> number_dof_nodes(const std::vector<GridElement>& elements,
-                                                 const std::vector<std::array<int, 2>>& adjacent,
-                                                 int& count) {
+std::array<int, 3> node_offset(int nodes, int k) {
+  if (nodes == 27) return {k % 3, (k / 3) % 3, k / 9};
+  return {2 * (k & 1), 2 * ((k >> 1) & 1), 2 * ((k >> 2) & 1)};
+}
+
+Vec3 node_position(const Box3& box, int nodes, int k) {
+  const auto o = node_offset(nodes, k);
+  return box.min + 0.5 * Vec3(o[0], o[1], o[2]).cwiseProduct(box.size());
+}
+
+std::vector<std::vector<int>> number_dof_nodes(const std::vector<GridElement>& elements,
+                                               const std::vector<std::array<int, 2>>& adjacent,
+                                               int& count, ElementType element) {
   const int n = static_cast<int>(elements.size());
-  UnionFind uf(8 * n);
-  auto grid_node = [&](int e, int k) {
+  const int nn = nodes_per_element(element);
+  UnionFind uf(nn * n);
+  auto grid_node = [&](int e, int k) {  // in half cells
     const auto& c = elements[e].cell;
-    return std::array<int, 3>{c[0] + (k & 1), c[1] + ((k >> 1) & 1), c[2] + ((k >> 2) & 1)};
+    const auto o = node_offset(nn, k);
+    return std::array<int, 3>{2 * c[0] + o[0], 2 * c[1] + o[1], 2 * c[2] + o[2]};
   };
   for (const auto& [a, b] : adjacent) {
     PARAFAB_VERIFY(a >= 0 && a < n && b >= 0 && b < n, "element pair (" << a << ", " << b << ") out of range");
-    for (int ka = 0; ka < 8; ++ka)
-      for (int kb = 0; kb < 8; ++kb)
-        if (grid_node(a, ka) == grid_node(b, kb)) uf.unite(8 * a + ka, 8 * b + kb);
+    for (int ka = 0; ka < nn; ++ka) {
+      const auto ga = grid_node(a, ka);
+      for (int kb = 0; kb < nn; ++kb)
+        if (ga == grid_node(b, kb)) uf.unite(nn * a + ka, nn * b + kb);
+    }
   }
-  std::vector<int> id(8 * n, -1);
-  std::vector<std::array<int, 8>> node(n);
+  std::vector<int> id(nn * n, -1);
+  std::vector<std::vector<int>> node(n, std::vector<int>(nn));
   count = 0;
-  for (int s = 0; s < 8 * n; ++s) {
+  for (int s = 0; s < nn * n; ++s) {
     const int r = uf.find(s);
     if (id[r] < 0) id[r] = count++;
-    node[s / 8][s % 8] = id[r];
+    node[s / nn][s % nn] = id[r];
   }
   return node;
 }
 
+ElementSystem element_system(const GridElement& element, const ElasticMaterial& material,
+                             const std::vector<DirichletCondition>& dirichlet,
+                             const std::vector<TractionCondition>& tractions,
+                             const LinearXfemOptions& options, bool include_bulk) {
+  return options.element == ElementType::Hex27
+             ? element_system_n<27>(element, material, dirichlet, tractions, options, include_bulk)
+             : element_system_n<8>(element, material, dirichlet, tractions, options, include_bulk);
+}
+
 LinearSystem assemble_linear(const std::vector<GridElement>& elements,
-                             const std::vector<std::array<int, 8>>& node, int node_count,
+                             const std::vector<std::vector<int>>& node, int node_count,
                              const ElasticMaterial& material,
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
@@ -189,112 +359,70 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
   PARAFAB_VERIFY(material.youngs_modulus > 0, "material: E must be positive, got " << material.youngs_modulus);
   PARAFAB_VERIFY(material.poisson_ratio > -1 && material.poisson_ratio < 0.5,
                  "material: Poisson ratio must be in (-1, 0.5), got " << material.poisson_ratio);
-  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
-  const double beta = options.nitsche_beta > 0 ? options.nitsche_beta : 100.0;
+  PARAFAB_VERIFY(node.size() == elements.size(), "assemble_linear: " << node.size() << " node lists for "
+                                                                     << elements.size() << " elements");
+  const int nn = nodes_per_element(options.element);
   const int ndof = 3 * node_count;
-  std::vector<Eigen::Triplet<double>> trip;
+  SparseAccumulator K(ndof, ndof);
   Eigen::VectorXd f = Eigen::VectorXd::Zero(ndof);
-  SurfaceRuleOptions so;
-  so.area.degree = options.surface_degree;
-  // The matrix and load vector of element e (thread-safe: reads only).
-  auto element_matrix = [&](size_t e, Mat24& Ke, Vec24& fe) {
-    const GridElement& el = elements[e];
-    Eigen::Matrix<double, 8, 1> N;
-    Eigen::Matrix<double, 8, 3> G;
-    Ke.setZero();
-    fe.setZero();
-    for (size_t q = 0; q < el.rule.points.size(); ++q) {
-      trilinear_shape(el.box, el.rule.points[q], N, G);
-      if (include_bulk) {
-        const Mat6x24 B = strain_matrix(G);
-        Ke.noalias() += el.rule.weights[q] * B.transpose() * D * B;
-      }
-      if (material.density != 0 && options.gravity.squaredNorm() > 0)
-        fe.noalias() += el.rule.weights[q] * material.density * value_matrix(N).transpose() * options.gravity;
-    }
-    if (include_bulk && options.incompatible_modes)
-      add_incompatible_modes(el, D, options.incompatible_min_fraction, Ke);
-    if (el.subvolume) {
-      const double h = el.box.size().minCoeff();
-      for (const CutPatch& patch : el.subvolume->patches) {
-        if (patch.source_face < 0) continue;
-        const DirichletCondition* dc = nullptr;
-        for (const auto& d : dirichlet) if (d.face == patch.source_face) dc = &d;
-        const TractionCondition* tc = nullptr;
-        for (const auto& t : tractions) if (t.face == patch.source_face) tc = &t;
-        if (!dc && !tc) continue;
-        const SurfaceRule sr = surface_rule(patch, so);
-        for (size_t q = 0; q < sr.points.size(); ++q) {
-          trilinear_shape(el.box, sr.points[q], N, G);
-          const Mat3x24 Nm = value_matrix(N);
-          const double w = sr.weights[q];
-          if (tc) fe.noalias() += w * Nm.transpose() * tc->traction;
-          if (dc) {
-            const Eigen::Matrix<double, 3, 24> T = traction_operator(sr.normals[q]) * D * strain_matrix(G);
-            const Vec3 g = dc->offset + dc->gradient * sr.points[q];
-            const double penalty = beta * material.youngs_modulus / h;
-            const Eigen::Matrix3d M = dc->components.asDiagonal();  // prescribed components
-            Ke.noalias() += w * (penalty * Nm.transpose() * M * Nm - Nm.transpose() * M * T - T.transpose() * M * Nm);
-            fe.noalias() += w * (penalty * Nm.transpose() * M * g - T.transpose() * M * g);
-          }
-        }
-      }
-    }
-  };
+  for (size_t e = 0; e < elements.size(); ++e)
+    PARAFAB_VERIFY(static_cast<int>(node[e].size()) == nn,
+                   "assemble_linear: element " << e << " has " << node[e].size() << " nodes, "
+                                               << element_type_name(options.element) << " needs " << nn);
   // Uncut interior cells share one box size and rule, hence one matrix: integrated once (for
   // the first interior element) and copied to every element of the same shape.
   const int reference = first_interior_element(elements);
-  Mat24 K_ref;
-  Vec24 f_ref;
-  if (reference >= 0) element_matrix(reference, K_ref, f_ref);
-  auto element_or_copy = [&](size_t e, Mat24& Ke, Vec24& fe) {
+  ElementSystem reference_system;
+  if (reference >= 0)
+    reference_system = element_system(elements[reference], material, dirichlet, tractions, options, include_bulk);
+  auto element_or_copy = [&](size_t e, ElementSystem& es) {
     if (reference >= 0 && (static_cast<int>(e) == reference || same_uncut_shape(elements[reference], elements[e]))) {
-      Ke = K_ref, fe = f_ref;
+      es = reference_system;
       return static_cast<int>(e) != reference;  // counts copies, not the integrated one
     }
-    element_matrix(e, Ke, fe);
+    es = element_system(elements[e], material, dirichlet, tractions, options, include_bulk);
     return false;
   };
-  auto scatter = [&](size_t e, const Mat24& Ke, const Vec24& fe) {
-    for (int a = 0; a < 8; ++a)
+  auto scatter = [&](size_t e, const ElementSystem& es) {
+    for (int a = 0; a < nn; ++a)
       for (int da = 0; da < 3; ++da) {
         const int ra = 3 * node[e][a] + da;
-        f(ra) += fe(3 * a + da);
-        for (int b = 0; b < 8; ++b)
-          for (int db = 0; db < 3; ++db)
-            if (Ke(3 * a + da, 3 * b + db) != 0.0) trip.emplace_back(ra, 3 * node[e][b] + db, Ke(3 * a + da, 3 * b + db));
+        f(ra) += es.f(3 * a + da);
+        for (int b = 0; b < nn; ++b)
+          for (int db = 0; db < 3; ++db) {
+            const double v = es.K(3 * a + da, 3 * b + db);
+            if (v != 0.0) K.add(ra, 3 * node[e][b] + db, v);
+          }
       }
   };
-  // Element matrices in parallel, a chunk at a time; the scatter runs in element order, so
-  // the triplets, K and f are bit-identical for every thread count.
-  const size_t n = elements.size(), chunk = 4096;
-  if (include_bulk) trip.reserve(576 * n);
-  std::vector<Mat24, Eigen::aligned_allocator<Mat24>> Kc(std::min(n, chunk));
-  std::vector<Vec24, Eigen::aligned_allocator<Vec24>> fc(std::min(n, chunk));
+  // Element matrices in parallel (TBB), a chunk at a time; the scatter runs in element order,
+  // so K and f are bit-identical for every thread count.
+  const size_t n = elements.size(), chunk = nn == 8 ? 4096 : 512;
+  std::vector<ElementSystem> systems(std::min(n, chunk));
   std::atomic<int> copies{0};
   for (size_t begin = 0; begin < n; begin += chunk) {
     const size_t end = std::min(n, begin + chunk);
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 16), [&](const tbb::blocked_range<size_t>& r) {
       int c = 0;
-      for (size_t e = r.begin(); e != r.end(); ++e) c += element_or_copy(e, Kc[e - begin], fc[e - begin]);
+      for (size_t e = r.begin(); e != r.end(); ++e) c += element_or_copy(e, systems[e - begin]);
       copies += c;
     });
-    for (size_t e = begin; e < end; ++e) scatter(e, Kc[e - begin], fc[e - begin]);
+    for (size_t e = begin; e < end; ++e) scatter(e, systems[e - begin]);
   }
   LinearSystem sys;
-  sys.K.resize(ndof, ndof);
-  sys.K.setFromTriplets(trip.begin(), trip.end());
+  sys.K = K.finish();
   sys.f = std::move(f);
   sys.reused_element_matrices = copies;
   return sys;
 }
 
 Vec3 LinearXfemResult::displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const {
-  Eigen::Matrix<double, 8, 1> N;
-  Eigen::Matrix<double, 8, 3> G;
-  trilinear_shape(elements[e].box, X, N, G);
+  Eigen::VectorXd N;
+  Eigen::MatrixXd G;
+  const int nn = static_cast<int>(node[e].size());
+  shape_dynamic(elements[e].box, nn, X, N, G);
   Vec3 d = Vec3::Zero();
-  for (int k = 0; k < 8; ++k) d += N(k) * u.segment<3>(3 * node[e][k]);
+  for (int k = 0; k < nn; ++k) d += N(k) * u.segment<3>(3 * node[e][k]);
   return d;
 }
 
@@ -317,7 +445,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
   LinearXfemResult r;
   auto t0 = std::chrono::steady_clock::now();
   int count = 0;
-  r.node = number_dof_nodes(elements, adjacent, count);
+  r.node = number_dof_nodes(elements, adjacent, count, options.element);
   r.dofs = 3 * count;
   r.elements = static_cast<int>(elements.size());
   for (const auto& e : elements) r.cut_elements += e.subvolume != nullptr;
@@ -361,10 +489,10 @@ Eigen::VectorXd LinearXfemResult::solve_again(const Eigen::VectorXd& f) const {
 
 Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
                                             const std::vector<std::array<int, 2>>& adjacent,
-                                            const std::vector<std::array<int, 8>>& node, int count,
+                                            const std::vector<std::vector<int>>& node, int count,
                                             double fraction, int* aggregated) {
   // Small elements: volume fraction below `fraction`. A DOF node all of whose elements are
-  // small is "floating" (barely stiff): it follows the trilinear field of a normal neighbour.
+  // small is "floating" (barely stiff): it follows the field of a normal neighbour.
   const int n = static_cast<int>(elements.size());
   std::vector<char> small(n, 0);
   for (int e = 0; e < n; ++e) {
@@ -384,19 +512,29 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
       for (double w : elements[o].rule.weights) v += w;
       if (v > host_volume[s]) host_volume[s] = v, host[s] = o;
     }
+  // Small elements whose face neighbours are all small (corner slivers where two cut faces meet
+  // a grid plane) take the host of a small neighbour that has one, level by level.
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::vector<int> next = host;
+    for (const auto& [a, b] : adjacent)
+      for (const auto& [s, o] : {std::pair<int, int>{a, b}, std::pair<int, int>{b, a}})
+        if (small[s] && small[o] && host[s] < 0 && host[o] >= 0 && host_volume[o] > host_volume[s])
+          next[s] = host[o], host_volume[s] = host_volume[o], changed = true;
+    host = std::move(next);
+  }
   std::vector<int> reduced(count, -1);
   int m = 0;
-  std::vector<std::pair<int, int>> floating;  // (DOF node, small element, corner) via index
-  std::vector<std::array<int, 2>> source(count, {-1, -1});
+  std::vector<std::array<int, 2>> source(count, {-1, -1});  // (small element, its node) of a floating DOF node
   for (int e = 0; e < n; ++e)
     if (small[e] && host[e] >= 0)
-      for (int k = 0; k < 8; ++k)
+      for (int k = 0; k < static_cast<int>(node[e].size()); ++k)
         if (!supported[node[e][k]] && source[node[e][k]][0] < 0) source[node[e][k]] = {e, k};
   for (int i = 0; i < count; ++i)
     if (source[i][0] < 0) reduced[i] = m++;
   std::vector<Eigen::Triplet<double>> trip;
-  Eigen::Matrix<double, 8, 1> N;
-  Eigen::Matrix<double, 8, 3> G;
+  Eigen::VectorXd N;
+  Eigen::MatrixXd G;
   int agg = 0;
   for (int i = 0; i < count; ++i) {
     if (reduced[i] >= 0) {
@@ -406,8 +544,10 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
     ++agg;
     const auto [e, k] = source[i];
     const int h = host[e];
-    trilinear_shape(elements[h].box, corner(elements[e].box, k), N, G);  // extrapolation into the small cell
-    for (int j = 0; j < 8; ++j)
+    const int nh = static_cast<int>(node[h].size());
+    // Extrapolation of the host's field to the node's position in the small cell.
+    shape_dynamic(elements[h].box, nh, node_position(elements[e].box, static_cast<int>(node[e].size()), k), N, G);
+    for (int j = 0; j < nh; ++j)
       for (int d = 0; d < 3; ++d) trip.emplace_back(3 * i + d, 3 * reduced[node[h][j]] + d, N(j));
   }
   if (aggregated) *aggregated = agg;
@@ -422,12 +562,10 @@ namespace parafab::xfem {
 
 Eigen::Matrix<double, 6, 1> stress_at(const LinearXfemResult& result, const std::vector<GridElement>& elements,
                                       const ElasticMaterial& material, int e, const Vec3& X) {
-  Eigen::Matrix<double, 8, 1> N;
-  Eigen::Matrix<double, 8, 3> G;
-  trilinear_shape(elements[e].box, X, N, G);
-  Vec24 ue;
-  for (int k = 0; k < 8; ++k) ue.segment<3>(3 * k) = result.u.segment<3>(3 * result.node[e][k]);
-  return elasticity(material) * strain_matrix(G) * ue;
+  const Eigen::Matrix3d H = displacement_gradient(result, elements, e, X);
+  Eigen::Matrix<double, 6, 1> eps;  // Voigt, engineering shears
+  eps << H(0, 0), H(1, 1), H(2, 2), H(0, 1) + H(1, 0), H(1, 2) + H(2, 1), H(0, 2) + H(2, 0);
+  return elasticity(material) * eps;
 }
 
 double von_mises(const Eigen::Matrix<double, 6, 1>& s) {
@@ -442,11 +580,12 @@ namespace parafab::xfem {
 
 Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements,
                                       int e, const Vec3& X) {
-  Eigen::Matrix<double, 8, 1> N;
-  Eigen::Matrix<double, 8, 3> G;
-  trilinear_shape(elements[e].box, X, N, G);
+  Eigen::VectorXd N;
+  Eigen::MatrixXd G;
+  const int nn = static_cast<int>(result.node[e].size());
+  shape_dynamic(elements[e].box, nn, X, N, G);
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-  for (int k = 0; k < 8; ++k) H += result.u.segment<3>(3 * result.node[e][k]) * G.row(k);
+  for (int k = 0; k < nn; ++k) H += result.u.segment<3>(3 * result.node[e][k]) * G.row(k);
   return H;
 }
 

@@ -1,6 +1,7 @@
 // Linear elasticity on a fixed hexahedral grid with cut elements (thesis §6.4): trilinear
-// hexahedra; every cut subvolume is its own element with copies of its cell's nodal DOFs
-// (the change of basis of Eq. 6.20), shared between subvolumes connected through grid faces;
+// (hex8) or triquadratic (hex27 Lagrange) hexahedra; every cut subvolume is its own element
+// with copies of its cell's nodal DOFs (the change of basis of Eq. 6.20), shared between
+// subvolumes connected through grid faces;
 // Dirichlet conditions on B-rep faces by symmetric Nitsche (Eq. 6.22), tractions (Eq. 6.23)
 // and gravity; sparse Cholesky (CHOLMOD) solve.
 #pragma once
@@ -8,6 +9,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -40,6 +42,9 @@ struct DirichletCondition {
   /// Which displacement components are prescribed (1) or free (0): e.g. (0, 0, 1) lets the
   /// face slide in its plane z = const (a symmetry or roller condition).
   Vec3 components{1, 1, 1};
+  /// When set, u = field(X) instead of offset + gradient·X (e.g. an exact solution that is not
+  /// linear on the face, for convergence studies).
+  std::function<Vec3(const Vec3&)> field;
 };
 
 /// Traction (force per area) on B-rep face `face`.
@@ -48,18 +53,34 @@ struct TractionCondition {
   Vec3 traction{0, 0, 0};
 };
 
+/// The basis on the grid cells. Hex8: trilinear, 8 corner nodes (with Wilson–Taylor
+/// incompatible modes, see LinearXfemOptions). Hex27: triquadratic Lagrange, 27 nodes (corners,
+/// edge midpoints, face centres, centre); its uncut cells need 3×3×3 Gauss rules and its cut
+/// cells moment-fitted rules of degree ≥ 5 (occ::rules_for_element sets both).
+enum class ElementType { Hex8, Hex27 };
+
+/// "hex8" / "hex27"; throws parafab::Error naming `field` and the value otherwise.
+ElementType element_type_from_name(const std::string& name, const std::string& field = "element");
+const char* element_type_name(ElementType type);
+/// 8 or 27.
+int nodes_per_element(ElementType type);
+
 struct LinearXfemOptions {
+  ElementType element = ElementType::Hex8;  ///< the basis (rules must match: occ::rules_for_element)
   /// Nitsche stabilization β: the penalty is β·E/h. 0 picks the default 100.
   double nitsche_beta = 0;
   Vec3 gravity{0, 0, 0};  ///< acceleration; body force ρ·g
-  int surface_degree = 5; ///< patch rules for Nitsche and traction integrals
+  /// Patch rules for Nitsche and traction integrals; hex27 uses at least 8 (the consistency
+  /// term v·σ(u)n of a quadratic field is of degree 7).
+  int surface_degree = 5;
   /// Wilson–Taylor incompatible modes (statically condensed) against bending locking of the
-  /// trilinear hexahedra; off: plain hex8.
+  /// trilinear hexahedra; off: plain hex8. Not used by hex27 (no such locking).
   bool incompatible_modes = true;
   double incompatible_min_fraction = 1e-3;  ///< not on elements with a smaller volume fraction
   /// Small cut cells (the thesis is silent; cf. aggregated FEM, Badia et al. 2018): a DOF node
-  /// used only by elements whose volume fraction is below this follows the trilinear field of
-  /// the largest face-connected normal element (extrapolated), so conditioning stays bounded
+  /// used only by elements whose volume fraction is below this follows the trilinear (hex8) or
+  /// triquadratic (hex27) field of the largest face-connected normal element (extrapolated to
+  /// the node's position), so conditioning stays bounded
   /// as fractions go to 0. 0 turns it off.
   double aggregation_fraction = 0.05;
 };
@@ -69,7 +90,9 @@ struct LinearXfemResult {
   std::string message;
   int dofs = 0, elements = 0, cut_elements = 0;
   Eigen::VectorXd u;                     ///< 3 per DOF node
-  std::vector<std::array<int, 8>> node;  ///< per element: DOF node of each corner
+  /// Per element: the DOF node of each of its 8 (hex8) or 27 (hex27) nodes, in the order of
+  /// node_offset.
+  std::vector<std::vector<int>> node;
   double assemble_seconds = 0, solve_seconds = 0;
   double energy = 0;                     ///< ½ uᵀKu − fᵀu at the solution
   int aggregated_nodes = 0;              ///< DOF nodes tied to a neighbour (small cut cells)
@@ -87,7 +110,7 @@ struct LinearXfemResult {
   /// there is no factorization or f has the wrong size.
   Eigen::VectorXd solve_again(const Eigen::VectorXd& f) const;
 
-  /// Displacement at X inside element e (trilinear interpolation of its DOF nodes).
+  /// Displacement at X inside element e (interpolation of its DOF nodes).
   Vec3 displacement(const std::vector<GridElement>& elements, int e, const Vec3& X) const;
 };
 
@@ -96,35 +119,80 @@ struct LinearXfemResult {
 void trilinear_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>& N,
                      Eigen::Matrix<double, 8, 3>& G);
 
+/// Triquadratic Lagrange shape functions of the cell `box` at X: values N and gradients G
+/// (27×3), node k = i + 3j + 9l at box.min + (i, j, l)·size/2.
+void triquadratic_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 27, 1>& N,
+                        Eigen::Matrix<double, 27, 3>& G);
+
 /// Corner k of a cell box in the node order used everywhere: bit 0 → x, bit 1 → y, bit 2 → z.
 Vec3 corner(const Box3& box, int k);
 
-/// DOF-node numbering: corners of elements connected through a grid face (`adjacent` pairs of
-/// element indices) share a DOF node where they share a grid node.
-std::vector<std::array<int, 8>> number_dof_nodes(const std::vector<GridElement>& elements,
-                                                 const std::vector<std::array<int, 2>>& adjacent,
-                                                 int& count);
+/// Node k of an element with `nodes` (8 or 27) nodes, in half cells from the cell's min corner
+/// (0, 1 or 2 per axis): hex8 node k at 2·(bit 0, bit 1, bit 2) of k; hex27 node k = i + 3j + 9l
+/// at (i, j, l).
+std::array<int, 3> node_offset(int nodes, int k);
+/// The position of that node in `box`.
+Vec3 node_position(const Box3& box, int nodes, int k);
 
-/// Assembled stiffness and load (no Dirichlet conditions folded in unless given). Element
-/// matrices are computed in parallel (TBB) and scattered in element order: the result is
-/// bit-identical for every thread count. Uncut interior cells of one size get one matrix.
+/// DOF-node numbering: nodes of elements connected through a grid face (`adjacent` pairs of
+/// element indices) share a DOF node where they sit at the same grid position (corners for
+/// hex8; corners, edge midpoints and face centres for hex27).
+std::vector<std::vector<int>> number_dof_nodes(const std::vector<GridElement>& elements,
+                                               const std::vector<std::array<int, 2>>& adjacent,
+                                               int& count, ElementType element = ElementType::Hex8);
+
+/// Sparse assembly in bounded memory: triplets are summed into the matrix every `chunk`
+/// entries (a hex27 element contributes 81² of them).
+class SparseAccumulator {
+ public:
+  SparseAccumulator(int rows, int cols, size_t chunk = size_t(1) << 22);
+  void add(int row, int col, double value) {
+    triplets_.emplace_back(row, col, value);
+    if (triplets_.size() >= chunk_) flush();
+  }
+  Eigen::SparseMatrix<double> finish();
+
+ private:
+  void flush();
+  Eigen::SparseMatrix<double> matrix_;
+  std::vector<Eigen::Triplet<double>> triplets_;
+  size_t chunk_;
+};
+
+/// One element's dense stiffness (3n × 3n, DOFs 3k + component for its n = 8 or 27 nodes) and
+/// load: bulk (if include_bulk; hex8 with incompatible modes condensed), gravity, and the
+/// Nitsche and traction terms on its boundary patches. Independent of every other element.
+struct ElementSystem {
+  Eigen::MatrixXd K;
+  Eigen::VectorXd f;
+};
+ElementSystem element_system(const GridElement& element, const ElasticMaterial& material,
+                             const std::vector<DirichletCondition>& dirichlet,
+                             const std::vector<TractionCondition>& tractions,
+                             const LinearXfemOptions& options, bool include_bulk = true);
+
+/// Assembled stiffness and load (no Dirichlet conditions folded in unless given). The element
+/// type is options.element; `node` must have its node count per element. Element matrices are
+/// computed in parallel (TBB) and scattered in element order: the result is bit-identical for
+/// every thread count. Uncut interior cells of one size get one matrix.
 struct LinearSystem {
   Eigen::SparseMatrix<double> K;
   Eigen::VectorXd f;
   int reused_element_matrices = 0;  ///< uncut elements given the one interior cell matrix
 };
 LinearSystem assemble_linear(const std::vector<GridElement>& elements,
-                             const std::vector<std::array<int, 8>>& node, int node_count,
+                             const std::vector<std::vector<int>>& node, int node_count,
                              const ElasticMaterial& material,
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
                              const LinearXfemOptions& options, bool include_bulk = true);
 
 /// The map u = T u_reduced of cell aggregation (see LinearXfemOptions::aggregation_fraction):
-/// identity rows for ordinary DOF nodes, extrapolation rows for floating ones.
+/// identity rows for ordinary DOF nodes, extrapolation rows for floating ones (the element
+/// type follows from the node count per element).
 Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
                                             const std::vector<std::array<int, 2>>& adjacent,
-                                            const std::vector<std::array<int, 8>>& node, int count,
+                                            const std::vector<std::vector<int>>& node, int count,
                                             double fraction, int* aggregated = nullptr);
 
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,

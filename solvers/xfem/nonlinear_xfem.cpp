@@ -17,83 +17,99 @@ namespace {
 struct Evaluation {
   double energy = 0;
   Eigen::VectorXd gradient;
-  std::vector<Eigen::Triplet<double>> hessian;
+  Eigen::SparseMatrix<double> hessian;
   bool finite = true;
 };
 
-// Bulk terms: Σ ∫ Ψ(F), its gradient and Hessian (vec(F) column-major: F(i, a) ↔ i + 3a).
-// Elements in parallel (TBB), a chunk at a time; energies, gradients and Hessian triplets are
-// gathered in element order, so the result is bit-identical for every thread count.
-Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::vector<std::array<int, 8>>& node,
+template <int NN>
+void shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, NN, 1>& N, Eigen::Matrix<double, NN, 3>& G) {
+  if constexpr (NN == 8) trilinear_shape(box, X, N, G);
+  else triquadratic_shape(box, X, N, G);
+}
+
+// Bulk terms: Σ ∫ Ψ(F), its gradient and Hessian (vec(F) column-major: F(i, a) ↔ i + 3a), for
+// elements with NN = 8 (hex8) or 27 (hex27) nodes. Elements in parallel (TBB), a chunk at a
+// time; energies, gradients and Hessian entries are gathered in element order, so the result
+// is bit-identical for every thread count.
+template <int NN>
+Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::vector<std::vector<int>>& node,
                          const Material& material, const Eigen::VectorXd& u, bool with_hessian) {
+  constexpr int n = 3 * NN;
   Evaluation ev;
   ev.gradient = Eigen::VectorXd::Zero(u.size());
-  using Vec24 = Eigen::Matrix<double, 24, 1>;
-  using Mat24 = Eigen::Matrix<double, 24, 24>;
+  for (size_t e = 0; e < elements.size(); ++e)
+    PARAFAB_VERIFY(static_cast<int>(node[e].size()) == NN, "element " << e << " has " << node[e].size() << " nodes");
   // Element e's energy, gradient and Hessian; false if Ψ is not finite (J ≤ 0).
-  auto element = [&](size_t e, double& energy, Vec24& ge, Mat24& He) {
+  auto element = [&](size_t e, double& energy, Eigen::VectorXd& ge, Eigen::MatrixXd& He) {
     const GridElement& el = elements[e];
-    Vec24 ue;
-    for (int k = 0; k < 8; ++k) ue.segment<3>(3 * k) = u.segment<3>(3 * node[e][k]);
+    Eigen::Matrix<double, n, 1> ue;
+    for (int k = 0; k < NN; ++k) ue.template segment<3>(3 * k) = u.segment<3>(3 * node[e][k]);
     energy = 0;
-    ge.setZero();
-    if (with_hessian) He.setZero();
+    ge.setZero(n);
+    if (with_hessian) He.setZero(n, n);
+    Eigen::Matrix<double, NN, 1> N;
+    Eigen::Matrix<double, NN, 3> G;
     for (size_t q = 0; q < el.rule.points.size(); ++q) {
       const double w = el.rule.weights[q];
-      Eigen::Matrix<double, 8, 1> N;
-      Eigen::Matrix<double, 8, 3> G;
-      trilinear_shape(el.box, el.rule.points[q], N, G);
+      shape<NN>(el.box, el.rule.points[q], N, G);
       Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
-      for (int k = 0; k < 8; ++k) F += ue.segment<3>(3 * k) * G.row(k);
+      for (int k = 0; k < NN; ++k) F += ue.template segment<3>(3 * k) * G.row(k);
       const double psi = material.energy(F);
       if (!std::isfinite(psi)) return false;
       energy += w * psi;
       const Eigen::Matrix3d P = material.stress(F);
-      for (int k = 0; k < 8; ++k) ge.segment<3>(3 * k) += w * P * G.row(k).transpose();
+      for (int k = 0; k < NN; ++k) ge.template segment<3>(3 * k) += w * P * G.row(k).transpose();
       if (with_hessian) {
         const Eigen::Matrix<double, 9, 9> A = material.tangent(F);
         // dF/du_(k,i) = e_i ⊗ ∇N_k → vec index i + 3a with weight G(k, a).
-        Eigen::Matrix<double, 9, 24> dF = Eigen::Matrix<double, 9, 24>::Zero();
-        for (int k = 0; k < 8; ++k)
+        Eigen::Matrix<double, 9, n> dF = Eigen::Matrix<double, 9, n>::Zero();
+        for (int k = 0; k < NN; ++k)
           for (int i = 0; i < 3; ++i)
             for (int a = 0; a < 3; ++a) dF(i + 3 * a, 3 * k + i) = G(k, a);
-        He.noalias() += w * dF.transpose() * A * dF;
+        const Eigen::Matrix<double, 9, n> AdF = A * dF;
+        He.noalias() += w * dF.transpose() * AdF;
       }
     }
     return true;
   };
-  const size_t n = elements.size(), chunk = 4096;
-  if (with_hessian) ev.hessian.reserve(576 * n);
-  std::vector<double> energy(std::min(n, chunk));
-  std::vector<char> finite(std::min(n, chunk));
-  std::vector<Vec24, Eigen::aligned_allocator<Vec24>> ge(std::min(n, chunk));
-  std::vector<Mat24, Eigen::aligned_allocator<Mat24>> He(with_hessian ? std::min(n, chunk) : 0);
-  for (size_t begin = 0; begin < n; begin += chunk) {
-    const size_t end = std::min(n, begin + chunk);
+  SparseAccumulator hessian(static_cast<int>(u.size()), static_cast<int>(u.size()));
+  const size_t count = elements.size(), chunk = NN == 8 ? 4096 : 512;
+  std::vector<double> energy(std::min(count, chunk));
+  std::vector<char> finite(std::min(count, chunk));
+  std::vector<Eigen::VectorXd> ge(std::min(count, chunk));
+  std::vector<Eigen::MatrixXd> He(std::min(count, chunk));
+  for (size_t begin = 0; begin < count; begin += chunk) {
+    const size_t end = std::min(count, begin + chunk);
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 16), [&](const tbb::blocked_range<size_t>& r) {
-      Mat24 local;
       for (size_t e = r.begin(); e != r.end(); ++e)
-        finite[e - begin] = element(e, energy[e - begin], ge[e - begin], with_hessian ? He[e - begin] : local);
+        finite[e - begin] = element(e, energy[e - begin], ge[e - begin], He[e - begin]);
     });
     for (size_t e = begin; e < end; ++e) {
       if (!finite[e - begin]) {
         ev.finite = false;
-        ev.hessian.clear();
         return ev;
       }
       ev.energy += energy[e - begin];
-      for (int a = 0; a < 8; ++a)
+      for (int a = 0; a < NN; ++a)
         for (int da = 0; da < 3; ++da) {
           const int ra = 3 * node[e][a] + da;
           ev.gradient(ra) += ge[e - begin](3 * a + da);
           if (with_hessian)
-            for (int b = 0; b < 8; ++b)
+            for (int b = 0; b < NN; ++b)
               for (int db = 0; db < 3; ++db)
-                ev.hessian.emplace_back(ra, 3 * node[e][b] + db, He[e - begin](3 * a + da, 3 * b + db));
+                hessian.add(ra, 3 * node[e][b] + db, He[e - begin](3 * a + da, 3 * b + db));
         }
     }
   }
+  if (with_hessian) ev.hessian = hessian.finish();
   return ev;
+}
+
+Evaluation evaluate_bulk(const std::vector<GridElement>& elements, const std::vector<std::vector<int>>& node,
+                         const Material& material, const Eigen::VectorXd& u, bool with_hessian) {
+  if (!node.empty() && node.front().size() == 27)
+    return evaluate_bulk<27>(elements, node, material, u, with_hessian);
+  return evaluate_bulk<8>(elements, node, material, u, with_hessian);
 }
 
 }  // namespace
@@ -118,7 +134,7 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
   const auto t0 = std::chrono::steady_clock::now();
   NonlinearXfemResult r;
   int count = 0;
-  r.node = number_dof_nodes(elements, adjacent, count);
+  r.node = number_dof_nodes(elements, adjacent, count, options.boundary.element);
   r.dofs = 3 * count;
   // Boundary and load terms are quadratic in u: ½uᵀK_b u − f_bᵀu (Nitsche, tractions, gravity).
   const LinearSystem boundary = assemble_linear(elements, r.node, count, small_strain, dirichlet, tractions,
@@ -143,11 +159,8 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
       ev = evaluate_bulk(elements, r.node, material, reduce ? Eigen::VectorXd(T * x) : x, hess);
       if (!ev.finite) return std::numeric_limits<double>::infinity();
       if (hess) {
-        Eigen::SparseMatrix<double> H(r.dofs, r.dofs);
-        H.setFromTriplets(ev.hessian.begin(), ev.hessian.end());
-        ev.hessian.clear();
-        ev.hessian.shrink_to_fit();
-        H_bulk = reduce ? Eigen::SparseMatrix<double>(Tt * H * T) : std::move(H);
+        H_bulk = reduce ? Eigen::SparseMatrix<double>(Tt * ev.hessian * T) : std::move(ev.hessian);
+        ev.hessian = Eigen::SparseMatrix<double>();
       }
       const Eigen::VectorXd Kx = K_boundary * x;
       ev.gradient = (reduce ? Eigen::VectorXd(Tt * ev.gradient) : ev.gradient) + Kx - f;

@@ -12,7 +12,9 @@
 namespace parafab::xfem {
 
 struct NonlinearXfemOptions {
-  LinearXfemOptions boundary;  ///< Nitsche β, gravity, surface degree (incompatible modes unused)
+  /// Nitsche β, gravity, surface degree, the element type (hex8 or hex27; rules must match, see
+  /// occ::rules_for_element); incompatible modes unused.
+  LinearXfemOptions boundary;
   int load_steps = 1;          ///< loads and prescribed displacements ramped in equal steps
   int max_iterations = 50;     ///< Newton iterations per load step
   double tolerance = 1e-9;     ///< ‖gradient‖ ≤ tolerance · max(‖external load‖, ‖initial gradient‖)
@@ -25,7 +27,7 @@ struct NonlinearXfemResult {
   int aggregated_nodes = 0;  ///< DOF nodes tied to neighbours by cell aggregation (as LinearXfemResult)
   std::vector<double> residuals;         ///< ‖gradient‖ after every Newton step (all load steps)
   Eigen::VectorXd u;
-  std::vector<std::array<int, 8>> node;
+  std::vector<std::vector<int>> node;  ///< as LinearXfemResult::node
   double energy = 0;
   double seconds = 0;
   /// The same interpolation as the linear result.
