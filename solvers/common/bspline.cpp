@@ -123,10 +123,10 @@ int BSplineCurve2::find_span(double u) const {
   return static_cast<int>(it - knots_.begin()) - 1;
 }
 
-std::array<Vec2, 4> BSplineCurve2::derivatives(double u) const {
+std::array<Vec2, 4> BSplineCurve2::derivatives(double u, int order) const {
   u = std::clamp(u, first_parameter(), last_parameter());
   const int span = find_span(u);
-  const int nd = std::min(3, degree_);
+  const int nd = std::min(std::clamp(order, 0, 3), degree_);
   std::array<std::array<double, 8>, 4> N{};
   basis_derivatives(span, u, degree_, knots_, nd, N);
   std::array<Vec2, 4> A;
@@ -140,7 +140,7 @@ std::array<Vec2, 4> BSplineCurve2::derivatives(double u) const {
       W[k] += N[k][j] * w;
     }
   if (!rational()) return A;
-  // Quotient rule for C = A / W.
+  // Quotient rule for C = A / W (up to the requested order; A, W are zero beyond it).
   std::array<Vec2, 4> C;
   C[0] = A[0] / W[0];
   C[1] = (A[1] - W[1] * C[0]) / W[0];

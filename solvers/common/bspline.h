@@ -32,8 +32,10 @@ class BSplineCurve2 {
   std::vector<double> breakpoints() const;
 
   /// Position and derivatives d^k/du^k for k = 0..3 (zero beyond the degree).
-  std::array<Vec2, 4> derivatives(double u) const;
-  Vec2 point(double u) const { return derivatives(u)[0]; }
+  std::array<Vec2, 4> derivatives(double u) const { return derivatives(u, 3); }
+  /// The same up to order `order` ≤ 3 only (entries beyond it are not meaningful): cheaper.
+  std::array<Vec2, 4> derivatives(double u, int order) const;
+  Vec2 point(double u) const { return derivatives(u, 0)[0]; }
 
  private:
   int find_span(double u) const;

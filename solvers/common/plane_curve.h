@@ -32,10 +32,14 @@ class PlaneCurve {
   double last_parameter() const { return curve_.last_parameter(); }
 
   double arc_length_at(double u) const;
+  /// Arc length at every breakpoint of the B-spline (from the table, no integration).
+  const std::vector<double>& breakpoint_arc_lengths() const { return breakpoint_s_; }
   /// Parameter u with arc_length_at(u) == s (safeguarded Newton), s clamped to [0, length].
   double parameter_at(double s) const;
   CurvePoint at_parameter(double u) const;
-  CurvePoint at_arc_length(double s) const { return at_parameter(parameter_at(s)); }
+  /// at_parameter without the arc length (s = NaN): point, tangent, κ, κ′ only (cheaper).
+  CurvePoint geometry_at(double u) const;
+  CurvePoint at_arc_length(double s) const;
   double curvature_at(double u) const;
 
   /// Parameters of the arc-length table (span boundaries and their subdivisions).
@@ -45,7 +49,8 @@ class PlaneCurve {
   double speed(double u) const;
   double integrate_speed(double u0, double u1) const;
   BSplineCurve2 curve_;
-  std::vector<double> table_u_, table_s_;
+  std::vector<double> table_u_, table_s_, table_v_;  // table_v_: speed |γ'(u)| at the nodes
+  std::vector<double> breakpoint_s_;
 };
 
 }  // namespace parafab

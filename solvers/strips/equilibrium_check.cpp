@@ -89,6 +89,31 @@ EquilibriumCheck check_equilibrium(const PlaneCurve& curve, const ZeroCurvatureR
       return fail(Infeasibility::LineTangentAtInflection, z.at.s, os.str());
     }
   }
+  // An end on the line: K = d/κ vanishes there unless κ does too. With |κ| below
+  // end_zero_tolerance·max|κ| the end is a zero at the end (the zero finder only takes |κ|·l
+  // up to its zero_tolerance, which an interpolated curve misses); otherwise K would vanish.
+  auto dist = [&](double uu) { return normal.dot(curve.bspline().point(uu) - mean); };
+  bool end_on_line[2] = {false, false};
+  for (int e = 0; e < 2; ++e) {
+    const double ue = e == 0 ? curve.first_parameter() : curve.last_parameter();
+    const double se = e == 0 ? 0.0 : l;
+    bool listed = false;
+    // A zero within 1e-3·length of the end stands for it (as for crossings below).
+    for (const auto& z : zeros.points) listed |= std::abs(z.at.s - se) <= 1e-3 * l;
+    if (listed || std::abs(dist(ue)) > options.collinear_tolerance * l) continue;
+    end_on_line[e] = true;
+    ZeroCurvaturePoint z;
+    z.at = curve.at_parameter(ue);
+    z.at.kappa -= zeros.natural_curvature;
+    z.kind = ZeroKind::AtEnd;
+    if (std::abs(z.at.kappa) > options.end_zero_tolerance * zeros.kappa_scale) {
+      os << "the inflection line passes through the " << (e == 0 ? "start" : "end") << " of the curve (s = "
+         << se << "), where κ − κ₀ = " << z.at.kappa << " 1/m is not zero: K would vanish there";
+      return fail(Infeasibility::LineCrossesCurve, se, os.str());
+    }
+    result.end_zeros.push_back(z);
+    result.collinearity_error = std::max(result.collinearity_error, std::abs(dist(ue)));
+  }
   // Condition 1c: the line meets the curve nowhere else. Along the curve, the signed distance
   // d to the line must change sign exactly where κ does, so d·κ keeps one sign.
   const auto& u = zeros.scan_parameters;
@@ -98,9 +123,8 @@ EquilibriumCheck check_equilibrium(const PlaneCurve& curve, const ZeroCurvatureR
   auto near_zero = [&](double sc) {
     for (const auto& z : zeros.points)
       if (std::abs(z.at.s - sc) <= 1e-3 * l) return true;
-    return false;
+    return (end_on_line[0] && sc <= 1e-3 * l) || (end_on_line[1] && sc >= l - 1e-3 * l);
   };
-  auto dist = [&](double uu) { return normal.dot(curve.bspline().point(uu) - mean); };
   double prev_d = dist(u.front());
   for (size_t i = 1; i < u.size(); ++i) {
     const double d = dist(u[i]);

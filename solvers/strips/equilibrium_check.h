@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "strips/zero_curvature.h"
 
@@ -25,6 +26,10 @@ struct EquilibriumCheckOptions {
   double collinear_tolerance = 1e-6;   ///< max distance from the line / length
   double tangent_tolerance = 1e-6;     ///< |sin(angle between line and tangent)|
   double secant_tolerance = 1e-6;      ///< |κ'|·length / max|κ| below this counts as zero
+  /// An end of the curve that lies on the inflection line (within collinear_tolerance) and
+  /// has |κ − κ₀| up to this times max |κ − κ₀| is a zero at the end (kind end), e.g. a curve
+  /// given as points whose curvature vanishes at the end up to the interpolation error.
+  double end_zero_tolerance = 1e-3;
 };
 
 struct EquilibriumCheck {
@@ -35,6 +40,9 @@ struct EquilibriumCheck {
   Vec2 line_point{0, 0};      ///< a point on the inflection line
   Vec2 line_direction{1, 0};  ///< its unit direction
   double collinearity_error = 0;  ///< max distance of a zero from that line
+  /// Ends on the line with (nearly) vanishing curvature that the zero finder did not list:
+  /// zeros at the ends (ZeroKind::AtEnd) the caller adds to its zeros.
+  std::vector<ZeroCurvaturePoint> end_zeros;
   bool feasible() const { return reason == Infeasibility::None; }
 };
 

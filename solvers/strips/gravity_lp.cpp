@@ -59,8 +59,9 @@ Sweep backward_sweep(const std::vector<StripLpSample>& smp, const Vec2& c, doubl
     double h = 0;
     if (i < n - 1) {
       h = w.sh(i + 1) - w.sh(i);
-      Fnext = w.Phi.row(i + 1) + 0.5 * h * w.A.row(i + 1);
-      Gnext = Psi_next + 0.5 * h * c_next * w.A.row(i + 1);
+      const double wn = smp[i + 1].weight;
+      Fnext = w.Phi.row(i + 1) + 0.5 * h * wn * w.A.row(i + 1);
+      Gnext = Psi_next + 0.5 * h * c_next * wn * w.A.row(i + 1);
     }
     // rhs = a + ⟨b, γ⟩ + c_i F_i − G_i; the K_i terms of the trapezoid cancel.
     const Row3 rhs = P + ci * Fnext - Gnext;
@@ -70,11 +71,11 @@ Sweep backward_sweep(const std::vector<StripLpSample>& smp, const Vec2& c, doubl
     } else {
       w.equalities.push_back(rhs);
       w.num.row(i) = Row3(0.0, smp[i].tangent.x(), smp[i].tangent.y()) + di * Fnext;
-      w.den(i) = smp[i].dmu_ds * l * l - 0.5 * di * h;
+      w.den(i) = smp[i].dmu_ds * l * l - 0.5 * di * h * smp[i].weight;
     }
     w.A.row(i) = w.num.row(i) / w.den(i);
-    w.Phi.row(i) = Fnext + 0.5 * h * w.A.row(i);
-    Psi_next = Gnext + 0.5 * h * ci * w.A.row(i);
+    w.Phi.row(i) = Fnext + 0.5 * h * smp[i].weight * w.A.row(i);
+    Psi_next = Gnext + 0.5 * h * ci * smp[i].weight * w.A.row(i);
     c_next = ci;
   }
   return w;

@@ -33,6 +33,9 @@ struct StripLpSample {
   double dmu_ds = 0;      ///< μ′(s) [1/m²]; used at zeros only
   bool zero = false;      ///< a zero of μ (inflection or end): equality + l'Hôpital row
   double kappa = 0;       ///< κ itself (carried along for the caller; unused by the LP)
+  /// Weight per length here relative to K·e (1: a plain sheet, weight ∝ K; a composite
+  /// strip's layers give other ratios, §4.7.1).
+  double weight = 1.0;
 };
 
 struct GravityLpOptions {

@@ -23,6 +23,43 @@ double lerp(const std::vector<double>& xs, const std::vector<double>& ys, double
 }
 }  // namespace
 
+namespace {
+// Sections every p/64 over [s0, s1]: the material width against w_K pointwise, and the
+// harmonic means over windows of one pitch (the bending compliance of sections in series).
+void deviation_report(PerforatedStripResult& r, const std::vector<double>& s,
+                      const std::vector<double>& w, const std::vector<double>& wk) {
+  const double s0 = s.front(), s1 = s.back(), p = r.pitch;
+  const int n = std::max(64, static_cast<int>(std::ceil(64 * (s1 - s0) / p)));
+  const double ds = (s1 - s0) / n;
+  std::vector<double> at(n + 1), inv_mat(n + 1), inv_des(n + 1);
+  size_t first = 0;  // diamonds are sorted by s
+  for (int i = 0; i <= n; ++i) {
+    at[i] = s0 + ds * i;
+    while (first < r.diamonds.size() && r.diamonds[first].s + 0.5 * r.diamonds[first].length <= at[i]) ++first;
+    double holes = 0;
+    for (size_t k = first; k < r.diamonds.size() && r.diamonds[k].s - 0.5 * r.diamonds[k].length < at[i]; ++k) {
+      const double t = std::abs(at[i] - r.diamonds[k].s);
+      if (t < 0.5 * r.diamonds[k].length) holes += r.diamonds[k].width * (1 - 2 * t / r.diamonds[k].length);
+    }
+    const double need = lerp(s, wk, at[i]), mat = lerp(s, w, at[i]) - holes;
+    inv_mat[i] = 1 / mat;
+    inv_des[i] = 1 / need;
+    const double dev = std::abs(mat / need - 1);
+    if (dev > r.max_width_deviation) r.max_width_deviation = dev, r.max_width_deviation_s = at[i];
+    if (holes == 0) r.end_zone_deviation = std::max(r.end_zone_deviation, mat / need - 1);
+  }
+  const int win = std::min(n, std::max(2, static_cast<int>(std::round(p / ds))));
+  for (int i = 0; i + win <= n; ++i) {
+    double cm = 0, cd = 0;  // trapezoidal ∫ 1/w over the window
+    for (int k = i; k < i + win; ++k)
+      cm += 0.5 * (inv_mat[k] + inv_mat[k + 1]), cd += 0.5 * (inv_des[k] + inv_des[k + 1]);
+    const double dev = std::abs(cd / cm - 1);  // K_eff/K_design = (p/∫1/w_mat)/(p/∫1/w_K)
+    if (dev > r.max_stiffness_deviation)
+      r.max_stiffness_deviation = dev, r.max_stiffness_deviation_s = at[i] + 0.5 * win * ds;
+  }
+}
+}  // namespace
+
 PerforatedStripResult design_perforated_strip(const std::vector<double>& s,
                                               const std::vector<double>& w,
                                               const std::vector<double>& wk,
@@ -109,6 +146,7 @@ PerforatedStripResult design_perforated_strip(const std::vector<double>& s,
   r.perforated_from = first;
   r.perforated_to = first + 0.5 * p * (rows - 1);
   r.feasible = true;
+  deviation_report(r, s, w, wk);
   return r;
 }
 

@@ -42,6 +42,17 @@ struct PerforatedStripResult {
   double perforated_from = 0, perforated_to = 0;  ///< s range covered by full rows
   double worst_s = -1;             ///< where feasibility fails
   std::string message;
+  // Deviation of the realized pattern from the designed profile (feasible results; sections
+  // every pitch/64 over the whole strip). The section's material width w_mat(s) is linear
+  // between rows, so it misses a curved w_K by O(p²·w_K''); the end zones before the first
+  // and after the last row have no holes (stiffer than designed).
+  double max_width_deviation = 0;      ///< max |w_mat/w_K − 1| over every section
+  double max_width_deviation_s = -1;   ///< where
+  /// Homogenized bending stiffness over one pitch (sections in series: p / ∫ds/w), realized
+  /// against designed: max |K_eff/K_design − 1| over windows of one pitch inside the strip.
+  double max_stiffness_deviation = 0;
+  double max_stiffness_deviation_s = -1;  ///< centre of that window
+  double end_zone_deviation = 0;       ///< max w/w_K − 1 where no hole cuts the section
 };
 
 /// `s` sorted, `outer_width` w(s) and `solid_width` w_K(s) ≤ w(s) (e.g. StripDesign::width),

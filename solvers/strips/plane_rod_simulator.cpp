@@ -26,7 +26,8 @@ struct Rod {
   double h = 0;
   std::vector<double> w, W;          // Voronoi weights and stiffness at nodes 0..N
   bool node_active[2] = {true, true};  // node 0 / node N carry a clamp term
-  double theta0 = 0, theta1 = 0, kappa0 = 0;
+  double theta0 = 0, theta1 = 0;
+  std::vector<double> kappa0;        // natural curvature at nodes 0..N
   MomentLaw law;
   Vec2 e{0, 0};
   bool ref_start[2] = {true, true};  // positions of coordinate d referenced to the start
@@ -51,7 +52,7 @@ struct Rod {
   double energy(const Eigen::VectorXd& a) const {
     double E = 0;
     for (int k = 0; k <= N; ++k)
-      if (active(k)) E += w[k] * W[k] * law.energy(node_curvature(a, k) - kappa0);
+      if (active(k)) E += w[k] * W[k] * law.energy(node_curvature(a, k) - kappa0[k]);
     for (int j = 0; j < N; ++j) {
       const Vec2 t(std::cos(a(j)), std::sin(a(j)));
       for (int d = 0; d < 2; ++d) E -= h * t(d) * e(d) * Q[d][j];
@@ -68,7 +69,7 @@ struct Rod {
     if (J) tr.reserve(3 * N + 4 * N);
     for (int k = 0; k <= N; ++k) {
       if (!active(k)) continue;
-      const double kap = node_curvature(a, k) - kappa0;
+      const double kap = node_curvature(a, k) - kappa0[k];
       const double m = W[k] * law.moment(kap), dm = W[k] * law.slope(kap) / w[k];
       // κ_k depends on α_k (+) and α_{k−1} (−).
       if (k < N) r(k) += m;
@@ -132,11 +133,23 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
   rod.w[0] = rod.w[N] = 0.5 * rod.h;
   rod.W.resize(N + 1);
   for (int k = 0; k <= N; ++k) rod.W[k] = interpolate(p.stiffness_s, p.stiffness, k * rod.h);
+  PARAFAB_VERIFY(p.weight_ratio.empty() || p.weight_ratio.size() == p.stiffness.size(),
+                 "rod.weight_ratio: " << p.weight_ratio.size() << " values for " << p.stiffness.size()
+                                      << " stiffness samples");
+  std::vector<double> weight(rod.W);  // weight per length / |e| at the nodes
+  if (!p.weight_ratio.empty())
+    for (int k = 0; k <= N; ++k) weight[k] *= interpolate(p.stiffness_s, p.weight_ratio, k * rod.h);
   rod.node_active[0] = !p.boundary.start.free_angle;
   rod.node_active[1] = !p.boundary.end.free_angle;
   rod.theta0 = p.start_angle;
   rod.theta1 = p.end_angle;
-  rod.kappa0 = p.natural_curvature;
+  PARAFAB_VERIFY(p.natural_curvature_s.size() == p.natural_curvature_field.size(),
+                 "rod.natural_curvature_field: " << p.natural_curvature_field.size() << " values for "
+                                                 << p.natural_curvature_s.size() << " arc lengths");
+  rod.kappa0.assign(N + 1, p.natural_curvature);
+  if (!p.natural_curvature_s.empty())
+    for (int k = 0; k <= N; ++k)
+      rod.kappa0[k] += interpolate(p.natural_curvature_s, p.natural_curvature_field, k * rod.h);
   rod.law = p.law;
   rod.delta = p.end_point - p.start_point;
   const bool sfree[2] = {p.boundary.start.free_x, p.boundary.start.free_y};
@@ -150,10 +163,10 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
     rod.Q[d].assign(N, 0.0);
     if (rod.ref_start[d]) {
       double acc = 0;
-      for (int j = N - 1; j >= 0; --j) acc += rod.W[j + 1] * rod.w[j + 1], rod.Q[d][j] = acc;
+      for (int j = N - 1; j >= 0; --j) acc += weight[j + 1] * rod.w[j + 1], rod.Q[d][j] = acc;
     } else {
       double acc = 0;
-      for (int j = 0; j < N; ++j) acc += rod.W[j] * rod.w[j], rod.Q[d][j] = -acc;
+      for (int j = 0; j < N; ++j) acc += weight[j] * rod.w[j], rod.Q[d][j] = -acc;
     }
   }
   const double Wmax = *std::max_element(rod.W.begin(), rod.W.end());
@@ -229,7 +242,7 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
   if (std::isfinite(klim)) {
     double kmax = 0;
     for (int k = 0; k <= N; ++k)
-      if (rod.active(k)) kmax = std::max(kmax, std::abs(rod.node_curvature(z.head(N), k) - rod.kappa0));
+      if (rod.active(k)) kmax = std::max(kmax, std::abs(rod.node_curvature(z.head(N), k) - rod.kappa0[k]));
     khi = std::max(klim, 1.05 * kmax);
   }
   auto apply = [&](double t) {

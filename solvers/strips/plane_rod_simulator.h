@@ -24,8 +24,15 @@ struct PlaneRodProblem {
   double start_angle = 0, end_angle = 0;  ///< tangent angles at the clamps [rad]
   StripBoundary boundary;                 ///< free_x/free_y/free_angle per end
   Vec2 load{0, 0};                        ///< e [1/m³]: weight per length = K e
+  /// Optional, one per stiffness sample: weight per length = weight_ratio·K·e there (e.g.
+  /// the two layers of a composite strip); empty: 1.
+  std::vector<double> weight_ratio;
   MomentLaw law;
   double natural_curvature = 0;           ///< κ₀ [1/m]
+  /// Optional κ₀ field added to natural_curvature, piecewise linear through
+  /// (natural_curvature_s[i], natural_curvature_field[i]): e.g. the permanent set of an
+  /// ideally plastic strip (App. A.5), re-loaded elastically.
+  std::vector<double> natural_curvature_s, natural_curvature_field;
   /// Initial edge angles (size = edges), e.g. the target's; empty: linear between the end
   /// angles.
   std::vector<double> initial_angles;

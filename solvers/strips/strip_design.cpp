@@ -17,7 +17,8 @@ namespace parafab {
 constexpr double kZeroExclusion = 1e-6;
 
 std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
-                                             const std::vector<ZeroCurvaturePoint>& zeros) {
+                                             const std::vector<ZeroCurvaturePoint>& zeros,
+                                             std::map<double, CurvePoint>* cache) {
   PARAFAB_VERIFY(count >= 2, "need at least 2 samples, got " << count);
   const double l = curve.length();
   // Equally spaced arc lengths plus the interior knots, where K may have a kink (κ' jumps on
@@ -25,8 +26,8 @@ std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
   std::vector<double> at;
   at.reserve(count + curve.bspline().knots().size());
   for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
-  const std::vector<double> bp = curve.bspline().breakpoints();
-  for (size_t i = 1; i + 1 < bp.size(); ++i) at.push_back(curve.arc_length_at(bp[i]));
+  const std::vector<double>& bs = curve.breakpoint_arc_lengths();
+  at.insert(at.end(), bs.begin() + 1, bs.end() - 1);
   std::sort(at.begin(), at.end());
   std::vector<CurvePoint> out;
   out.reserve(at.size());
@@ -35,7 +36,14 @@ std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
     if (k > 0 && s - at[k - 1] <= 1e-12 * l) continue;
     bool near_zero = false;
     for (const auto& z : zeros) near_zero |= std::abs(z.at.s - s) <= kZeroExclusion * l;
-    if (!near_zero) out.push_back(curve.at_arc_length(s));
+    if (near_zero) continue;
+    if (!cache) {
+      out.push_back(curve.at_arc_length(s));
+      continue;
+    }
+    auto it = cache->find(s);
+    if (it == cache->end()) it = cache->emplace(s, curve.at_arc_length(s)).first;
+    out.push_back(it->second);
   }
   return out;
 }
@@ -47,6 +55,9 @@ void validate(const StripDesignOptions& o) {
                  "material.E must be a positive modulus in Pa, got " << o.youngs_modulus);
   PARAFAB_VERIFY(std::isfinite(o.thickness) && o.thickness > 0,
                  "material.thickness must be positive (metres), got " << o.thickness);
+  PARAFAB_VERIFY(o.yield_strain > 0, "material.yield_strain must be positive, got " << o.yield_strain);
+  PARAFAB_VERIFY(std::isfinite(o.strain_thickness) && o.strain_thickness >= 0,
+                 "strain_thickness must be >= 0 (metres), got " << o.strain_thickness);
   PARAFAB_VERIFY(std::isfinite(o.min_width) && o.min_width > 0,
                  "min_width must be positive (metres), got " << o.min_width);
   PARAFAB_VERIFY(std::isfinite(o.tolerance) && o.tolerance > 0 && o.tolerance < 1,
@@ -60,8 +71,9 @@ struct ContinuousRatio {
   double ratio = NAN;  ///< max K / min K of the line (a, b) on the continuous curve
 };
 
-// Refines every local extremum of K among the samples by golden-section search on the
-// continuous curve between the neighbouring samples (intervals touching a zero-curvature
+// Estimate of the continuous ratio: refines the largest local maxima and smallest minima of
+// K among the samples by golden-section search on the continuous curve between the
+// neighbouring samples (intervals touching a zero-curvature
 // point keep the zero's exact l'Hôpital value instead).
 ContinuousRatio continuous_ratio(const PlaneCurve& curve, const std::vector<CurvePoint>& samples,
                                  const std::vector<CurvePoint>& zeros, double a, const Vec2& b) {
@@ -78,7 +90,7 @@ ContinuousRatio continuous_ratio(const PlaneCurve& curve, const std::vector<Curv
     kmax = std::max(kmax, kz);
     kmin = std::min(kmin, kz);
   }
-  auto K_at = [&](double s) { return stiffness_at(curve.at_arc_length(s), a, b, false); };
+  auto K_at = [&](double u) { return stiffness_at(curve.geometry_at(u), a, b, false); };
   auto has_zero = [&](double s0, double s1) {
     for (const auto& z : zeros)
       if (z.s >= s0 - 2 * kZeroExclusion * l && z.s <= s1 + 2 * kZeroExclusion * l) return true;
@@ -104,11 +116,14 @@ ContinuousRatio continuous_ratio(const PlaneCurve& curve, const std::vector<Curv
   const double g = 0.5 * (std::sqrt(5.0) - 1.0);
   for (const double sign : {1.0, -1.0}) {  // maximize sign·K around each candidate
     for (size_t i : sign > 0 ? maxima : minima) {
-      const double lo = samples[i == 0 ? 0 : i - 1].s, hi = samples[std::min(i + 1, samples.size() - 1)].s;
+      const CurvePoint& p_lo = samples[i == 0 ? 0 : i - 1];
+      const CurvePoint& p_hi = samples[std::min(i + 1, samples.size() - 1)];
+      const double lo = p_lo.s, hi = p_hi.s;
       if (hi <= lo || has_zero(lo, hi)) continue;
-      double x0 = lo, x3 = hi, x1 = x3 - g * (x3 - x0), x2 = x0 + g * (x3 - x0);
+      const double du_tol = 1e-13 * (p_hi.u - p_lo.u) * l / (hi - lo);  // ≈ 1e-13·l in s
+      double x0 = p_lo.u, x3 = p_hi.u, x1 = x3 - g * (x3 - x0), x2 = x0 + g * (x3 - x0);
       double f1 = sign * K_at(x1), f2 = sign * K_at(x2);
-      for (int it = 0; it < 80 && x3 - x0 > 1e-13 * l; ++it) {
+      for (int it = 0; it < 80 && x3 - x0 > du_tol; ++it) {
         if (f1 > f2) x3 = x2, x2 = x1, f2 = f1, x1 = x3 - g * (x3 - x0), f1 = sign * K_at(x1);
         else x0 = x1, x1 = x2, f1 = f2, x2 = x0 + g * (x3 - x0), f2 = sign * K_at(x2);
       }
@@ -120,6 +135,54 @@ ContinuousRatio continuous_ratio(const PlaneCurve& curve, const std::vector<Curv
   ContinuousRatio r;
   r.ratio = kmax / kmin;
   return r;
+}
+
+// Bending strain h·|κ − κ₀|/2 (each fibre at distance h/2 from the neutral axis): its maximum
+// over the curve, from the zero finder's scan refined by golden-section search between the
+// neighbouring scan points. Refuses a design that yields (strain above o.yield_strain) with an
+// elastic moment law.
+void bending_strain(const PlaneCurve& curve, const ZeroCurvatureResult& zeros,
+                    const StripDesignOptions& o, StripDesign& d) {
+  const std::vector<double>& u = zeros.scan_parameters;
+  const std::vector<double>& k = zeros.scan_kappa;
+  if (u.empty()) return;
+  size_t best = 0;
+  for (size_t i = 1; i < k.size(); ++i)
+    if (std::abs(k[i]) > std::abs(k[best])) best = i;
+  const double k0 = o.natural_curvature;
+  auto f = [&](double uu) { return std::abs(curve.curvature_at(uu) - k0); };
+  double lo = u[best == 0 ? 0 : best - 1], hi = u[std::min(best + 1, u.size() - 1)];
+  double u_best = u[best], f_best = std::abs(k[best]);
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo), f1 = f(x1), f2 = f(x2);
+  for (int it = 0; it < 100 && hi - lo > 1e-14 * (u.back() - u.front()); ++it) {
+    if (f1 > f2) hi = x2, x2 = x1, f2 = f1, x1 = hi - g * (hi - lo), f1 = f(x1);
+    else lo = x1, x1 = x2, f1 = f2, x2 = lo + g * (hi - lo), f2 = f(x2);
+  }
+  if (std::max(f1, f2) > f_best) f_best = std::max(f1, f2), u_best = f1 > f2 ? x1 : x2;
+  const double h = o.strain_thickness > 0 ? o.strain_thickness : o.thickness;
+  d.max_strain = 0.5 * h * f_best;
+  d.max_strain_s = curve.arc_length_at(u_best);
+  if (!std::isfinite(o.yield_strain)) return;
+  d.yield_ratio = d.max_strain / o.yield_strain;
+  if (d.yield_ratio > 1 && !std::isfinite(o.law.curvature_limit))
+    PARAFAB_INPUT_ERROR("material " << (o.material_name.empty() ? std::string("(unnamed)") : "\"" + o.material_name + "\"")
+                        << " yields: the bending strain h·|κ|/2 = " << d.max_strain << " at s = "
+                        << d.max_strain_s << " m (h = " << h << " m, |κ| = " << f_best
+                        << " 1/m) exceeds its yield strain " << o.yield_strain << " ("
+                        << d.yield_ratio << "×); choose a thinner or more ductile material, a "
+                        "gentler curve, or a moment law with material.law.curvature_limit "
+                        "(plasticity)");
+}
+
+// Ends that the equilibrium check found on the inflection line with vanishing curvature are
+// zeros at the ends (kind end).
+void add_end_zeros(const EquilibriumCheck& check, ZeroCurvatureResult& zeros, StripDesign& d) {
+  if (check.end_zeros.empty()) return;
+  zeros.points.insert(zeros.points.end(), check.end_zeros.begin(), check.end_zeros.end());
+  std::sort(zeros.points.begin(), zeros.points.end(),
+            [](const ZeroCurvaturePoint& x, const ZeroCurvaturePoint& y) { return x.at.s < y.at.s; });
+  d.zeros = zeros.points;
 }
 
 void finish_outputs(const StripDesignOptions& o, StripDesign& d) {
@@ -138,6 +201,17 @@ void finish_outputs(const StripDesignOptions& o, StripDesign& d) {
 }
 
 }  // namespace
+
+std::vector<double> composite_inner_width(const std::vector<double>& K,
+                                          const StripDesignOptions::Composite& c) {
+  const double h1 = c.outer_thickness, h2 = c.inner_thickness, w1 = c.outer_width;
+  const double P1 = h1 * h1 * h1, P12 = std::pow(h1 + h2, 3), P2 = P12 - P1;
+  const double kmax = *std::max_element(K.begin(), K.end());
+  const double scale = P12 * w1 / kmax;
+  std::vector<double> w2(K.size());
+  for (size_t i = 0; i < K.size(); ++i) w2[i] = std::clamp((scale * K[i] - P1 * w1) / P2, 0.0, w1);
+  return w2;
+}
 
 namespace {
 
@@ -173,6 +247,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   ZeroCurvatureOptions zo = o.zeros;
   zo.natural_curvature = o.natural_curvature;
   ZeroCurvatureResult zeros = find_zero_curvature(curve, zo);
+  bending_strain(curve, zeros, o, d);
   const Vec2 load = o.gravity.load();
   auto fail = [&](const std::string& code, const std::string& why, double s) {
     d.reason_code = code;
@@ -206,31 +281,31 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   // The moment law must be injective on the curvature range the curve uses (Appendix A.5).
   double used = 0, used_s = 0;
   {
-    for (double u : zeros.scan_parameters) {
-      const double k = std::abs(curve.curvature_at(u) - o.natural_curvature);
-      if (k > used) used = k, used_s = curve.arc_length_at(u);
+    for (size_t i = 0; i < zeros.scan_kappa.size(); ++i) {
+      const double k = std::abs(zeros.scan_kappa[i]);  // |κ − κ₀|
+      if (k > used) used = k, used_s = zeros.scan_parameters[i];
     }
-    const double lim = o.law.injective_limit();
-    if (used >= lim) {
+    used_s = curve.arc_length_at(used_s);
+    // Ideal plasticity (H = 0, App. A.5) keeps m(κ) = m(κ_lim) beyond the limit: the design
+    // replaces κ by κ_eff = min(|κ|, κ_lim)·sign κ and the excess becomes a permanent set, so
+    // only the elastic part up to the limit must be injective.
+    MomentLaw elastic = o.law;
+    elastic.curvature_limit = INFINITY;
+    const double lim = elastic.injective_limit();
+    const double used_elastic = std::min(used, o.law.curvature_limit);
+    if (used_elastic >= lim) {
       if (o.law.cubic < 0 && std::abs(lim - 1.0 / std::sqrt(-3.0 * o.law.cubic)) <= 1e-12 * lim)
         PARAFAB_INPUT_ERROR("material.law.cubic = " << o.law.cubic << " makes m(κ) = κ + cκ³ decrease "
                             "beyond |κ − κ₀| = " << lim << " 1/m, but the curve reaches |κ − κ₀| = "
                             << used << " 1/m at s = " << used_s
                             << ": the moment law is not injective on the used range");
       for (size_t i = 1; i < o.law.table_moment.size(); ++i)
-        if (o.law.table_curvature[i - 1] == lim && o.law.table_moment[i] <= o.law.table_moment[i - 1] &&
-            lim < o.law.curvature_limit)
+        if (o.law.table_curvature[i - 1] == lim && o.law.table_moment[i] <= o.law.table_moment[i - 1])
           PARAFAB_INPUT_ERROR("material.law.table_moment[" << i << "] = " << o.law.table_moment[i]
                               << " does not exceed table_moment[" << i - 1 << "] = "
                               << o.law.table_moment[i - 1] << ": m(κ) stops increasing at |κ − κ₀| = "
                               << lim << " 1/m, but the curve reaches " << used << " 1/m at s = "
                               << used_s << ": the moment law is not injective on the used range");
-      PARAFAB_INPUT_ERROR("material.law.curvature_limit = " << o.law.curvature_limit
-                          << " 1/m with plastic_hardening = 0 (ideal plasticity) makes the moment "
-                          "constant beyond the limit, but the curve reaches |κ − κ₀| = " << used
-                          << " 1/m at s = " << used_s << ": the moment law is not injective on the "
-                          "used range, so no width profile determines the shape; raise the limit "
-                          "or give plastic_hardening > 0");
     }
     if (used > o.law.curvature_limit) d.max_plastic_curvature = used;
   }
@@ -253,6 +328,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
     return;
   }
   const EquilibriumCheck check = check_equilibrium(curve, zeros, o.check);
+  add_end_zeros(check, zeros, d);
   const bool line_reason = check.reason == Infeasibility::NotCollinear ||
                            check.reason == Infeasibility::LineTangentAtInflection ||
                            check.reason == Infeasibility::LineCrossesCurve;
@@ -267,11 +343,11 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   // Samples as in sample_by_arc_length, with the curve evaluations of coarser nested grids
   // reused (l·k/(n−1) is bit-identical to l·2k/(2n−2)).
   std::map<double, CurvePoint> cache;
-  const std::vector<double> bp = curve.bspline().breakpoints();
+  const std::vector<double>& bs = curve.breakpoint_arc_lengths();
   auto sample_cached = [&](int count) {
     std::vector<double> at;
     for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
-    for (size_t i = 1; i + 1 < bp.size(); ++i) at.push_back(curve.arc_length_at(bp[i]));
+    at.insert(at.end(), bs.begin() + 1, bs.end() - 1);
     std::sort(at.begin(), at.end());
     std::vector<CurvePoint> pts;
     for (size_t k = 0; k < at.size(); ++k) {
@@ -314,6 +390,40 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   go.smoothing_margin = o.smoothing_margin;
   go.inflection_rows = o.inflection_rows;
   go.form = o.lp_form;
+  // Composite strips under gravity: weight ratio λ_i = (weight per length)/(K_i e) of both
+  // layers, λ = h²(h₁w₁ + r h₂w₂)/(cK), iterated with the LP to a fixed point.
+  const bool composite_weight = o.composite.enabled && o.gravity.enabled;
+  const double h1 = o.composite.outer_thickness, h2 = o.composite.inner_thickness;
+  const double w1 = o.composite.outer_width;
+  auto composite_ratios = [&](std::vector<StripLpSample>& smp, const std::vector<double>& K) {
+    const std::vector<double> w2 = composite_inner_width(K, o.composite);
+    const double kmax = *std::max_element(K.begin(), K.end());
+    const double c = std::pow(h1 + h2, 3) * w1 / kmax;
+    double change = 0;
+    for (size_t i = 0; i < smp.size(); ++i) {
+      const double lam = o.thickness * o.thickness *
+                         (h1 * w1 + o.composite.inner_density_ratio * h2 * w2[i]) / (c * K[i]);
+      change = std::max(change, std::abs(lam / smp[i].weight - 1));
+      smp[i].weight = lam;
+    }
+    return change;
+  };
+  auto solve = [&](std::vector<StripLpSample>& smp, const GravityLpOptions& opt) {
+    GravityLpResult r = solve_gravity_lp(smp, l, opt);
+    if (!composite_weight) return r;
+    for (int it = 0; it < 100 && r.ok(); ++it) {
+      d.weight_change = composite_ratios(smp, r.K);
+      d.weight_iterations = it + 1;
+      if (d.weight_change <= 1e-12) break;
+      r = solve_gravity_lp(smp, l, opt);
+    }
+    return r;
+  };
+  if (composite_weight) {
+    PARAFAB_VERIFY(h1 > 0 && h2 > 0 && w1 > 0, "composite: h1, h2 and outer_width must be positive, got "
+                                                   << h1 << ", " << h2 << ", " << w1);
+    PARAFAB_VERIFY(o.inflection_rows, "composite strips under gravity need inflection_rows");
+  }
   GravityLpResult lp;
   std::vector<StripLpSample> smp;
   double R_prev = NAN;
@@ -323,7 +433,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   go.smooth = false;
   for (int n = n0;; n = std::min(2 * n - 1, o.max_samples)) {
     smp = lp_samples(n);
-    lp = solve_gravity_lp(smp, l, go);
+    lp = solve(smp, go);
     d.refinement.push_back({n, lp.ok() ? lp.R_first : NAN, NAN});
     if (!lp.ok() || o.fixed_samples > 0) { d.converged = lp.ok(); break; }
     if (std::isfinite(R_prev) && std::abs(lp.R_first / R_prev - 1) <= o.load_tolerance) {
@@ -335,7 +445,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   }
   if (lp.ok() && smooth) {
     go.smooth = true;
-    lp = solve_gravity_lp(smp, l, go);
+    lp = solve(smp, go);
   }
   d.lp_samples = static_cast<int>(smp.size());
   d.lp_iterations = lp.iterations_first + lp.iterations_second;
@@ -361,6 +471,17 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   for (const auto& p : used_smp) {
     if (!o.inflection_rows && p.zero) continue;
     d.samples.push_back({p.s, p.point, p.kappa, lp.K[j++]});
+  }
+  if (o.gravity.enabled) {  // weight per length [N/m]; ρg = E h²/(12 βl³)
+    const double rho_g = o.youngs_modulus * o.thickness * o.thickness / (12 * o.gravity.gravito_bending);
+    std::vector<double> K;
+    for (const auto& p : d.samples) K.push_back(p.K);
+    std::vector<double> w2;
+    if (composite_weight) w2 = composite_inner_width(K, o.composite);
+    for (size_t i = 0; i < K.size(); ++i)
+      d.weight_per_length.push_back(
+          composite_weight ? rho_g * (h1 * w1 + o.composite.inner_density_ratio * h2 * w2[i])
+                           : rho_g * o.thickness * o.min_width * K[i]);
   }
   d.a = lp.a;
   d.b = lp.b;
@@ -391,7 +512,8 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
     d.total_seconds = elapsed();
     return d;
   }
-  const ZeroCurvatureResult zeros = find_zero_curvature(curve, options.zeros);
+  ZeroCurvatureResult zeros = find_zero_curvature(curve, options.zeros);
+  bending_strain(curve, zeros, options, d);
   d.zeros = zeros.points;
 
   if (zeros.straight) {  // a line segment: any constant K, no bending
@@ -405,6 +527,7 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
     return d;
   }
   const EquilibriumCheck check = check_equilibrium(curve, zeros, options.check);
+  add_end_zeros(check, zeros, d);
   if (!check.feasible()) {
     d.reason_code = to_code(check.reason);
     d.reason = check.message;
@@ -427,10 +550,12 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   // Nested grids (count − 1 doubles): every refinement keeps the previous samples. The LP
   // optimum R_n on the samples is a lower bound of the optimal R*, and the ratio of the
   // LP's own line on the continuous curve, R_c ≥ R*, an upper bound: refine until
-  // R_c / R_n − 1 ≤ tolerance, a certified bound on the error of R.
+  // R_c / R_n − 1 ≤ tolerance. R_c is estimated (the largest sampled extrema refined by
+  // golden-section search), so the gap is an estimate of the error of R, not a certificate.
   ContinuousRatio cont;
+  std::map<double, CurvePoint> cache;
   for (int n = options.initial_samples + 1;; n = std::min(2 * n - 1, options.max_samples)) {
-    samples = sample_by_arc_length(curve, n, zeros.points);
+    samples = sample_by_arc_length(curve, n, zeros.points, &cache);
     lp = solve_stiffness_lp(samples, zero_points, line_points, d.length, lpo);
     if (!lp.ok()) {
       d.refinement.push_back({n, NAN, NAN});

@@ -6,6 +6,7 @@
 // Eq. 4.6 with the smoothing phase of §4.4.3) on nested grids instead.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -19,11 +20,32 @@ namespace parafab {
 struct StripDesignOptions {
   double youngs_modulus = 3e9;  ///< E of the sheet [Pa]
   double thickness = 0.5e-3;    ///< h of the sheet [m]
+  /// Yield strain ε_y of the material (σ_y / E); +∞: unknown. The bending strain h·|κ − κ₀|/2
+  /// is reported for every design; a design whose strain exceeds ε_y is refused (parafab::Error
+  /// naming `material_name`, the strain and s) unless the moment law models plasticity (a
+  /// finite law.curvature_limit). `strain_thickness` > 0 replaces h (e.g. the thicker layer
+  /// of a composite strip).
+  double yield_strain = INFINITY;
+  std::string material_name;
+  double strain_thickness = 0;
+  /// §4.7.1 composite strip (a broad layer of thickness h₁ and constant width w₁, a narrow
+  /// one of thickness h₂ and width w₂(s), cK = h₁³w₁ + ((h₁+h₂)³ − h₁³)w₂, see
+  /// composite_strip.h). Under gravity its weight per length is ρg(h₁w₁ + (ρ₂/ρ)h₂w₂), not
+  /// ∝ K: the design iterates the weight of both layers to a fixed point (ρg from βl³, E and
+  /// `thickness`: ρg = E h²/(12 βl³)).
+  struct Composite {
+    bool enabled = false;
+    double outer_thickness = 0, inner_thickness = 0;  ///< h₁, h₂ [m]
+    double outer_width = 0;                           ///< w₁ [m]
+    double inner_density_ratio = 1;                   ///< ρ₂/ρ
+  } composite;
   double min_width = 0.01;      ///< width where K is smallest [m]
   /// Sampling: start with `initial_samples` samples equally spaced in arc length and double
-  /// until the certified relative gap between the sampled optimum R (a lower bound of the
-  /// continuous optimum) and the continuous ratio of its line (an upper bound) is at most
-  /// `tolerance`.
+  /// until the estimated relative gap between the sampled optimum R (a lower bound of the
+  /// continuous optimum) and the continuous ratio of its line is at most `tolerance`. The
+  /// continuous ratio is an ESTIMATE, not a certified bound: only the 16 largest sampled
+  /// maxima and 16 smallest minima of K are refined on the continuous curve, and an extremum
+  /// between two samples that does not show up as a sampled extremum is missed.
   double tolerance = 1e-6;
   int initial_samples = 64;
   int max_samples = (1 << 18) + 1;
@@ -73,13 +95,15 @@ struct StripDesign {
   std::vector<double> bending_stiffness;  ///< E·w·h³/12 [N·m²]
   std::vector<Vec2> outline;  ///< flat strip: centreline on +x from 0 to length, CCW polygon
   // Diagnostics.
-  bool converged = false;   ///< the gap met the tolerance before max_samples
-  double R_continuous = NAN;  ///< max K / min K of the line on the continuous curve (≥ R)
+  bool converged = false;   ///< the estimated gap met the tolerance before max_samples
+  /// Estimate of max K / min K of the line on the continuous curve (≥ R; an estimate, see
+  /// StripDesignOptions::tolerance). JSON: diagnostics.R_continuous.
+  double R_continuous = NAN;
   int lp_samples = 0;       ///< samples in the final LP
   struct Refinement {
     int samples;
     double R;             ///< LP optimum on the samples (lower bound)
-    double R_continuous;  ///< the same line on the continuous curve (upper bound)
+    double R_continuous;  ///< the same line on the continuous curve (estimate)
   };
   std::vector<Refinement> refinement;  ///< one entry per LP solved
   int lp_iterations = 0;    ///< of the final LP
@@ -95,15 +119,33 @@ struct StripDesign {
   double zero_consistency = 0;  ///< σ₃/σ₁ of the equality rows
   double max_plastic_curvature = 0;  ///< max |κ − κ₀| beyond law.curvature_limit (0: elastic)
   double lp_seconds_second = 0;      ///< phase two of the final LP
+  // Bending strain (App. A.5): max over the curve of h·|κ − κ₀|/2, where, and its ratio to
+  // the yield strain (NaN when the yield strain is unknown).
+  double max_strain = 0;
+  double max_strain_s = 0;
+  double yield_ratio = NAN;
+  /// Under gravity: weight per length at every sample [N/m] (ρ g h w for a sheet; both
+  /// layers for a composite strip), and the fixed-point iterations of the composite weight.
+  std::vector<double> weight_per_length;
+  int weight_iterations = 0;
+  double weight_change = 0;  ///< last relative change of the composite weight (fixed point)
 };
+
+/// Widths of the two layers of a composite strip for the normalized profile K (min 1):
+/// c = ((h₁+h₂)³)·w₁ / max K, w₂ = clamp((cK − h₁³w₁)/((h₁+h₂)³ − h₁³), 0, w₁) (the narrow
+/// strip as wide as the broad one where K is largest).
+std::vector<double> composite_inner_width(const std::vector<double>& K,
+                                          const StripDesignOptions::Composite& c);
 
 /// Throws parafab::Error for invalid options (non-positive E, thickness, width, tolerance) or
 /// a singular curve; an infeasible curve is a result with feasible = false and a reason.
 StripDesign design_strip(const BSplineCurve2& curve, const StripDesignOptions& options = {});
 
 /// Samples equally spaced in arc length plus the interior knots, leaving out points within
-/// 1e-6·length of a zero.
+/// 1e-6·length of a zero. `cache` (optional) keeps the curve evaluations by arc length, so
+/// nested grids (l·k/(n−1) is bit-identical to l·2k/(2n−2)) evaluate each point once.
 std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
-                                             const std::vector<ZeroCurvaturePoint>& zeros);
+                                             const std::vector<ZeroCurvaturePoint>& zeros,
+                                             std::map<double, CurvePoint>* cache = nullptr);
 
 }  // namespace parafab

@@ -52,14 +52,21 @@ ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,
                                         const ZeroCurvatureOptions& options) {
   ZeroCurvatureResult r;
   const double k0 = options.natural_curvature;
+  r.natural_curvature = k0;
   const std::vector<double> bp = curve.bspline().breakpoints();
   std::vector<double>& u = r.scan_parameters;
+  // scan_per_span points per span, but about kMaxScanPoints in all for curves of many
+  // spans (an interpolant of hundreds of points), and at least kMinScanPerSpan per span.
+  constexpr int kMaxScanPoints = 8192, kMinScanPerSpan = 16;
+  const int spans = static_cast<int>(bp.size()) - 1;
+  const int per_span = std::max(std::min(options.scan_per_span, kMaxScanPoints / std::max(spans, 1)),
+                                std::min(kMinScanPerSpan, options.scan_per_span));
   u.push_back(bp.front());
   for (size_t k = 0; k + 1 < bp.size(); ++k)
-    for (int j = 1; j <= options.scan_per_span; ++j)
-      u.push_back(bp[k] + (bp[k + 1] - bp[k]) * j / options.scan_per_span);
+    for (int j = 1; j <= per_span; ++j) u.push_back(bp[k] + (bp[k + 1] - bp[k]) * j / per_span);
   const size_t n = u.size();
-  std::vector<double> kappa(n);
+  std::vector<double>& kappa = r.scan_kappa;
+  kappa.resize(n);
   for (size_t i = 0; i < n; ++i) {
     kappa[i] = offset_curvature(curve, u[i], k0);
     r.kappa_scale = std::max(r.kappa_scale, std::abs(kappa[i]));

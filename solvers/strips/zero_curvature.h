@@ -11,7 +11,8 @@
 namespace parafab {
 
 struct ZeroCurvatureOptions {
-  /// Scan points per knot span used to bracket roots and dips of |κ|.
+  /// Scan points per knot span used to bracket roots and dips of |κ|; curves with more than
+  /// 128 spans get fewer (about 8192 scan points in all, at least 16 per span).
   int scan_per_span = 64;
   /// |κ|·length below this counts as zero curvature.
   double zero_tolerance = 1e-9;
@@ -39,6 +40,8 @@ struct ZeroCurvatureResult {
   double flat_from_s = 0, flat_to_s = 0;   ///< that sub-interval, when flat_piece
   double kappa_scale = 0;                  ///< max |κ| over the scan
   std::vector<double> scan_parameters;     ///< the scan (reused for crossing checks)
+  std::vector<double> scan_kappa;          ///< κ − κ₀ at the scan parameters
+  double natural_curvature = 0;            ///< κ₀ of the options
 };
 
 ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,

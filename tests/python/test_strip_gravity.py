@@ -5,7 +5,8 @@
   from the returned samples in the variables (K_0..K_{n-1}, a, b1, b2, R) and solved with
   scipy's linprog (HiGHS): its optimum must equal ParaFab's phase-one optimum R_first, and the
   returned (smoothed) profile must satisfy the same rows with the returned line.
-* "validate": true simulates the designed strip (plane rod simulator): deviation <= 1e-3.
+* "validate": true simulates the designed strip (plane rod simulator): deviation within 1.5x
+  the measured figure (1e-6 … 1.7e-5 of the length).
 * A heavy strip designed without the gravity term sags when simulated under gravity.
 * Bad gravity / boundary / law / validate / composite fields: errors name the field; the CLI
   exits 2 with the JSON error.
@@ -166,7 +167,7 @@ class Validation(unittest.TestCase):
                   f"{sim['deviation']:.3g} ({1e3 * sim['max_distance']:.3g} mm), {sim['iterations']} Newton "
                   f"iterations")
             self.assertTrue(sim["converged"], sim["message"])
-            self.assertLessEqual(sim["deviation"], 1e-3)
+            self.assertLessEqual(sim["deviation"], 1.5e-6)  # measured 9.1e-7, 6.1e-7
             self.assertTrue(sim["gravity"])
 
     def test_heavy_design_without_gravity_term_sags(self):
@@ -179,7 +180,7 @@ class Validation(unittest.TestCase):
         self.assertFalse(r0["general_lp"])
         self.assertTrue(sag["converged"], sag["message"])
         self.assertGreater(sag["deviation"], 1e-2)
-        self.assertLess(ok["deviation"], 1e-3)
+        self.assertLess(ok["deviation"], 1.5e-6)  # measured 9.1e-7
         self.assertGreater(sag["deviation"], 100 * ok["deviation"])
 
     def test_plain_requests_unchanged(self):
@@ -192,7 +193,7 @@ class Validation(unittest.TestCase):
 
 class Variants(unittest.TestCase):
     """The other issue-5 request fields reach the solver: each validated design follows its
-    curve (deviation <= 1e-3), and the result carries what the variant implies."""
+    curve (deviation within 1.5x the measured figure), and the result carries what the variant implies."""
 
     def test_variants_validate(self):
         pts = ellipse_arc(n=301)
@@ -215,7 +216,8 @@ class Variants(unittest.TestCase):
                 sim = r["simulation"]
                 print(f"\n  {name}: R = {r['R']:.6f}, deviation {sim['deviation']:.2e}")
                 self.assertTrue(sim["converged"], sim["message"])
-                self.assertLessEqual(sim["deviation"], 1e-3)
+                # measured 4.0e-7 … 8.9e-7, free x at the end 1.1e-5 (R = 4.4)
+                self.assertLessEqual(sim["deviation"], 1.7e-5 if name == "free x at the end" else 1.5e-6)
                 if name == "free x at the end":
                     self.assertEqual(r["end_force"][0], 0.0)      # no x reaction at a sliding end
                 if name == "no smoothing":

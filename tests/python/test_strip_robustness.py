@@ -2,7 +2,7 @@
 options object adds result["robustness"] = {baseline, worst_deviation, worst_case, edges,
 seconds, cases[]}.
 
-* The baseline (no defect) reproduces the target within 1e-3 of the length.
+* The baseline (no defect) reproduces the target within 1.5x its measured deviation.
 * The weight +50 % case of a strip designed under gravity deviates more than the baseline, and
   a larger angle defect more than a smaller one; cases without gravity have no weight case.
 * Every case carries the simulated nodes (edges + 1), starting at the clamp; the baseline's
@@ -54,6 +54,10 @@ def case(result, name):
     raise AssertionError("no case %s in %s" % (name, [c["name"] for c in result["robustness"]["cases"]]))
 
 
+#: Measured baseline deviation of the plain design at 400 edges, times 1.5.
+PLAIN_400_BOUND = 9e-6  # measured 5.8e-6
+
+
 class Robustness(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -96,7 +100,7 @@ class Robustness(unittest.TestCase):
         base = case(self.gravity, "baseline")
         self.assertTrue(base["converged"], base["message"])
         self.assertEqual(rb["baseline"], base["deviation"])
-        self.assertLessEqual(rb["baseline"], 1e-3)
+        self.assertLessEqual(rb["baseline"], 3e-6)  # measured 2.0e-6 at 800 edges
         heavy = case(self.gravity, "gravity+50%")
         self.assertTrue(heavy["converged"], heavy["message"])
         self.assertGreater(heavy["deviation"], 10 * rb["baseline"])
@@ -109,7 +113,8 @@ class Robustness(unittest.TestCase):
     def test_options(self):
         rb = self.plain["robustness"]
         self.assertEqual(rb["edges"], 400)
-        self.assertLessEqual(rb["baseline"], 1e-3)
+        print("\n  400 edges, baseline deviation %.3g" % rb["baseline"])
+        self.assertLessEqual(rb["baseline"], PLAIN_400_BOUND)
         names = [c["name"] for c in rb["cases"]]
         self.assertEqual(names, ["baseline", "stiffness_range+25%", "stiffness_range-25%",
                                  "end_angles_opened_5deg", "end_angles_closed_5deg", "plastic_top_25%"])

@@ -1,5 +1,6 @@
 #include "strip_json.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
@@ -198,6 +199,15 @@ json design_strip_json(const json& request) {
   // ---- issue 5 extensions (all optional; absent = the plain Eq. 4.4 design)
   if (material.contains("density")) positive(material["density"], "material.density");
   if (material.contains("law")) o.law = parse_law(material["law"]);
+  if (material.contains("yield_strain") && material.contains("yield_stress"))
+    PARAFAB_INPUT_ERROR("material: give yield_strain or yield_stress (Pa), not both");
+  if (material.contains("yield_strain")) o.yield_strain = positive(material["yield_strain"], "material.yield_strain");
+  if (material.contains("yield_stress"))
+    o.yield_strain = positive(material["yield_stress"], "material.yield_stress") / o.youngs_modulus;
+  if (material.contains("name")) {
+    if (!material["name"].is_string()) PARAFAB_INPUT_ERROR("material.name must be a string, got " << material["name"].dump());
+    o.material_name = material["name"].get<std::string>();
+  }
   if (request.contains("gravity"))
     o.gravity = gravity_field(request["gravity"], "gravity", material, o.youngs_modulus, o.thickness);
   if (request.contains("boundary")) o.boundary = parse_boundary(request["boundary"]);
@@ -281,10 +291,17 @@ json design_strip_json(const json& request) {
   double composite_w1 = 0;
   if (request.contains("composite")) {
     const json& c = request["composite"];
-    only_keys(c, "composite", {"h1", "h2", "outer_width"});
+    only_keys(c, "composite", {"h1", "h2", "outer_width", "inner_density_ratio"});
     co.outer_thickness = positive(require(c, "h1", "composite"), "composite.h1");
     co.inner_thickness = positive(require(c, "h2", "composite"), "composite.h2");
     composite_w1 = positive(require(c, "outer_width", "composite"), "composite.outer_width");
+    o.composite.enabled = true;  // under gravity: the weight of both layers
+    o.composite.outer_thickness = co.outer_thickness;
+    o.composite.inner_thickness = co.inner_thickness;
+    o.composite.outer_width = composite_w1;
+    if (c.contains("inner_density_ratio"))
+      o.composite.inner_density_ratio = positive(c["inner_density_ratio"], "composite.inner_density_ratio");
+    o.strain_thickness = std::max(co.outer_thickness, co.inner_thickness);  // the thicker layer
   }
   PerforatedStripOptions po;
   double perforated_w = 0;
@@ -377,6 +394,11 @@ json design_strip_json(const json& request) {
   out["end_force"] = d.general_lp && d.feasible ? to_json(d.end_force) : json(nullptr);
   out["zero_consistency"] = d.zero_consistency;
   out["max_plastic_curvature"] = d.max_plastic_curvature;
+  out["weight_per_length"] = d.weight_per_length;
+  out["weight_iterations"] = d.weight_iterations;
+  out["strain"] = {{"max", d.max_strain}, {"s", d.max_strain_s},
+                   {"thickness", o.strain_thickness > 0 ? o.strain_thickness : o.thickness},
+                   {"yield_strain", num_or_null(o.yield_strain)}, {"yield_ratio", num_or_null(d.yield_ratio)}};
   if (o.gravity.enabled) {
     const Vec2 dir = o.gravity.direction / o.gravity.direction.norm();
     out["gravity"] = {{"direction", to_json(dir)}, {"beta_l3", o.gravity.gravito_bending},
@@ -385,10 +407,12 @@ json design_strip_json(const json& request) {
     out["gravity"] = nullptr;
   }
   {  // the clamp (or support) at each end: position and tangent angle of the curve
-    const PlaneCurve pc(curve);
     json ends = json::array();
     for (int e = 0; e < 2; ++e) {
-      const CurvePoint p = pc.at_arc_length(e == 0 ? 0.0 : d.length);
+      const auto dv = curve.derivatives(e == 0 ? curve.first_parameter() : curve.last_parameter());
+      CurvePoint p;
+      p.point = dv[0];
+      p.tangent = dv[1].normalized();
       const StripEnd& be = e == 0 ? o.boundary.start : o.boundary.end;
       ends.push_back({{"which", e == 0 ? "start" : "end"}, {"s", e == 0 ? 0.0 : d.length},
                       {"point", to_json(p.point)},
@@ -497,6 +521,11 @@ json design_strip_json(const json& request) {
                              {"to", r.perforated_to},
                              {"worst_s", r.worst_s},
                              {"message", r.message},
+                             {"max_width_deviation", r.max_width_deviation},
+                             {"max_width_deviation_s", r.max_width_deviation_s},
+                             {"max_stiffness_deviation", r.max_stiffness_deviation},
+                             {"max_stiffness_deviation_s", r.max_stiffness_deviation_s},
+                             {"end_zone_deviation", r.end_zone_deviation},
                              {"diamonds", diamonds}};
     }
   }

@@ -105,7 +105,7 @@ TEST(RodSimulation, LightSculptureUnderDeadLoadMatchesTarget) {
                 " deviation/L with dead-load design %.2e (Newton %d), without %.3f\n",
                 k, curve.length(), weight, heavy.fixed_point_iterations, heavy.fixed_point_history.back(),
                 dev_heavy, it, dev_plain);
-    EXPECT_LT(dev_heavy, 1e-3);
+    EXPECT_LT(dev_heavy, 4e-4);  // measured 2.7e-4, 2.8e-4, 3.5e-4 (the stretching floor)
     EXPECT_GT(dev_plain, 0.05);
   }
 }
@@ -141,7 +141,7 @@ TEST(RodSimulation, PointLoadIsCarried) {
   const double without = deviation(d, curve, 100, no_weight, o.material);
   std::printf("[point load] %d fixed-point iterations, deviation/L with the weight %.2e, without %.3f\n",
               d.fixed_point_iterations, with, without);
-  EXPECT_LT(with, 1e-3);
+  EXPECT_LT(with, 4e-4);  // measured 3.5e-4 / 3.6e-4 (the stretching floor)
   EXPECT_GT(without, 0.02);
 }
 
@@ -258,7 +258,7 @@ TEST(RodSimulation, ExternalLineLoadIsCarried) {
   const double without = deviation(d, curve, 100, calm, o.material);
   std::printf("[line load] %d fixed-point iterations, deviation/L with the line load %.2e, without %.3f\n",
               d.fixed_point_iterations, with, without);
-  EXPECT_LT(with, 1e-3);
+  EXPECT_LT(with, 4e-4);  // measured 3.5e-4 / 3.6e-4 (the stretching floor)
   EXPECT_GT(without, 0.02);
 }
 

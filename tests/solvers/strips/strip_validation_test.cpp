@@ -5,6 +5,9 @@
 // without the gravity term.
 #include <gtest/gtest.h>
 
+#include <map>
+#include <string>
+
 #include <cmath>
 
 #include "strips/strip_validation.h"
@@ -91,8 +94,23 @@ void expect_simulates_back(const Named& c, const StripDesignOptions& o, double b
   EXPECT_LT(prev, bound) << c.name;
 }
 
+// Deviation at 800 edges as measured (2026-11-23); the bounds allow 50 % above it (the
+// figures move with the design's sampling, not with the machine).
+double measured_deviation(const std::string& name, bool gravity) {
+  static const std::map<std::string, std::pair<double, double>> m = {  // without, with gravity
+      {"no inflection (ellipse arc)", {9.3e-7, 9.1e-7}},
+      {"one inflection", {2.2e-7, 6.1e-7}},
+      {"two inflections", {9.3e-7, NAN}},
+      {"three inflections", {5.4e-7, NAN}},
+      {"spiral (1.5 turns)", {2.2e-6, 2.5e-6}},
+      {"two inflections (gravity elastica)", {NAN, 4.9e-6}},
+      {"three inflections (gravity elastica)", {NAN, 1.2e-5}}};
+  const auto& v = m.at(name);
+  return gravity ? v.second : v.first;
+}
+
 TEST(StripValidation, DesignsWithoutGravitySimulateOntoTheirTargets) {
-  for (const auto& c : designs()) expect_simulates_back(c, cardboard(false), 1e-3);
+  for (const auto& c : designs()) expect_simulates_back(c, cardboard(false), 1.5 * measured_deviation(c.name, false));
 }
 
 TEST(StripValidation, DesignsUnderGravitySimulateOntoTheirTargets) {
@@ -112,7 +130,7 @@ TEST(StripValidation, DesignsUnderGravitySimulateOntoTheirTargets) {
       continue;
     }
     ++feasible;
-    expect_simulates_back(c, cardboard(true), 1e-3);
+    expect_simulates_back(c, cardboard(true), 1.5 * measured_deviation(c.name, true));
   }
   EXPECT_EQ(feasible, 5);  // 0, 1 inflections and the spiral; 2 and 3 from the elasticae
 }

@@ -128,7 +128,7 @@ class ExportCutSheetsCommand(object):
 
     def GetResources(self):
         return {
-            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "Pixmap": icon_path("ParaFab_ExportCutSheets.svg"),
             "MenuText": "Export cut sheets",
             "ToolTip": "Write the flat outline of each selected strip (true scale, mm; both "
                        "layers of composite strips, holes of perforated ones; clamp positions "
@@ -161,7 +161,7 @@ class PlotStripProfileCommand(object):
 
     def GetResources(self):
         return {
-            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "Pixmap": icon_path("ParaFab_PlotStripProfile.svg"),
             "MenuText": "Plot strip profile",
             "ToolTip": "Plot the stiffness profile K(s) and the width w(s) of each selected strip "
                        "(a Plot tab per strip)",
@@ -188,7 +188,7 @@ class StripsFromSectionsCommand(object):
 
     def GetResources(self):
         return {
-            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "Pixmap": icon_path("ParaFab_StripsFromSections.svg"),
             "MenuText": "Strips from sections",
             "ToolTip": "Cut the selected surface or solid by 5 planes across its longest side, split every "
                        "section at the middle plane of the shortest side, and design a strip on each piece",
@@ -229,7 +229,7 @@ class RevolutionStripsCommand(object):
 
     def GetResources(self):
         return {
-            "Pixmap": icon_path("ParaFab_Strip.svg"),
+            "Pixmap": icon_path("ParaFab_RevolutionStrips.svg"),
             "MenuText": "Surface of revolution strips",
             "ToolTip": "A surface of revolution whose meridian solves x·κ = a + ⟨b, γ⟩, covered by n "
                        "strips without gaps, with their flat outlines",

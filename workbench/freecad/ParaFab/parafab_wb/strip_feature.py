@@ -58,7 +58,17 @@ PRESETS = {
     "POM 0.5 mm": (2.8e9, 0.5e-3, 1410.0),
     "Plywood 0.8 mm": (8.0e9, 0.8e-3, 600.0),
 }
+#: Yield strain ε_y = σ_y/E of the presets (the bending strain h·κ/2 must stay below it):
+#: cardboard 0.0075 (the thesis saw permanent bending of 200 gsm cardboard below 2 cm radius,
+#: h/(2·0.02 m)); POM ≈ 65 MPa / 2.8 GPa ≈ 0.023; birch plywood ≈ 40 MPa / 8 GPa = 0.005.
+PRESET_YIELD_STRAIN = {
+    "Cardboard 200 gsm": 0.0075,
+    "POM 0.5 mm": 0.023,
+    "Plywood 0.8 mm": 0.005,
+}
 PRESET_NAMES = ["Custom"] + list(PRESETS)
+#: g [m/s²] of the material presets' density; the in-plane part g·cos(tilt) loads the strip.
+STANDARD_GRAVITY = 9.81
 STRIP_TYPES = ["Plain", "Composite", "Perforated"]
 
 # Property status bits (App::PropertyType): read-only in the editor, and
@@ -181,9 +191,17 @@ def build_spec(obj, curve):
     }
     if not hasattr(obj, "Gravity"):  # version-1 object not yet upgraded
         return spec
+    if obj.MaterialPreset in PRESET_YIELD_STRAIN:  # a preset that would yield is refused
+        spec["material"]["yield_strain"] = PRESET_YIELD_STRAIN[obj.MaterialPreset]
+        spec["material"]["name"] = obj.MaterialPreset
     if obj.Gravity:
-        spec["gravity"] = {"direction": gravity_in_plane(obj, curve.frame),
-                           "density": float(obj.Density)}
+        # Only the in-plane component of gravity bends the strip: g·cos(tilt), with the
+        # projection |(x, y)| = cos(tilt) of the unit direction (the solver normalizes the
+        # direction, so the magnitude goes into g).
+        x, y = gravity_in_plane(obj, curve.frame)
+        in_plane = math.hypot(x, y)
+        spec["gravity"] = {"direction": [x / in_plane, y / in_plane],
+                           "density": float(obj.Density), "g": STANDARD_GRAVITY * in_plane}
     if obj.Validate:
         spec["validate"] = True
     if obj.StripType == "Composite":
@@ -195,9 +213,26 @@ def build_spec(obj, curve):
     return spec
 
 
+def needs_recompute(obj):
+    """True when ``obj`` or anything it depends on (the edge's owner, its sketch...) was
+    changed since the last recompute, or is in an error state: its stored result is stale."""
+    for o in [obj] + list(getattr(obj, "OutListRecursive", [])):
+        state = getattr(o, "State", [])
+        if "Touched" in state or "Invalid" in state:
+            return True
+    return bool(getattr(obj, "MustExecute", False))
+
+
 def strip_result(obj, purpose="for this"):
     """The feasible solver result of strip ``obj``: the one of the last recompute, or (in a
-    reopened document) designed anew. Raises :class:`StripError` when there is none."""
+    reopened document) designed anew. A strip whose inputs changed since its last recompute
+    is recomputed first (never a stale result). Raises :class:`StripError` when there is no
+    feasible design."""
+    if needs_recompute(obj):
+        obj.Document.recompute([obj])
+        if needs_recompute(obj) or getattr(obj.Proxy, "result", None) is None:
+            raise StripError("%s has no feasible design %s (recomputed): %s"
+                             % (obj.Label, purpose, obj.Reason or obj.getStatusString()))
     result = getattr(obj.Proxy, "result", None)
     if result is None:  # not designed in this session (e.g. a reopened document)
         owner, edge = _linked_edge(obj)

@@ -1,0 +1,129 @@
+"""End-to-end strip design through Python (issue 13, "Speed"): a curve given as 400 points
+to a designed strip (interpolation, zeros, sampling, LP, outline, JSON), median wall time of
+``parafab.design_strip`` over repeats, beside the solver's own total and LP times.
+
+    /usr/bin/python3 tests/bench/bench_strip_python.py [--quick] [--repeats N] [--out DIR]
+        [--baseline OLD.json]      -> DIR/strip_python.json, DIR/strip_python.png
+
+Curves (400 points each, metres): an ellipse arc (no inflection), a cubic with one
+inflection, and the same ellipse arc under cardboard gravity (the general LP). With
+``--baseline`` (a JSON written by an earlier build), the ratios old / new are reported per
+case (the baseline is a stored run, not the same process).
+"""
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.normpath(os.path.join(HERE, os.pardir, os.pardir))
+sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR") or os.path.join(REPO, "build", "workbench", "entry"))
+import parafab  # noqa: E402
+
+
+def ellipse_points(n=400):
+    return [[0.2 * math.cos(t), 0.12 * math.sin(t)]
+            for t in (0.2 + 2.7 * i / (n - 1) for i in range(n))]
+
+
+def cubic_points(n=400):
+    pts = []
+    for i in range(n):
+        x = -0.135 + 0.27 * i / (n - 1)
+        u = x / 0.15
+        pts.append([x, 0.06 * (u ** 3 - u)])
+    return pts
+
+
+def cases():
+    base = {"material": {"E": 3e9, "thickness": 0.5e-3}, "min_width": 0.01}
+    out = []
+    out.append(("ellipse_400", dict(base, curve={"points": ellipse_points()})))
+    out.append(("one_inflection_400", dict(base, curve={"points": cubic_points()})))
+    out.append(("ellipse_400_gravity", dict(
+        base, curve={"points": ellipse_points()},
+        material={"E": 0.773e9, "thickness": 0.3e-3, "density": 667},
+        gravity={"direction": [0, -1]})))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--repeats", type=int, default=51)
+    ap.add_argument("--out", default=".")
+    ap.add_argument("--baseline")
+    args = ap.parse_args()
+    repeats = 5 if args.quick else args.repeats
+    baseline = {}
+    if args.baseline:
+        with open(args.baseline) as f:
+            baseline = {c["name"]: c for c in json.load(f)["cases"]}
+    rows = []
+    for name, spec in cases():
+        parafab.design_strip(spec)  # warm-up
+        wall, cpu, total, lp = [], [], [], []
+        for _ in range(repeats):
+            t0, c0 = time.perf_counter(), time.process_time()
+            r = parafab.design_strip(spec)
+            wall.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+            total.append(r["diagnostics"]["total_seconds"])
+            lp.append(r["diagnostics"]["lp_seconds"])
+        row = {"name": name, "repeats": repeats, "feasible": r["feasible"], "R": r["R"],
+               "samples": r["diagnostics"]["samples"],
+               "python_ms_median": 1e3 * statistics.median(wall),
+               "python_ms_min": 1e3 * min(wall),
+               "python_cpu_ms_median": 1e3 * statistics.median(cpu),
+               "design_ms_median": 1e3 * statistics.median(total),
+               "lp_ms_median": 1e3 * statistics.median(lp)}
+        old = baseline.get(name)
+        if old:
+            row["baseline_python_ms_median"] = old["python_ms_median"]
+            row["speedup"] = old["python_ms_median"] / row["python_ms_median"]
+            row["baseline_R"] = old["R"]
+        rows.append(row)
+        print("%-22s R = %.6f, %4d samples: python %.2f ms (min %.2f, CPU %.2f), design %.2f ms, LP %.2f ms%s"
+              % (name, r["R"], row["samples"], row["python_ms_median"], row["python_ms_min"],
+                 row["python_cpu_ms_median"],
+                 row["design_ms_median"], row["lp_ms_median"],
+                 "  (baseline %.2f ms: %.1fx)" % (old["python_ms_median"], row["speedup"]) if old else ""))
+    os.makedirs(args.out, exist_ok=True)
+    path = os.path.join(args.out, "strip_python.json")
+    with open(path, "w") as f:
+        json.dump({"benchmark": "strip_python", "cases": rows}, f, indent=2)
+    png = os.path.join(args.out, "strip_python.png")
+    plot(rows, png)
+    print("->", path, png)
+
+
+def plot(rows, png):
+    """Bars per case: Python call, design (C++), LP; the baseline's Python call if given."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(8, 4))
+    x = range(len(rows))
+    keys = [("python_ms_median", "parafab.design_strip (Python)"), ("design_ms_median", "design (C++)"),
+            ("lp_ms_median", "LP")]
+    if all("baseline_python_ms_median" in r for r in rows):
+        keys.insert(0, ("baseline_python_ms_median", "baseline Python call"))
+    width = 0.8 / len(keys)
+    for k, (key, label) in enumerate(keys):
+        ax.bar([i + k * width for i in x], [r[key] for r in rows], width, label=label)
+    ax.axhline(2.0, color="gray", ls="--", label="goal 2 ms")
+    ax.set_xticks([i + 0.4 - width / 2 for i in x])
+    ax.set_xticklabels([r["name"] for r in rows], fontsize=8)
+    ax.set_ylabel("median time [ms]")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+
+
+if __name__ == "__main__":
+    main()
