@@ -490,27 +490,42 @@ DiscreteRodState rod_state(const BSplineCurve2& bspline, const StripDesign& desi
   PARAFAB_VERIFY(design.feasible && !design.samples.empty(),
                  "stability: the design is not feasible (" << design.reason << ")");
   PARAFAB_VERIFY(N >= 4, "stability.edges must be >= 4, got " << N);
-  const PlaneCurve curve(bspline);
-  const double l = curve.length();
+  // Nodes equally spaced in arc length without inverting the arc length per node: a fine
+  // polyline in the parameter (8 points per edge), its cumulative chord length rescaled to
+  // the design's length, and linear interpolation (position error ~ κ (l / 8N)² / 8).
+  const int M = 8 * N;
+  const double u0 = bspline.first_parameter(), u1 = bspline.last_parameter();
+  std::vector<Vec2> fine(M + 1);
+  std::vector<double> cum(M + 1, 0.0);
+  for (int i = 0; i <= M; ++i) {
+    fine[i] = bspline.point(u0 + (u1 - u0) * i / M);
+    if (i > 0) cum[i] = cum[i - 1] + (fine[i] - fine[i - 1]).norm();
+  }
+  const double l = design.length > 0 ? design.length : cum[M];
+  for (double& c : cum) c *= l / cum[M];
   DiscreteRodState s;
   s.length = l;
   std::vector<double> ks, kv;
   for (const auto& q : design.samples) ks.push_back(q.s), kv.push_back(q.K);
   s.stiffness.resize(N + 1);
   std::vector<Vec2> pts(N + 1);
+  size_t i = 0;
   for (int k = 0; k <= N; ++k) {
-    s.stiffness[k] = interpolate(ks, kv, l * k / N);
-    pts[k] = curve.at_arc_length(l * k / N).point;
+    const double sk = l * k / N;
+    s.stiffness[k] = interpolate(ks, kv, sk);
+    while (i + 1 < static_cast<size_t>(M) && cum[i + 1] < sk) ++i;
+    const double t = std::clamp((sk - cum[i]) / std::max(cum[i + 1] - cum[i], 1e-300), 0.0, 1.0);
+    pts[k] = fine[i] + t * (fine[i + 1] - fine[i]);
   }
-  const CurvePoint a = curve.at_arc_length(0), b = curve.at_arc_length(l);
-  double prev = std::atan2(a.tangent.y(), a.tangent.x());
+  const std::array<Vec2, 4> da = bspline.derivatives(u0), db = bspline.derivatives(u1);
+  double prev = std::atan2(da[1].y(), da[1].x());
   s.start_angle = prev;
   s.angles.resize(N);
   for (int j = 0; j < N; ++j) {
     const Vec2 d = pts[j + 1] - pts[j];
     s.angles[j] = prev = unwrap_near(std::atan2(d.y(), d.x()), prev);
   }
-  s.end_angle = unwrap_near(std::atan2(b.tangent.y(), b.tangent.x()), prev);
+  s.end_angle = unwrap_near(std::atan2(db[1].y(), db[1].x()), prev);
   // λ: Eq. 4.4 designs satisfy K κ = a + ⟨b, γ⟩, so (Kκ)′ = ⟨b, γ′⟩ = ⟨λ, Rγ′⟩ and λ = R b;
   // the gravity LP reports the internal force n(l) = −λ.
   s.multiplier = design.general_lp ? Vec2(-design.end_force) : Vec2(-design.b.y(), design.b.x());
