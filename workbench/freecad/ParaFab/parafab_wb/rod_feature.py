@@ -56,8 +56,7 @@ _PROPERTIES = (
      "Design under the rod's own weight (gravity 9.81 m/s^2 along global -Z)", False, 0),
     ("App::PropertyLength", "MaxRadius", "Rod", "Largest mean section radius sqrt(a b)", "5 mm", 0),
     ("App::PropertyFloat", "SectionFactor", "Rod",
-     "t/t*: 1 = the most circular ellipse; > 1 elongates it along the bending axis (more stable; "
-     "the default 4 makes the twist-free helix a stable equilibrium)", 4.0, 0),
+     "t/t*: 1 = the most circular ellipse; > 1 elongates it along the bending axis (more stable)", 1.0, 0),
     ("App::PropertyFloat", "WReg", "Solver", "Regularization weight w_reg of Eq. 5.19b (>= 0)", 0.0, 0),
     ("App::PropertyInteger", "Samples", "Solver", "Samples along the curve (equal arc length)", 200, 0),
     ("App::PropertyBool", "Validate", "Solver",
