@@ -304,6 +304,12 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
   }
   out.end_force = -out.multiplier;
   out.energy = rod.energy(a);
+  out.constraints = rod.nc;
+  if (o.hessian) {
+    Eigen::VectorXd r;
+    rod.residual(z, r, &out.kkt);
+    out.kkt.makeCompressed();
+  }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -8,6 +8,7 @@
 // if the full problem fails from the initial guess.
 #pragma once
 
+#include <Eigen/SparseCore>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,10 @@ struct PlaneRodOptions {
   int max_iterations = 100;      ///< Newton iterations per load step
   double tolerance = 1e-10;      ///< relative on moments (K_max/l) and positions (l)
   int max_load_steps = 256;      ///< continuation: halve the step down to 1/this
+  /// Keep the KKT matrix [H Cᵀ; C 0] at the returned state (H: energy Hessian in the edge
+  /// angles, C: constraint Jacobian) in PlaneRodResult::kkt, for stability tests
+  /// (constrained_inertia in jacobi_stability.h).
+  bool hessian = false;
 };
 
 struct PlaneRodResult {
@@ -61,6 +66,10 @@ struct PlaneRodResult {
   int load_steps = 0;                ///< continuation steps tried (1 without continuation)
   double seconds = 0;
   std::string message;
+  /// With PlaneRodOptions::hessian: the KKT matrix at the returned state, N + constraints
+  /// square, the N edge angles first; `constraints` rows of C (end coordinates held).
+  Eigen::SparseMatrix<double> kkt;
+  int constraints = 0;
 };
 
 /// Throws parafab::Error for invalid input (non-positive stiffness or length, mismatched

@@ -801,3 +801,63 @@ class TestRevolutionStrips(StripTestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+def _elastica_mm(half, amplitude=0.5, P=100.0, steps=4000):
+    """Inflectional elastica (K = const) with ``half`` inflections, in mm (pure-Python RK4:
+    kappa' = -P sin(alpha) from alpha(0) = 0, cut at the half-th zero of alpha)."""
+    k0 = 2 * math.sqrt(P) * math.sin(amplitude / 2)
+
+    def f(q):
+        return (math.cos(q[2]), math.sin(q[2]), q[3], -P * math.sin(q[2]))
+    h = 1e-4
+    q = (0.0, 0.0, 0.0, k0)
+    pts, crossings, i = [(0.0, 0.0)], 0, 0
+    while True:
+        k1 = f(q)
+        k2 = f(tuple(a + h / 2 * b for a, b in zip(q, k1)))
+        k3 = f(tuple(a + h / 2 * b for a, b in zip(q, k2)))
+        k4 = f(tuple(a + h * b for a, b in zip(q, k3)))
+        qn = tuple(a + h / 6 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(q, k1, k2, k3, k4))
+        i += 1
+        if i > 1 and (q[2] > 0) != (qn[2] > 0):
+            crossings += 1
+            if crossings == half:
+                t = q[2] / (q[2] - qn[2])
+                pts.append((1e3 * (q[0] + t * (qn[0] - q[0])), 1e3 * (q[1] + t * (qn[1] - q[1]))))
+                break
+        q = qn
+        if i % 40 == 0:
+            pts.append((1e3 * q[0], 1e3 * q[1]))
+    return _interpolated(pts)
+
+
+class TestStripStability(StripTestCase):
+    """Stability (thesis section 4.5): read-only Stable/Unstable and Sigma, the Z(s) plot."""
+
+    def test_stable_and_unstable_elastica(self):
+        _, stable = self.strip_on("TwoInflections", _elastica_mm(2).toShape())
+        _, unstable = self.strip_on("ThreeInflections", _elastica_mm(3).toShape())
+        self.assert_feasible_strip(stable)
+        self.assert_feasible_strip(unstable)
+        self.assertEqual(stable.Stability, "Stable")
+        self.assertEqual(stable.Sigma.Value, 0.0)
+        self.assertEqual(unstable.Stability, "Unstable")
+        self.assertGreater(unstable.Sigma.Value, 0.5 * unstable.Length.Value)
+        self.assertLess(unstable.Sigma.Value, unstable.Length.Value)
+        for prop in ("Stability", "Sigma"):
+            self.assertIn("ReadOnly", unstable.getTypeOfProperty(prop))
+        # Independent of the Jacobi test: the simulator's constrained Hessian inertia of the
+        # same designs (parafab.strip_stability) gives the same verdicts.
+        for strip, expect in ((stable, True), (unstable, False)):
+            r = parafab.strip_stability(_spec_xy(strip.Edge[0].Shape.Edges[0].Curve))
+            self.assertEqual(r["stability"]["eigenvalue"]["stable"], expect)
+            if not expect:
+                self.assertAlmostEqual(r["stability"]["sigma"] * 1e3, unstable.Sigma.Value,
+                                       delta=2e-3 * unstable.Length.Value)
+        self.tmpdir = tempfile.mkdtemp(prefix="parafab_")
+        path = os.path.join(self.tmpdir, "z.png")
+        self.assertEqual(strip_feature.plot_stability(unstable, path), path)
+        with open(path, "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        self.assertGreater(os.path.getsize(path), 10000)

@@ -152,7 +152,8 @@ class LineComplexLpAgainstScipy(unittest.TestCase):
 
 class HelixThroughJson(unittest.TestCase):
     def test_zero_twist_and_circular_constant_sections(self):
-        r = parafab.design_rod({"curve": {"points": helix_points()}, "max_radius": 0.004, "samples": 300})
+        r = parafab.design_rod({"curve": {"points": helix_points()}, "max_radius": 0.004, "samples": 300,
+                                "section": {"factor": 1.0}})
         self.assertTrue(r["feasible"], r["reason"])
         L = r["length"]
         twist = np.array(r["twist"])
@@ -174,6 +175,32 @@ class HelixThroughJson(unittest.TestCase):
             np.testing.assert_allclose(F @ F.T, np.eye(3), atol=1e-12)
             self.assertAlmostEqual(np.linalg.det(F), 1.0, delta=1e-12)
             np.testing.assert_allclose(end["position"], r["points"][i], atol=0)
+
+    def test_default_section_factor_is_stable_and_the_most_circular_is_not(self):
+        """Stability verdict (Hessian inertia of the discrete rod) against the forward
+        simulation, which leaves an unstable equilibrium: the default design of the helix
+        (section factor 4) is stable and reproduced, the most circular one (1) is not."""
+        for factor in (None, 1.0):
+            req = {"curve": {"points": helix_points()}, "max_radius": 0.004, "validate": True}
+            if factor is not None:
+                req["section"] = {"factor": factor}
+            r = parafab.design_rod(req)
+            st, sim = r["stability"], r["simulation"]
+            print("\n[rod stability] factor %s: stable %s, %d negative, deviation/L %.2e"
+                  % (r["section"]["factor"], st["stable"], st["negative"], sim["deviation"]), file=sys.stderr)
+            self.assertEqual(st["method"], "hessian")
+            self.assertEqual(st["zero"], 0)
+            if factor is None:
+                self.assertEqual(r["section"]["factor"], 4.0)
+                self.assertTrue(st["stable"])
+                self.assertEqual(st["negative"], 0)
+                self.assertLess(sim["deviation"], 1e-4)
+            else:
+                self.assertFalse(st["stable"])
+                self.assertGreater(st["negative"], 0)
+                self.assertGreater(sim["deviation"], 0.01)
+        r = parafab.design_rod({"curve": {"points": helix_points()}, "stability": False})
+        self.assertIsNone(r["stability"])
 
     def test_section_factor_elongates_along_bending_axis(self):
         r = parafab.design_rod({"curve": {"points": helix_points()}, "section": {"factor": 4.0}})

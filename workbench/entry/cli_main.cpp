@@ -15,6 +15,7 @@
 #include "simulate_json.h"
 #include "outline_export.h"
 #include "strip_json.h"
+#include "stability_json.h"
 #include "rod_json.h"
 
 namespace {
@@ -67,6 +68,12 @@ int main(int argc, char** argv) {
   std::string dxf_path, svg_path;
   strip->add_option("--dxf", dxf_path, "Also write the flat outline (cut sheet, mm) as ASCII DXF R12");
   strip->add_option("--svg", svg_path, "Also write the flat outline (cut sheet, mm) as SVG");
+  auto* strip_stability = app.add_subcommand(
+      "strip-stability",
+      "Stability of a designed strip: Jacobi test (conjugate point sigma, Z(s)) and the simulator's "
+      "constrained Hessian inertia, with timings (JSON in, JSON out)");
+  strip_stability->add_option("input", in_path, "Strip request JSON (as for `parafab strip`)")->required();
+  strip_stability->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
   rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
   rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
@@ -136,6 +143,8 @@ int main(int argc, char** argv) {
       if (!svg_path.empty()) parafab::entry::write_strip_outline(result, svg_path);
       return emit(result, out_path);
     }
+    if (*strip_stability)
+      return emit(parafab::entry::strip_stability_json(read_json_file(in_path)), out_path);
     if (*rod) return emit(parafab::entry::design_rod_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {

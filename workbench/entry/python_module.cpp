@@ -11,6 +11,7 @@
 #include "simulate_json.h"
 #include "outline_export.h"
 #include "strip_json.h"
+#include "stability_json.h"
 #include "rod_json.h"
 
 namespace py = pybind11;
@@ -45,6 +46,22 @@ py::object to_python(const nlohmann::json& j) {
 PYBIND11_MODULE(parafab, m) {
   m.doc() = "ParaFab: bending-active strips (thesis ch. 4); rods and X-CAD follow.";
   py::register_exception<parafab::Error>(m, "Error", PyExc_ValueError);
+  m.def(
+      "strip_stability",
+      [](const py::dict& request) {
+        const nlohmann::json in = to_json(request);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::strip_stability_json(in);
+        }
+        return to_python(out);
+      },
+      py::arg("request"),
+      "Stability of a designed strip (thesis 4.5): a strip request as for design_strip; returns "
+      "feasible, R, ... and `stability` {stable, sigma, method, s, Z, eigenvalue {stable, negative, "
+      "min_eigenvalue, ...}, agree, seconds}. Optional request field stability: {edges, "
+      "eigenvalue_check (default true here), simulation_edges}.");
   m.def(
       "design_strip",
       [](const py::dict& request) {

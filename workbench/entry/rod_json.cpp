@@ -5,6 +5,7 @@
 #include "common/error.h"
 #include "rods/bspline_curve3.h"
 #include "rods/rod_design.h"
+#include "rods/rod_stability.h"
 
 #include "json_fields.h"
 
@@ -120,9 +121,15 @@ json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 
 }  // namespace
 
+// Default t/t* of the sections: the most circular ellipse (1) makes the twist-free helix an
+// unstable equilibrium (negative Hessian eigenvalue, thesis §4.5.1 test on the discrete rod);
+// elongating along the bending axis stabilizes it (see tests/python/test_rod_entry.py).
+constexpr double kDefaultSectionFactor = 4.0;
+
 json design_rod_json(const json& request) {
   if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
   RodDesignOptions o;
+  o.geometry.circularity_factor = kDefaultSectionFactor;
   o.material = parse_material(request);
   o.max_radius = optional_number(request, "max_radius", "", o.max_radius, 0, INFINITY, true);
   o.lp.regularization_weight = optional_number(request, "w_reg", "", 0.0, 0, INFINITY, false);
@@ -131,7 +138,7 @@ json design_rod_json(const json& request) {
   if (request.contains("section")) {
     const json& sec = request["section"];
     if (!sec.is_object()) PARAFAB_INPUT_ERROR("section must be a JSON object, got " << sec.type_name());
-    o.geometry.circularity_factor = optional_number(sec, "factor", "section", 1.0, 0, INFINITY, true);
+    o.geometry.circularity_factor = optional_number(sec, "factor", "section", kDefaultSectionFactor, 0, INFINITY, true);
   }
   const int count = optional_int(request, "samples", "", 200, 3, 100000);
   if (request.contains("loads")) {
@@ -156,6 +163,9 @@ json design_rod_json(const json& request) {
   }
   const bool validate = optional_bool(request, "validate", "", false);
   const int edges = optional_int(request, "validate_edges", "", 100, 3, 100000);
+  // Stability (on by default): inertia of the discrete rod's Hessian at the design.
+  const bool stability = optional_bool(request, "stability", "", true);
+  const int stability_edges = optional_int(request, "stability_edges", "", 100, 8, 2000);
 
   const BSplineCurve3 bspline = parse_curve(request);
   const SpaceCurve curve = bspline.space_curve();
@@ -249,6 +259,17 @@ json design_rod_json(const json& request) {
                          {"seconds", r.seconds},       {"message", r.message}};
   } else if (validate) {
     out["simulation"] = nullptr;
+  }
+  if (stability && d.ok()) {
+    const DiscreteRodModel m = discrete_rod_model(d, curve, stability_edges, o.material, o.loads, true);
+    const RodStability st = rod_stability(m);
+    out["stability"] = {{"stable", st.stable},          {"method", st.method},
+                        {"negative", st.negative},      {"zero", st.zero},
+                        {"free_dofs", st.free_dofs},    {"min_eigenvalue", num(st.min_eigenvalue)},
+                        {"min_relative", num(st.min_relative)}, {"edges", stability_edges},
+                        {"seconds", st.seconds},        {"message", st.message}};
+  } else {
+    out["stability"] = nullptr;
   }
   out["diagnostics"] = {{"samples", count},
                         {"lp_seconds", d.lp_seconds},

@@ -11,6 +11,7 @@
 #include "strips/strip_validation.h"
 
 #include "json_fields.h"
+#include "stability_json.h"
 
 namespace parafab::entry {
 
@@ -330,6 +331,8 @@ json design_strip_json(const json& request) {
     if (f != "dual" && f != "primal") PARAFAB_INPUT_ERROR("lp_form must be \"dual\" or \"primal\"");
     o.lp_form = f == "dual" ? LpForm::Dual : LpForm::Primal;
   }
+  StripStabilityOptions stability_options;  // thesis §4.5: on by default (the Jacobi test)
+  const bool stability = parse_stability_options(request, stability_options);
   const BSplineCurve2 curve = parse_curve(request);
   const StripDesign d = design_strip(curve, o);
 
@@ -529,6 +532,9 @@ json design_strip_json(const json& request) {
                              {"diamonds", diamonds}};
     }
   }
+  if (stability)
+    out["stability"] = d.feasible ? stability_to_json(strip_stability(curve, d, o, stability_options), d.length)
+                                  : json(nullptr);
   out["units"] = {{"length", "m"}, {"E", "Pa"}, {"bending_stiffness", "N*m^2"}};
   return out;
 }

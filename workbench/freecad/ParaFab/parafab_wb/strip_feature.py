@@ -47,7 +47,10 @@ TYPE = "ParaFab::Strip"
 #:    plain strip, no validation).
 #: 3: Solids (the flat and the bent strip as solids of the strip's thickness; default True).
 #:    Older documents get Solids = True: their next recompute builds solids.
-VERSION = 3
+#: 4: stability (thesis §4.5): Stability ("Stable" / "Unstable", the Jacobi test) and Sigma
+#:    (first conjugate point, 0 when stable), read-only results; older documents get them
+#:    empty and fill them on the next recompute.
+VERSION = 4
 
 #: Material presets: (E [Pa], thickness [m], density [kg/m³]). 200 gsm cardboard: h = 0.3 mm,
 #: 200 g/m² → ρ = 667 kg/m³, and E = 0.773 GPa, the modulus for which βl³ = E h²/(12 ρ g)
@@ -130,6 +133,13 @@ _PROPERTIES = (
     ("App::PropertyBool", "Solids", "Strip",
      "Build the flat and the bent strip as solids of the strip's thickness (False: surfaces)",
      True, 0),
+    # ---- version 4
+    ("App::PropertyString", "Stability", "Results",
+     "Stable or Unstable: the Jacobi test of the designed strip (thesis section 4.5, "
+     "conjugate points of Eq. 4.7); empty when not computed", "", _READ_ONLY | _OUTPUT),
+    ("App::PropertyLength", "Sigma", "Results",
+     "First conjugate point (arc length from the start) of an unstable strip; 0 when stable",
+     "0 mm", _READ_ONLY | _OUTPUT),
 )
 _ENUMERATIONS = {"MaterialPreset": PRESET_NAMES, "StripType": STRIP_TYPES}
 #: Inputs whose manual change turns a preset into "Custom".
@@ -308,6 +318,43 @@ def plot_profile(obj, png_path=None, show=None):
     return png_path
 
 
+def draw_stability(fig, result, title=""):
+    """Draw the normalized stability determinant Z(s) of a feasible result (thesis Fig. 4.9)
+    into the matplotlib Figure ``fig``, with the conjugate point sigma marked when unstable."""
+    st = result.get("stability")
+    if not st:
+        raise StripError("the result has no stability field")
+    s = [x * shapes.M_TO_MM for x in st["s"]]
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(s, st["Z"], color="tab:green" if st["stable"] else "tab:red")
+    ax.axhline(0.0, color="gray", lw=0.8)
+    if st.get("sigma") is not None:
+        ax.axvline(st["sigma"] * shapes.M_TO_MM, color="tab:orange", ls="--",
+                   label="sigma = %.1f mm" % (st["sigma"] * shapes.M_TO_MM))
+        ax.legend(fontsize=8, loc="best")
+    ax.set_xlabel("s [mm]")
+    ax.set_ylabel("Z(s) (normalized)")
+    ax.set_title("%s  %s (Jacobi test, %d constraint(s))"
+                 % (title, "stable" if st["stable"] else "unstable", st.get("constraints", 2)),
+                 fontsize=10)
+    ax.grid(True, alpha=0.3)
+    return ax
+
+
+def plot_stability(obj, png_path):
+    """Z(s) of strip ``obj`` written to ``png_path`` (headless, matplotlib's Agg canvas).
+    Returns ``png_path``. Raises :class:`StripError` when the strip has no feasible design."""
+    result = strip_result(obj, "to plot")
+    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    fig = Figure(figsize=(8, 4))
+    FigureCanvasAgg(fig)
+    draw_stability(fig, result, obj.Label)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=100)
+    return png_path
+
+
 def export_cut_sheets(obj, directory):
     """Write ``<Label>.dxf`` and ``<Label>.svg`` (flat outline at true scale, mm) of strip
     ``obj`` into ``directory``; returns the two paths. Raises :class:`StripError` when the
@@ -382,6 +429,9 @@ class StripFeature(feature_proxy.FeatureProxy):
             obj.Deviation = 0.0
             obj.RFirst = 0.0
             obj.TypeMessage = ""
+        if hasattr(obj, "Stability"):
+            obj.Stability = ""
+            obj.Sigma = 0.0
         try:
             self._design(obj)
         except Exception as exc:
@@ -409,6 +459,10 @@ class StripFeature(feature_proxy.FeatureProxy):
         obj.Feasible = True
         obj.Reason = ""
         self.result = result
+        stability = result.get("stability")
+        if stability and hasattr(obj, "Stability"):
+            obj.Stability = "Stable" if stability["stable"] else "Unstable"
+            obj.Sigma = _number(stability.get("sigma")) * shapes.M_TO_MM
         if not hasattr(obj, "Deviation"):
             return
         obj.RFirst = _number(result.get("R_first")) if result.get("general_lp") else 0.0

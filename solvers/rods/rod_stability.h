@@ -1,0 +1,36 @@
+// Stability of designed Kirchhoff rods (thesis §4.5.1 eigenvalue condition applied to the
+// discrete elastic rod of §5.7.4 / Bergou et al. 2008): the inertia of the exact energy
+// Hessian on the free degrees of freedom (the clamps fix nodes 0, 1, N−1, N and the first and
+// last material angle, so the constraint tangent space is the coordinate subspace of the
+// free DOFs) at the designed state. A negative eigenvalue means a perturbation that lowers
+// the energy: the design is an unstable equilibrium.
+#pragma once
+
+#include <string>
+
+#include "rods/discrete_elastic_rod.h"
+
+namespace parafab {
+
+struct RodStabilityOptions {
+  /// |μ| ≤ zero_tolerance · max|μ| counts as zero (no verdict from second order).
+  double zero_tolerance = 1e-12;
+};
+
+struct RodStability {
+  bool stable = false;         ///< no negative and no zero eigenvalue
+  int negative = 0, zero = 0, positive = 0;
+  int free_dofs = 0;
+  double min_eigenvalue = NAN;  ///< smallest eigenvalue of the free Hessian [J per DOF unit²]
+  /// min eigenvalue / max diagonal entry of the free Hessian (dimensionless indicator)
+  double min_relative = NAN;
+  double seconds = 0;
+  std::string method = "hessian";
+  std::string message;
+};
+
+/// The Hessian at the model's state (its `nodes` and `material_normal`, e.g. the design's
+/// target). Throws parafab::Error for an invalid model.
+RodStability rod_stability(const DiscreteRodModel& model, const RodStabilityOptions& options = {});
+
+}  // namespace parafab

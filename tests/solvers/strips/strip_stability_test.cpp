@@ -1,0 +1,303 @@
+// Stability of strips (thesis §4.5.2 Jacobi test with the isoperimetric matrix Z, §4.6.1
+// discretization, Appendix A.3 adjoint): closed forms for straight columns (Euler), the
+// constrained Hessian inertia of the simulator, release by an energy-decreasing solver, and
+// finite differences of σ.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "common/error.h"
+#include "strips/jacobi_stability.h"
+#include "strips/plane_rod_release.h"
+#include "strips/strip_validation.h"
+#include "strip_stability_curves.h"
+
+namespace parafab {
+namespace {
+
+// Straight rod along x, K ≡ 1, axial multiplier λ_x (compression for λ_x > 0).
+DiscreteRodState straight_rod(double lambda_x, int N = 800) {
+  DiscreteRodState s;
+  s.length = 1;
+  s.stiffness.assign(N + 1, 1.0);
+  s.angles.assign(N, 0.0);
+  s.multiplier = Vec2(lambda_x, 0);
+  return s;
+}
+
+// Euler column (closed form): a straight clamped rod, K ≡ 1, l = 1, compressed by λ_x. The
+// constraint δy(l) = ∫δα = 0 is the only one to first order (T_x = −sin α ≡ 0), and the
+// isoperimetric Jacobi equation −ζ″ − λ_x ζ = 0 on [0, s] with ∫ζ = 0 has its first
+// conjugate point at √λ_x s = 2π (the clamped–clamped buckling load 4π²K/s²).
+TEST(StripStability, EulerColumnClampedConjugatePointIsTwoPiOverRootLambda) {
+  for (double sigma0 : {0.5, 0.8}) {
+    const JacobiResult r = jacobi_stability(straight_rod(std::pow(2 * M_PI / sigma0, 2)));
+    std::printf("[euler clamped] sigma exact %.4f, Jacobi %.8f (error %.2e), p = %d\n", sigma0, r.sigma,
+                r.sigma - sigma0, r.constraints);
+    EXPECT_FALSE(r.stable);
+    EXPECT_EQ(r.constraints, 1);
+    EXPECT_NEAR(r.sigma, sigma0, 6e-6);  // O(h²): 5.1e-6 (σ = 0.5), 3.2e-6 (0.8) at 800 edges
+  }
+  // Below the critical load 4π²: no conjugate point in (0, l].
+  const JacobiResult st = jacobi_stability(straight_rod(0.95 * 4 * M_PI * M_PI));
+  EXPECT_TRUE(st.stable) << st.message;
+  EXPECT_TRUE(std::isnan(st.sigma));
+  EXPECT_GT(st.Z_end, 0);
+  const JacobiResult un = jacobi_stability(straight_rod(1.05 * 4 * M_PI * M_PI));
+  EXPECT_FALSE(un.stable);
+  EXPECT_NEAR(un.sigma, 1 / std::sqrt(1.05), 4e-6);
+}
+
+// Pinned–pinned column (both end angles free): the natural end condition decides; the
+// verdict flips at the Euler load π²K/l².
+TEST(StripStability, EulerColumnPinnedFlipsAtPiSquared) {
+  for (double f : {0.98, 1.02}) {
+    DiscreteRodState s = straight_rod(f * M_PI * M_PI);
+    s.boundary.start.free_angle = s.boundary.end.free_angle = true;
+    const JacobiResult r = jacobi_stability(s);
+    std::printf("[euler pinned] lambda = %.2f pi^2: %s, sigma %.6f, Z(l) %.3g\n", f, r.stable ? "stable" : "unstable",
+                r.sigma, r.Z_end);
+    EXPECT_EQ(r.stable, f < 1);
+    if (f > 1) EXPECT_DOUBLE_EQ(r.sigma, 1.0);
+  }
+}
+
+// The Jacobi verdict of every design (all test curves, gravity, each boundary variant,
+// natural curvature, a hardening law) against the constrained eigenvalue test: the energy
+// Hessian of the simulated equilibrium projected onto the tangent space of the end-point
+// constraints. Also the Jacobi test on exactly the simulated equilibrium.
+TEST(StripStability, JacobiVerdictAgreesWithConstrainedHessianInertia) {
+  int stable = 0, unstable = 0, variants = 0;
+  for (const auto& c : test::stability_curves()) {
+    const StripDesign d = design_strip(c.curve, c.options);
+    ASSERT_TRUE(d.feasible) << c.name << ": " << d.reason;
+    StripStabilityOptions so;
+    so.eigenvalue_check = true;
+    const StripStability st = strip_stability(c.curve, d, c.options, so);
+    std::printf("[stability] %-38s R %6.3g  Jacobi %-8s sigma/l %-9.5g | Hessian: %d negative, min %.3g | "
+                "Jacobi on the simulation %-8s sigma/l %.5g\n",
+                c.name.c_str(), d.R, st.stable ? "stable" : "UNSTABLE", st.sigma / d.length, st.inertia.negative,
+                st.inertia.min_eigenvalue, st.jacobi_on_simulation.stable ? "stable" : "UNSTABLE",
+                st.jacobi_on_simulation.sigma / d.length);
+    ASSERT_TRUE(st.simulation_converged) << c.name << ": " << st.message;
+    EXPECT_TRUE(st.agree) << c.name;
+    EXPECT_EQ(st.jacobi_on_simulation.stable, st.inertia.stable) << c.name;
+    EXPECT_EQ(st.inertia.zero, 0) << c.name;
+    EXPECT_TRUE(st.jacobi.legendre) << c.name;
+    if (st.stable) {
+      ++stable;
+      EXPECT_TRUE(std::isnan(st.sigma)) << c.name;
+      EXPECT_GT(st.jacobi.min_Z, -1e-9) << c.name;
+    } else {
+      ++unstable;
+      EXPECT_GT(st.sigma, 0) << c.name;
+      EXPECT_LE(st.sigma, d.length) << c.name;
+      // Both discretizations place σ alike (design sampled at 800 edges, simulation at 400).
+      EXPECT_NEAR(st.jacobi_on_simulation.sigma, st.sigma, 3e-5 * d.length) << c.name;
+    }
+    if (!c.options.boundary.kinematic() || c.options.gravity.enabled) ++variants;
+  }
+  EXPECT_GE(unstable, 4);
+  EXPECT_GE(stable, 10);
+  EXPECT_GE(variants, 6);
+}
+
+}  // namespace
+}  // namespace parafab
+
+namespace parafab {
+namespace {
+
+// The simulator problem of a design, as validate_strip builds it (target chord angles as the
+// initial state), with `edges` edges.
+PlaneRodProblem rod_problem(const BSplineCurve2& bspline, const StripDesign& d, const StripDesignOptions& o,
+                            int N, std::vector<Vec2>* target) {
+  const PlaneCurve curve(bspline);
+  const double l = curve.length();
+  PlaneRodProblem p;
+  p.length = l;
+  for (const auto& s : d.samples) p.stiffness_s.push_back(s.s), p.stiffness.push_back(s.K);
+  const CurvePoint a = curve.at_arc_length(0), b = curve.at_arc_length(l);
+  p.start_point = a.point;
+  p.end_point = b.point;
+  p.boundary = o.boundary;
+  p.load = o.gravity.load();
+  p.law = o.law;
+  p.natural_curvature = o.natural_curvature;
+  target->resize(N + 1);
+  for (int k = 0; k <= N; ++k) (*target)[k] = curve.at_arc_length(l * k / N).point;
+  double prev = std::atan2(a.tangent.y(), a.tangent.x());
+  p.start_angle = prev;
+  p.initial_angles.resize(N);
+  for (int j = 0; j < N; ++j) {
+    const Vec2 dd = (*target)[j + 1] - (*target)[j];
+    double ang = std::atan2(dd.y(), dd.x());
+    ang += 2 * M_PI * std::round((prev - ang) / (2 * M_PI));
+    p.initial_angles[j] = prev = ang;
+  }
+  double end = std::atan2(b.tangent.y(), b.tangent.x());
+  p.end_angle = end + 2 * M_PI * std::round((prev - end) / (2 * M_PI));
+  return p;
+}
+
+}  // namespace
+}  // namespace parafab
+
+namespace parafab {
+namespace {
+
+double max_deviation(const std::vector<Vec2>& a, const std::vector<Vec2>& b) {
+  double m = 0;
+  for (size_t k = 0; k < a.size(); ++k) m = std::max(m, (a[k] - b[k]).norm());
+  return m;
+}
+
+// The simulator's own proof (thesis §4.5: unstable = a saddle of the energy): each design is
+// perturbed by 0.01 rad in its edge angles and released by an energy-decreasing solver
+// (Newton with Hessian modification and an Armijo line search on the energy, the end point
+// held by a stiff penalty). Stable designs return to the target; unstable ones leave it for a
+// state of lower energy than their equilibrium.
+TEST(StripStability, ReleasedByEnergyDescentUnstableDesignsLeaveAndStableOnesReturn) {
+  const int N = 200;
+  int left = 0, returned = 0;
+  for (const auto& c : test::stability_curves()) {
+    const StripDesign d = design_strip(c.curve, c.options);
+    ASSERT_TRUE(d.feasible) << c.name;
+    const StripStability st = strip_stability(c.curve, d, c.options);
+    std::vector<Vec2> target;
+    PlaneRodProblem p = rod_problem(c.curve, d, c.options, N, &target);
+    const PlaneRodResult eq = simulate_plane_rod(p, PlaneRodOptions{N});
+    ASSERT_TRUE(eq.converged) << c.name << ": " << eq.message;
+    for (int j = 0; j < N; ++j) {
+      const double s = (j + 0.5) / N;
+      p.initial_angles[j] = eq.edge_angles[j] + 0.01 * (std::sin(3 * M_PI * s) + 0.5 * std::sin(7 * M_PI * s + 1));
+    }
+    const PlaneRodReleaseResult r = release_plane_rod(p, PlaneRodReleaseOptions{N});
+    const double dev = max_deviation(r.nodes, target) / d.length;
+    const double dev_eq = max_deviation(eq.nodes, target) / d.length;
+    std::printf("[release] %-38s %-8s released: deviation/l %.3g (equilibrium %.3g), energy %.6g vs %.6g, "
+                "%d iterations, %d with Hessian shift, end point error %.2g m\n",
+                c.name.c_str(), st.stable ? "stable" : "UNSTABLE", dev, dev_eq, r.energy, eq.energy, r.iterations,
+                r.hessian_shifts, r.end_point_error);
+    EXPECT_TRUE(r.converged) << c.name << ": " << r.message;
+    EXPECT_TRUE(r.monotone) << c.name;
+    EXPECT_LT(r.energy, r.initial_energy) << c.name;
+    EXPECT_LT(r.end_point_error, 1e-4 * d.length) << c.name;
+    if (st.stable) {
+      ++returned;
+      const double back = max_deviation(r.nodes, eq.nodes) / d.length;
+      std::printf("          returned to the equilibrium within %.2e of the length\n", back);
+      EXPECT_LT(back, 1e-4) << c.name;
+    } else {
+      ++left;
+      EXPECT_GT(dev, 0.05) << c.name;
+      EXPECT_GT(r.hessian_shifts, 0) << c.name;
+      EXPECT_LT(r.energy, eq.energy - 1e-3 * std::abs(eq.energy)) << c.name;
+    }
+  }
+  EXPECT_GE(left, 4);
+  EXPECT_GE(returned, 10);
+}
+
+// δσ/δK by the adjoint of A.3 (discrete: reverse sweep of the Jacobi recurrence, then one KKT
+// solve for the equilibrium's response) against central differences: K is perturbed along a
+// smooth δK, the simulator re-solves the equilibrium (tolerance 1e-14) and the Jacobi test
+// gives σ. Also the partial derivatives in α, λ, K at fixed state.
+TEST(StripStability, ConjugatePointDerivativeMatchesFiniteDifferences) {
+  const int N = 200;
+  const BSplineCurve2 curve = test::elastica(100, 0.5, 3);
+  const StripDesign d = design_strip(curve, StripDesignOptions{});
+  ASSERT_TRUE(d.feasible);
+  for (const Vec2 load : {Vec2(0, 0), Vec2(3, -20)}) {
+    std::vector<Vec2> target;
+    PlaneRodProblem p = rod_problem(curve, d, StripDesignOptions{}, N, &target);
+    p.load = load;
+    p.stiffness_s.clear();
+    p.stiffness.clear();
+    for (int k = 0; k <= N; ++k) {
+      const double s = d.length * k / N;
+      p.stiffness_s.push_back(s);
+      p.stiffness.push_back(1.0 + 0.3 * std::sin(2 * M_PI * s / d.length) * std::sin(2 * M_PI * s / d.length));
+    }
+    PlaneRodOptions po{N};
+    po.tolerance = 1e-14;
+    const PlaneRodResult r0 = simulate_plane_rod(p, po);
+    ASSERT_TRUE(r0.converged) << r0.message;
+    const DiscreteRodState s0 = rod_state(p, r0);
+    const ConjugatePointSensitivity sens = conjugate_point_sensitivity(s0);
+    ASSERT_TRUE(sens.defined) << sens.message;
+    EXPECT_LT(sens.equilibrium_residual, 1e-11);
+    auto sigma_of = [](const DiscreteRodState& s) {
+      const JacobiResult j = jacobi_stability(s);
+      return std::make_pair(j.sigma, j.conjugate_index);
+    };
+    const int m0 = sigma_of(s0).second;
+    // Partial derivatives at fixed state.
+    const double h = 1e-6;
+    for (int j : {N / 7, N / 2, (5 * N) / 6}) {
+      DiscreteRodState a = s0, b = s0;
+      a.angles[j] += h, b.angles[j] -= h;
+      const double fd = (sigma_of(a).first - sigma_of(b).first) / (2 * h);
+      EXPECT_NEAR(sens.dsigma_dangles[j], fd, 1e-6 * std::abs(fd) + 1e-9) << "alpha_" << j;
+      a = s0, b = s0;
+      a.stiffness[j] += h, b.stiffness[j] -= h;
+      const double fk = (sigma_of(a).first - sigma_of(b).first) / (2 * h);
+      EXPECT_NEAR(sens.dsigma_dK_partial[j], fk, 1e-6 * std::abs(fk) + 1e-9) << "K_" << j;
+    }
+    for (int c = 0; c < 2; ++c) {
+      DiscreteRodState a = s0, b = s0;
+      a.multiplier(c) += h, b.multiplier(c) -= h;
+      const double fd = (sigma_of(a).first - sigma_of(b).first) / (2 * h);
+      EXPECT_NEAR(sens.dsigma_dmultiplier(c), fd, 1e-6 * std::abs(fd) + 1e-9) << "lambda_" << c;
+    }
+    // Total derivative along δK through the equilibrium.
+    std::vector<double> dK(N + 1);
+    double adj = 0;
+    for (int k = 0; k <= N; ++k) {
+      dK[k] = 0.2 * std::sin(3 * M_PI * k / N + 0.4);
+      adj += sens.dsigma_dK[k] * dK[k];
+    }
+    const double eps = 1e-4;
+    double sig[2];
+    for (int q = 0; q < 2; ++q) {
+      PlaneRodProblem pq = p;
+      for (int k = 0; k <= N; ++k) pq.stiffness[k] += (q == 0 ? eps : -eps) * dK[k];
+      pq.initial_angles = r0.edge_angles;
+      const PlaneRodResult rq = simulate_plane_rod(pq, po);
+      ASSERT_TRUE(rq.converged) << rq.message;
+      const auto sm = sigma_of(rod_state(pq, rq));
+      ASSERT_EQ(sm.second, m0) << "the conjugate point changed cells: pick a smaller eps";
+      sig[q] = sm.first;
+    }
+    const double fd = (sig[0] - sig[1]) / (2 * eps);
+    std::printf("[adjoint] load (%g, %g): sigma %.6f, d sigma along dK: adjoint %.10g, finite differences %.10g "
+                "(relative %.2e), residual %.1e\n",
+                load.x(), load.y(), sens.sigma, adj, fd, std::abs(adj - fd) / std::abs(fd), sens.equilibrium_residual);
+    EXPECT_NEAR(adj, fd, 1e-6 * std::abs(fd));
+  }
+}
+
+TEST(StripStability, InvalidStatesThrowNamingTheInput) {
+  DiscreteRodState s = straight_rod(1.0, 10);
+  s.stiffness[3] = -1;
+  try {
+    jacobi_stability(s);
+    FAIL() << "negative stiffness accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("stiffness[3]"), std::string::npos) << e.what();
+  }
+  s = straight_rod(1.0, 10);
+  s.stiffness.pop_back();
+  EXPECT_THROW(jacobi_stability(s), Error);
+  StripDesign bad;  // infeasible: no stiffness to test
+  bad.reason = "no line";
+  try {
+    strip_stability(test::ellipse_arc(), bad, StripDesignOptions{});
+    FAIL() << "an infeasible design accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not feasible"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace parafab
