@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <cmath>
 #include <sstream>
 
@@ -226,15 +227,42 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     res.converged = true;
     res.status = "target";
   }
-  double h = o.initial_step * l;
+  // Quasi-Newton in the tangent space: L-BFGS on the projected gradients of accepted steps
+  // (pairs s = Δq, y = ΔP∇F), the direction projected onto T_qM; steepest descent of length
+  // initial_step·l whenever the memory is empty or gives no descent direction.
+  std::vector<Eigen::VectorXd> S, Y;
+  const int memory = std::max(0, o.memory);
+  double t = 1.0;  // step multiplier on the current direction
+  Eigen::VectorXd g = cons.project_to_tangent(curve, gF);
+  Eigen::VectorXd dir;
+  bool new_direction = true;
   int accepted = 0;
   for (int it = 1; res.status.empty(); ++it) {
     if (accepted >= o.max_iterations) { res.status = "max_iterations"; break; }
     if (o.max_seconds > 0 && since(t0) > o.max_seconds) { res.status = "time"; break; }
-    const Eigen::VectorXd g = cons.project_to_tangent(curve, gF);
-    const double gn = g.norm();
-    if (!(gn > 0)) { res.status = "stationary"; res.converged = true; break; }
-    Eigen::VectorXd dq = -h * g / gn;
+    if (new_direction) {
+      const double gn = g.norm();
+      if (!(gn > 0)) { res.status = "stationary"; res.converged = true; break; }
+      dir = -g;
+      bool quasi = !S.empty();
+      if (quasi) {  // two-loop recursion
+        std::vector<double> alpha(S.size());
+        for (int k = static_cast<int>(S.size()) - 1; k >= 0; --k) {
+          alpha[k] = S[k].dot(dir) / Y[k].dot(S[k]);
+          dir -= alpha[k] * Y[k];
+        }
+        dir *= S.back().dot(Y.back()) / Y.back().squaredNorm();
+        for (size_t k = 0; k < S.size(); ++k) dir += (alpha[k] - Y[k].dot(dir) / Y[k].dot(S[k])) * S[k];
+        dir = cons.project_to_tangent(curve, dir);
+        if (!(dir.dot(g) < -1e-12 * dir.norm() * gn)) quasi = false, S.clear(), Y.clear(), dir = -g;
+      }
+      if (!quasi) dir *= o.initial_step * l / gn;
+      const double cap = o.max_step * l;
+      if (dir.norm() > cap) dir *= cap / dir.norm();
+      t = 1.0;
+      new_direction = false;
+    }
+    Eigen::VectorXd dq = t * dir;
     if (bounded && Rp.valid) {
       const Eigen::VectorXd gR = cons.project_to_tangent(curve, Rp.gradient);
       const Eigen::VectorXd full = dq;
@@ -253,23 +281,29 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     double ft = NAN;
     Eigen::VectorXd gt;
     PNormRatio Rt;
-    if (ok) {
+    if (ok) {  // without the bound K may change sign: the failure mode the bound prevents
       Rt = pnorm_ratio(trial, tc.a(), tc.b(), su, o.p, l);
-      ok = Rt.valid;
+      ok = Rt.valid || !bounded;
+      if (!ok) res.last_rejection = "K changes sign on the samples (the line meets the curve)";
     }
     if (ok) {
       ft = F(trial, tc, &gt);
       ok = std::isfinite(ft) && ft < f - 1e-4 * std::abs(gF.dot(dq));
       if (!ok) res.last_rejection = "no sufficient decrease of F";
       if (ok && bounded) {
-        ok = Rp.valid && Rt.value <= std::max(o.R_max, Rp.value) * (1 + 1e-3);
+        ok = Rp.valid && Rt.valid && Rt.value <= std::max(o.R_max, Rp.value) * (1 + 1e-3);
         if (!ok) res.last_rejection = "R_p exceeds R_max after the step";
       }
     }
     if (!ok) {
       ++res.rejected_steps;
-      h *= 0.5;
-      if (h < o.min_step * l) {
+      t *= 0.5;
+      if (t * dir.norm() < o.min_step * l) {
+        if (!S.empty()) {  // retry from steepest descent before giving up
+          S.clear(), Y.clear();
+          new_direction = true;
+          continue;
+        }
         // No admissible step left. Stationary if the objective cannot decrease; stalled at
         // the edge of the equilibrium manifold if the constraints or the inflection count
         // block every step (the failure mode the R_max bound prevents, §4.5.4).
@@ -281,24 +315,37 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
       }
       continue;
     }
+    const Eigen::VectorXd q_old = poles_vector(curve), g_old = g;
     curve = trial;
     cons = tc;
+    ++accepted;
     f = ft;
     gF = gt;
     Rp = Rt;
-    ++accepted;
-    h *= 1.6;
     PoleDescentIteration* rec = record(accepted, dq.norm());
-    if (o.on_accept && o.on_accept(curve, cons, *rec)) {
+    const double a_before = cons.a();
+    const Vec2 b_before = cons.b();
+    const bool stop = o.on_accept && o.on_accept(curve, cons, *rec);
+    // The hook may have moved the line (global step): refresh F, and drop the memory, which
+    // belongs to the old objective.
+    const bool line_moved = cons.a() != a_before || cons.b() != b_before;
+    f = F(curve, cons, &gF);
+    Rp = pnorm_ratio(curve, cons.a(), cons.b(), su, o.p, l);
+    g = cons.project_to_tangent(curve, gF);
+    if (stop) {
       res.converged = true;
       res.status = "target";
-      // The hook may have moved the line: refresh F.
-      f = F(curve, cons, &gF);
-      Rp = pnorm_ratio(curve, cons.a(), cons.b(), su, o.p, l);
       break;
     }
-    f = F(curve, cons, &gF);  // the hook may have moved the line
-    Rp = pnorm_ratio(curve, cons.a(), cons.b(), su, o.p, l);
+    if (line_moved) S.clear(), Y.clear();
+    else if (memory > 0) {
+      const Eigen::VectorXd sk = poles_vector(curve) - q_old, yk = g - g_old;
+      if (sk.dot(yk) > 1e-12 * sk.norm() * yk.norm()) {
+        S.push_back(sk), Y.push_back(yk);
+        if (static_cast<int>(S.size()) > memory) S.erase(S.begin()), Y.erase(Y.begin());
+      }
+    }
+    new_direction = true;
   }
   res.curve = curve;
   res.a = cons.a();
@@ -361,6 +408,9 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
   }
   StripDesignOptions plain = o.design;
   plain.gravity = StripGravity{};
+  // R as the target test sees it: the certified upper bound (the ratio of the LP's line on the
+  // continuous curve), so that any finer design of the result stays ≤ target.
+  auto upper = [](const StripDesign& d) { return std::isfinite(d.R_continuous) ? d.R_continuous : d.R; };
   const StripDesign d0 = design_strip(curve, plain);
   if (!d0.feasible)
     PARAFAB_INPUT_ERROR("curve: not an equilibrium curve, so there is no R to lower (" << d0.reason_code << ": "
@@ -368,7 +418,8 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
   res.R_initial = d0.R;
   const double l = d0.length;
   std::vector<double> infl = inflection_parameters(curve);
-  if (d0.R <= o.target_R) {
+  std::optional<StripDesign> last;  // the plain design of the current result, when known
+  if (upper(d0) <= o.target_R) {
     res.done = true;
     res.status = "already";
     res.curve = curve;
@@ -419,21 +470,24 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
       res.status = dr.status;
       res.message = dr.message.empty() ? dr.last_rejection : dr.message;
       current = dr.curve;
+      last.reset();
       if (dr.status != "target") break;
-      const StripDesign dc = design_strip(current, plain);
-      if (!dc.feasible || dc.R <= o.target_R * (1 + 1e-9)) break;
-      sample_target *= o.target_R / dc.R * 0.999;
+      last = design_strip(current, plain);
+      if (!last->feasible || upper(*last) <= o.target_R) break;
+      sample_target *= o.target_R / upper(*last) * 0.999;
       target_now = sample_target;
     }
     res.curve = current;
   }
   // Final figures: the certified design of the result, and the requested design (gravity:
   // LP Eq. 4.6 afterwards, §4.6.2).
-  const StripDesign d1 = design_strip(res.curve, plain);
+  const StripDesign d1 = last ? *last : (res.status == "already" ? d0 : design_strip(res.curve, plain));
   res.R = d1.feasible ? d1.R : NAN;
-  res.done = d1.feasible && d1.R <= o.target_R * (1 + 1e-6);
+  res.R_upper = d1.feasible ? upper(d1) : NAN;
+  res.done = d1.feasible && res.R_upper <= o.target_R;
   if (!res.done && res.status == "target") res.status = "target_on_samples";
-  res.design = design_strip(res.curve, o.design);
+  const bool same = !o.design.gravity.enabled;  // plain == o.design then
+  res.design = same ? d1 : design_strip(res.curve, o.design);
   if (o.design.gravity.enabled && res.design.feasible) res.R_gravity = res.design.R;
   res.inflections = static_cast<int>(inflection_parameters(res.curve).size());
   {

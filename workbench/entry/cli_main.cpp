@@ -15,6 +15,7 @@
 #include "simulate_json.h"
 #include "outline_export.h"
 #include "strip_json.h"
+#include "strip_improve_json.h"
 #include "rod_json.h"
 
 namespace {
@@ -67,6 +68,12 @@ int main(int argc, char** argv) {
   std::string dxf_path, svg_path;
   strip->add_option("--dxf", dxf_path, "Also write the flat outline (cut sheet, mm) as ASCII DXF R12");
   strip->add_option("--svg", svg_path, "Also write the flat outline (cut sheet, mm) as SVG");
+  double target_R = 0;
+  auto* improve = app.add_subcommand(
+      "strip-improve", "Lower the stiffness ratio R of a strip curve by moving its control points (thesis §4.6.2; JSON)");
+  improve->add_option("input", in_path, "Strip request JSON, optionally with \"improve\": {...} (see README)")->required();
+  improve->add_option("--target-R", target_R, "Target stiffness ratio (overrides improve.target_R; default 3.5)");
+  improve->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
   rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
   rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
@@ -128,6 +135,7 @@ int main(int argc, char** argv) {
       if (!svg_path.empty()) parafab::entry::write_strip_outline(result, svg_path);
       return emit(result, out_path);
     }
+    if (*improve) return emit(parafab::entry::improve_strip_json(read_json_file(in_path), target_R), out_path);
     if (*rod) return emit(parafab::entry::design_rod_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {

@@ -333,7 +333,7 @@ TEST(Fabricability, LowersRToTheTargetWithSmallShapeChange) {
     std::cout << "R " << d0.R << " -> " << r.R << " (target " << o.target_R << ") in " << r.history.size() - 1
               << " steps, " << r.seconds << " s, deviation " << r.deviation_relative << " l, status " << r.status << "\n";
     EXPECT_TRUE(r.done) << r.status << " " << r.message;
-    EXPECT_NEAR(r.R_initial, d0.R, 1e-9 * d0.R);
+    EXPECT_NEAR(r.R_initial, d0.R, 1e-3 * d0.R);  // certified to 1e-3 (StripImproveOptions::design)
     // Independent: the strip solver's certified R of the new curve.
     const StripDesign d1 = design_strip(r.curve);
     ASSERT_TRUE(d1.feasible);
