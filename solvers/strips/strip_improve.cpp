@@ -1,5 +1,6 @@
 #include "strips/strip_improve.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
 #include <optional>
@@ -233,7 +234,19 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
   std::vector<Eigen::VectorXd> S, Y;
   const int memory = std::max(0, o.memory);
   double t = 1.0;  // step multiplier on the current direction
-  Eigen::VectorXd g = cons.project_to_tangent(curve, gF);
+  // The projection onto T_qM at the current iterate, factored once per iterate.
+  Eigen::MatrixXd Jc;
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+  auto refactor = [&] {
+    Eigen::VectorXd G;
+    cons.evaluate(curve, G, Jc);
+    if (Jc.rows() > 0) cod.compute(Jc);
+  };
+  auto project = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+    return Jc.rows() > 0 ? Eigen::VectorXd(v - cod.solve(Jc * v)) : v;
+  };
+  refactor();
+  Eigen::VectorXd g = project(gF);
   Eigen::VectorXd dir;
   bool new_direction = true;
   int accepted = 0;
@@ -253,7 +266,7 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
         }
         dir *= S.back().dot(Y.back()) / Y.back().squaredNorm();
         for (size_t k = 0; k < S.size(); ++k) dir += (alpha[k] - Y[k].dot(dir) / Y[k].dot(S[k])) * S[k];
-        dir = cons.project_to_tangent(curve, dir);
+        dir = project(dir);
         if (!(dir.dot(g) < -1e-12 * dir.norm() * gn)) quasi = false, S.clear(), Y.clear(), dir = -g;
       }
       if (!quasi) dir *= o.initial_step * l / gn;
@@ -264,7 +277,7 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     }
     Eigen::VectorXd dq = t * dir;
     if (bounded && Rp.valid) {
-      const Eigen::VectorXd gR = cons.project_to_tangent(curve, Rp.gradient);
+      const Eigen::VectorXd gR = project(Rp.gradient);
       const Eigen::VectorXd full = dq;
       dq = project_step(dq, Rp.value, gR, o.R_max);
       // On the bound with the step pointing out of it: a KKT point of min F s.t. R_p ≤ R_max.
@@ -331,7 +344,8 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     const bool line_moved = cons.a() != a_before || cons.b() != b_before;
     f = F(curve, cons, &gF);
     Rp = pnorm_ratio(curve, cons.a(), cons.b(), su, o.p, l);
-    g = cons.project_to_tangent(curve, gF);
+    refactor();
+    g = project(gF);
     if (stop) {
       res.converged = true;
       res.status = "target";
