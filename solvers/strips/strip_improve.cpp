@@ -342,8 +342,10 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     // The hook may have moved the line (global step): refresh F, and drop the memory, which
     // belongs to the old objective.
     const bool line_moved = cons.a() != a_before || cons.b() != b_before;
-    f = F(curve, cons, &gF);
-    Rp = pnorm_ratio(curve, cons.a(), cons.b(), su, o.p, l);
+    if (line_moved) {
+      f = F(curve, cons, &gF);
+      Rp = pnorm_ratio(curve, cons.a(), cons.b(), su, o.p, l);
+    }
     refactor();
     g = project(gF);
     if (stop) {
