@@ -149,6 +149,65 @@ std::array<Vec2, 4> BSplineCurve2::derivatives(double u, int order) const {
   return C;
 }
 
+void BSplineCurve2::set_poles(std::vector<Vec2> poles) {
+  PARAFAB_VERIFY(poles.size() == poles_.size(), "curve.bspline.poles: expected " << poles_.size()
+                     << " poles (the curve's count), got " << poles.size());
+  for (size_t i = 0; i < poles.size(); ++i)
+    PARAFAB_VERIFY(poles[i].allFinite(), "curve.bspline.poles[" << i << "] is not finite");
+  poles_ = std::move(poles);
+}
+
+BSplineCurve2::Basis BSplineCurve2::basis(double u) const {
+  u = std::clamp(u, first_parameter(), last_parameter());
+  const int span = find_span(u);
+  Basis b;
+  basis_derivatives(span, u, degree_, knots_, std::min(3, degree_), b.N);
+  b.first = span - degree_;
+  return b;
+}
+
+PoleJet pole_jet(const BSplineCurve2& curve, double u) {
+  PARAFAB_VERIFY(!curve.rational(), "pole derivatives need a non-rational B-spline (weights given)");
+  PoleJet J;
+  J.u = u;
+  J.basis = curve.basis(u);
+  const int p = curve.degree();
+  J.count = p + 1;
+  const auto& P = curve.poles();
+  for (auto& v : J.d) v.setZero();
+  for (int k = 0; k < 4; ++k)
+    for (int j = 0; j <= p; ++j) J.d[k] += J.basis.N[k][j] * P[J.basis.first + j];
+  const Vec2 &c1 = J.d[1], &c2 = J.d[2], &c3 = J.d[3];
+  auto det = [](const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); };
+  const double v = c1.norm();
+  PARAFAB_VERIFY(v > 0, "curve has zero speed at u = " << u);
+  const double D2 = det(c1, c2), D3 = det(c1, c3), w = c1.dot(c2);
+  const double v2 = v * v, v3 = v2 * v, v4 = v2 * v2;
+  J.speed = v;
+  J.tangent = c1 / v;
+  J.kappa = D2 / v3;
+  J.dkappa_du = D3 / v3 - 3 * D2 * w / (v3 * v2);
+  J.dkappa_ds = J.dkappa_du / v;
+  for (int j = 0; j <= p; ++j) {
+    const double n1 = J.basis.N[1][j], n2 = J.basis.N[2][j], n3 = J.basis.N[3][j];
+    for (int c = 0; c < 2; ++c) {
+      Vec2 e = Vec2::Zero();
+      e(c) = 1.0;
+      const Vec2 d1 = n1 * e, d2 = n2 * e, d3 = n3 * e;  // δC', δC'', δC'''
+      const double dv = c1.dot(d1) / v;
+      const double dD2 = det(d1, c2) + det(c1, d2), dD3 = det(d1, c3) + det(c1, d3);
+      const double dw = d1.dot(c2) + c1.dot(d2);
+      J.dspeed[j](c) = dv;
+      J.dtangent[j].col(c) = (d1 - J.tangent * J.tangent.dot(d1)) / v;
+      J.dkappa[j](c) = dD2 / v3 - 3 * D2 * dv / v4;
+      // κ_s = D3 v⁻⁴ − 3 D2 w v⁻⁶
+      J.ddkappa_ds[j](c) = dD3 / v4 - 4 * D3 * dv / (v4 * v) - 3 * (dD2 * w + D2 * dw) / (v4 * v2) +
+                           18 * D2 * w * dv / (v4 * v3);
+    }
+  }
+  return J;
+}
+
 namespace {
 std::string row_text(const Eigen::MatrixXd& P, int i) {
   std::ostringstream os;

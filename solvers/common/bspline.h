@@ -37,6 +37,19 @@ class BSplineCurve2 {
   std::array<Vec2, 4> derivatives(double u, int order) const;
   Vec2 point(double u) const { return derivatives(u, 0)[0]; }
 
+  // ---- Control points as variables (thesis §4.5.4, App. A.4).
+  int pole_count() const { return static_cast<int>(poles_.size()); }
+  /// Replaces the poles (same count, finite; throws parafab::Error naming the entry).
+  void set_poles(std::vector<Vec2> poles);
+  /// Basis functions at u: N[k][j] = d^k/du^k N_{first + j}(u) for j = 0..degree, k = 0..3.
+  /// For a non-rational curve C^(k)(u) = Σ_j N[k][j] · poles[first + j], so ∂C^(k)/∂P_i is
+  /// N[k][i − first] times the identity (zero for poles outside first..first + degree).
+  struct Basis {
+    int first = 0;
+    std::array<std::array<double, 8>, 4> N{};
+  };
+  Basis basis(double u) const;
+
  private:
   int find_span(double u) const;
   int degree_;
@@ -44,6 +57,31 @@ class BSplineCurve2 {
   std::vector<Vec2> poles_;
   std::vector<double> weights_;
 };
+
+/// A point of a non-rational plane B-spline and the exact derivatives of its geometry with
+/// respect to the poles it depends on (poles first .. first + degree): index j in the
+/// arrays is pole first + j; a gradient entry is the 2-vector (∂/∂P.x, ∂/∂P.y). Thesis App.
+/// A.4 uses these for the inflection constraint and §4.6.2 for dR/dP.
+struct PoleJet {
+  double u = 0;
+  BSplineCurve2::Basis basis;
+  std::array<Vec2, 4> d;    ///< C, C', C'', C''' (parameter derivatives)
+  double speed = 0;         ///< |C'|
+  Vec2 tangent{1, 0};       ///< C'/|C'|
+  double kappa = 0;         ///< det(C', C'') / |C'|³
+  double dkappa_du = 0;     ///< dκ/du
+  double dkappa_ds = 0;     ///< dκ/ds = κ_u / |C'|
+  int count = 0;            ///< degree + 1
+  std::array<Eigen::Matrix2d, 8> dtangent;  ///< ∂t/∂P_j: column c is ∂t/∂P_j[c]
+  std::array<Vec2, 8> dspeed;               ///< ∂|C'|/∂P_j
+  std::array<Vec2, 8> dkappa;               ///< ∂κ/∂P_j
+  std::array<Vec2, 8> ddkappa_ds;           ///< ∂(dκ/ds)/∂P_j
+  /// ∂C/∂P_j = N[0][j]·I (the point is linear in the poles).
+  double dpoint(int j) const { return basis.N[0][j]; }
+};
+/// Throws parafab::Error for a rational curve (weights make C non-linear in the poles) or a
+/// zero speed at u.
+PoleJet pole_jet(const BSplineCurve2& curve, double u);
 
 /// Interpolation of points of any dimension (one per row of `points`, at least 2, consecutive
 /// points distinct) by a non-rational B-spline of the given degree (lowered to rows − 1 if

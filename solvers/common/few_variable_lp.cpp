@@ -81,6 +81,9 @@ void solve_dual(const FewVariableLp& lp, const FewVariableLpOptions& options,
     r.x.resize(d);
     for (int k = 0; k < d; ++k) r.x(k) = -price[k];  // reduced costs ≥ 0 ⇔ G(−λ) ≥ h
     r.dual_objective = -model.objectiveValue();
+    const double* col = model.getColSolution();
+    r.y = Eigen::Map<const Eigen::VectorXd>(col, n);
+    r.z = Eigen::Map<const Eigen::VectorXd>(col + n, m);
   } else if (s == 2) {
     r.status = LpStatus::Infeasible;  // dual unbounded ⇒ primal infeasible
   } else if (s == 1) {
@@ -127,6 +130,9 @@ void solve_primal(const FewVariableLp& lp, const FewVariableLpOptions& options,
   if (s == 0) {
     r.status = LpStatus::Optimal;
     r.x = Eigen::Map<const Eigen::VectorXd>(model.getColSolution(), d);
+    const double* price = model.getRowPrice();
+    r.y = Eigen::Map<const Eigen::VectorXd>(price, n);
+    r.z = Eigen::Map<const Eigen::VectorXd>(price + n, m);
   } else {
     r.status = s == 1 ? LpStatus::Infeasible : s == 2 ? LpStatus::Unbounded : LpStatus::Failed;
     r.message = std::string("Clp on the primal program: ") + clp_status_text(s);

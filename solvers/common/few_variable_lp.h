@@ -40,6 +40,10 @@ struct FewVariableLpResult {
   Eigen::VectorXd x;           ///< primal solution (valid when Optimal)
   double objective = 0;        ///< cᵀx
   double dual_objective = 0;   ///< hᵀy + fᵀz of the dual solution (Dual form only)
+  /// Multipliers (valid when Optimal): c = Gᵀy + Eᵀz with y ≥ 0, so the optimal value V of
+  /// a program whose rows depend on a parameter θ has dV/dθ = −yᵀ ∂(Gx − h)/∂θ − zᵀ ∂(Ex − f)/∂θ
+  /// (envelope theorem; used for dR/dP in strips/strip_improve).
+  Eigen::VectorXd y, z;
   int iterations = 0;          ///< simplex iterations reported by Clp
   double max_violation = 0;    ///< max over rows of (h − Gx)⁺ and |Ex − f| at x
   double seconds = 0;          ///< wall time of load + solve

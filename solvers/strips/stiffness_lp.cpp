@@ -64,6 +64,11 @@ StiffnessLpResult solve_stiffness_lp(const std::vector<CurvePoint>& samples,
   out.max_violation = r.max_violation;
   out.message = r.message;
   if (!r.ok()) return out;
+  out.dual_rows = r.y;
+  out.dual_line = r.z;
+  out.center = c;
+  out.scale = l;
+  out.normalized_line = r.x.head<3>();
   // Back to input units: (a + ⟨b, γ⟩)/κ = (â + ⟨b̂, γ̂⟩)/κ̂.
   const Vec2 bh(r.x(1), r.x(2));
   out.a = (r.x(0) - bh.dot(c) / l) / l;

@@ -25,6 +25,13 @@ struct StiffnessLpResult {
   double seconds = 0;
   double max_violation = 0;   ///< of the normalized program
   std::string message;
+  /// LP multipliers (dR/dP, strips/strip_improve): rows of sample i are 2i (K ≥ 1) and
+  /// 2i + 1 (K ≤ R), then the zeros likewise; `dual_line` per line point. The rows are
+  /// written in x̂ = (â, b̂, R) with γ̂ = (γ − center)/scale, κ̂ = κ·scale, κ̂' = κ'·scale².
+  Eigen::VectorXd dual_rows, dual_line;
+  Vec2 center{0, 0};
+  double scale = 1;
+  Eigen::Vector3d normalized_line{0, 0, 0};  ///< (â, b̂₁, b̂₂)
   bool ok() const { return status == LpStatus::Optimal; }
 };
 

@@ -16,6 +16,7 @@
 #include "outline_export.h"
 #include "strip_json.h"
 #include "stability_json.h"
+#include "strip_improve_json.h"
 #include "rod_json.h"
 
 namespace {
@@ -74,6 +75,12 @@ int main(int argc, char** argv) {
       "constrained Hessian inertia, with timings (JSON in, JSON out)");
   strip_stability->add_option("input", in_path, "Strip request JSON (as for `parafab strip`)")->required();
   strip_stability->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  double target_R = 0;
+  auto* improve = app.add_subcommand(
+      "strip-improve", "Lower the stiffness ratio R of a strip curve by moving its control points (thesis §4.6.2; JSON)");
+  improve->add_option("input", in_path, "Strip request JSON, optionally with \"improve\": {...} (see README)")->required();
+  improve->add_option("--target-R", target_R, "Target stiffness ratio (overrides improve.target_R; default 3.5)");
+  improve->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
   rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
   rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
@@ -145,6 +152,7 @@ int main(int argc, char** argv) {
     }
     if (*strip_stability)
       return emit(parafab::entry::strip_stability_json(read_json_file(in_path)), out_path);
+    if (*improve) return emit(parafab::entry::improve_strip_json(read_json_file(in_path), target_R), out_path);
     if (*rod) return emit(parafab::entry::design_rod_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {

@@ -12,6 +12,7 @@
 #include "outline_export.h"
 #include "strip_json.h"
 #include "stability_json.h"
+#include "strip_improve_json.h"
 #include "rod_json.h"
 
 namespace py = pybind11;
@@ -62,6 +63,23 @@ PYBIND11_MODULE(parafab, m) {
       "feasible, R, ... and `stability` {stable, sigma, method, s, Z, eigenvalue {stable, negative, "
       "min_eigenvalue, ...}, agree, seconds}. Optional request field stability: {edges, "
       "eigenvalue_check (default true here), simulation_edges}.");
+  m.def(
+      "strip_improve",
+      [](const py::dict& request, double target_R) {
+        const nlohmann::json in = to_json(request);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::improve_strip_json(in, target_R);
+        }
+        return to_python(out);
+      },
+      py::arg("request"), py::arg("target_R") = 0.0,
+      "Fabricability optimization (thesis §4.6.2): move the control points of the request's curve "
+      "until the stiffness ratio R is at most target_R (> 0 overrides request['improve']['target_R'], "
+      "default 3.5). Returns done, status, R_initial, R, bspline, original_bspline, max_pole_move, "
+      "deviation, history and the strip designed for the new curve (design; with the request's "
+      "gravity, LP Eq. 4.6 afterwards).");
   m.def(
       "design_strip",
       [](const py::dict& request) {

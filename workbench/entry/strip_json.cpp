@@ -540,3 +540,7 @@ json design_strip_json(const json& request) {
 }
 
 }  // namespace parafab::entry
+
+namespace parafab::entry {
+BSplineCurve2 parse_strip_curve(const nlohmann::json& request) { return parse_curve(request); }
+}  // namespace parafab::entry

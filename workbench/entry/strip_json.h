@@ -15,3 +15,12 @@ nlohmann::json design_strip_json(const nlohmann::json& request);
 nlohmann::json error_json(const std::string& message, const std::string& kind);
 
 }  // namespace parafab::entry
+
+namespace parafab {
+class BSplineCurve2;
+}
+namespace parafab::entry {
+/// The "curve" field of a strip request (bspline, or points interpolated by a quartic), as
+/// design_strip_json reads it; shared with strip-improve.
+BSplineCurve2 parse_strip_curve(const nlohmann::json& request);
+}  // namespace parafab::entry

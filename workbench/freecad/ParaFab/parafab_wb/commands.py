@@ -12,6 +12,9 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
   selected strips (:func:`parafab_wb.strip_feature.export_cut_sheets`).
 * ``ParaFab_PlotStripProfile`` -- "Plot strip profile": K(s) and w(s) of the selected
   strips in FreeCAD's Plot module (:func:`parafab_wb.strip_feature.plot_profile`).
+* ``ParaFab_ImproveFabricability`` -- "Improve fabricability": lower R of the selected
+  strips to a target by moving their curves' control points, in one undo transaction, the
+  original kept hidden (:mod:`parafab_wb.strip_improve`), and plot the curve before and after.
 * ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
   solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
 """
@@ -181,6 +184,43 @@ class PlotStripProfileCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_PlotStripProfile", PlotStripProfileCommand())
+
+
+class ImproveFabricabilityCommand(object):
+    """Lower the stiffness ratio R of the selected strips by moving their curves' poles."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_ImproveStrip.svg"),
+            "MenuText": "Improve fabricability",
+            "ToolTip": "Move the control points of each selected strip's curve until its stiffness "
+                       "ratio R is at most the target (thesis 4.6.2). One undo step; the original "
+                       "curve is kept hidden (property OriginalCurve); plots the curve before and after",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        from PySide import QtGui
+        from . import strip_improve
+        target, ok = QtGui.QInputDialog.getDouble(
+            FreeCADGui.getMainWindow(), "Improve fabricability", "Target stiffness ratio R:", 3.5, 1.0, 1000.0, 2)
+        if not ok:
+            return
+        for obj in selected_strips():
+            try:
+                result = strip_improve.improve_strip(obj, target)
+                FreeCAD.Console.PrintMessage(
+                    "ParaFab: %s: R %.4g -> %.4g (%s), max pole move %.3g mm, deviation %.3g mm\n" % (
+                        obj.Label, result["R_initial"] or 0, result["R"] or 0, result["status"],
+                        result["max_pole_move"] * 1e3, result["deviation"] * 1e3))
+                strip_improve.plot_improvement(result, show=True, title=obj.Label)
+            except Exception as exc:
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+FreeCADGui.addCommand("ParaFab_ImproveFabricability", ImproveFabricabilityCommand())
 
 
 class StripsFromSectionsCommand(object):

@@ -1,0 +1,141 @@
+"""strip-improve entry points (CLI and Python module) against independent references.
+
+The result B-spline is re-evaluated with scipy (scipy.interpolate.BSpline): end points and end
+tangents of the input kept, the arc length kept (scipy quad), the inflections (brentq on
+det(γ', γ'')) on the input's inflection line, all to 1e-9 of the length; R of the new curve
+re-designed by `design_strip`; the CLI and the module give the same result; bad input gives a
+JSON error naming the field (exit 2) / parafab.Error.
+
+Run with Debian's /usr/bin/python3; PARAFAB_MODULE_DIR and PARAFAB_CLI point at the build.
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+from scipy.integrate import quad
+from scipy.interpolate import BSpline
+from scipy.optimize import brentq
+
+sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"))
+import parafab  # noqa: E402
+
+CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
+
+
+def s_curve_points():
+    """y = 0.25 (u⁴ − u²), u = x/0.25, x ∈ [−0.2, 0.2]: two inflections at u = ±1/√6."""
+    xs = np.linspace(-0.2, 0.2, 200)
+    u = xs / 0.25
+    return [[float(x), float(0.25 * (v ** 4 - v ** 2))] for x, v in zip(xs, u)]
+
+
+def request(**improve):
+    return {"curve": {"points": s_curve_points()}, "material": {"E": 3e9, "thickness": 5e-4},
+            "min_width": 0.01, "improve": dict({"fair": {"poles": 14, "fairness": 0}}, **improve)}
+
+
+def spline(bs):
+    return BSpline(np.array(bs["knots"]), np.array(bs["poles"]), bs["degree"])
+
+
+def inflections(c):
+    d1, d2 = c.derivative(1), c.derivative(2)
+    t0, t1 = c.t[c.k], c.t[-c.k - 1]
+    det = lambda t: float(np.cross(d1(t), d2(t)))
+    ts = np.linspace(t0, t1, 2001)
+    v = [det(t) for t in ts]
+    return [brentq(det, ts[i], ts[i + 1], xtol=1e-15) for i in range(len(ts) - 1) if v[i] * v[i + 1] < 0]
+
+
+def length(c):
+    d1 = c.derivative(1)
+    t0, t1 = c.t[c.k], c.t[-c.k - 1]
+    br = sorted(set(c.t[c.k:-c.k]))
+    return sum(quad(lambda t: np.linalg.norm(d1(t)), a, b, epsabs=1e-14, epsrel=1e-13)[0]
+               for a, b in zip(br[:-1], br[1:]))
+
+
+class StripImproveEntry(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.req = request()
+        cls.result = parafab.strip_improve(cls.req, target_R=3.0)
+
+    def test_reaches_the_target_and_design_agrees(self):
+        r = self.result
+        self.assertTrue(r["done"], r["status"])
+        self.assertGreater(r["R_initial"], 3.0)
+        self.assertLessEqual(r["R"], r["R_upper"])
+        self.assertLessEqual(r["R_upper"], 3.0)
+        # A finer design (the solver's default certified tolerance 1e-6) lies in the certified
+        # bracket [R, R_upper] of the result's 1e-3 design.
+        again = parafab.design_strip({"curve": {"bspline": r["bspline"]}, "material": {"E": 3e9, "thickness": 5e-4},
+                                      "min_width": 0.01})
+        self.assertGreaterEqual(again["R"], r["R"] * (1 - 1e-9))
+        self.assertLessEqual(again["R"], r["R_upper"] * (1 + 1e-9))
+        self.assertAlmostEqual(r["design"]["R"], r["R"], delta=1e-9 * r["R"])
+        self.assertEqual(r["inflections"], 2)
+        self.assertGreater(len(r["history"]), 1)
+        self.assertGreater(r["max_pole_move"], 0)
+        self.assertEqual(r["fair"]["inflections"], 2)
+
+    def test_constraints_hold_by_scipy(self):
+        r = self.result
+        a, b = spline(r["original_bspline"]), spline(r["bspline"])
+        L = length(a)
+        ta0, ta1 = a.t[a.k], a.t[-a.k - 1]
+        tb0, tb1 = b.t[b.k], b.t[-b.k - 1]
+        self.assertLess(np.linalg.norm(a(ta0) - b(tb0)), 1e-10 * L)
+        self.assertLess(np.linalg.norm(a(ta1) - b(tb1)), 1e-10 * L)
+        for ta, tb in ((ta0, tb0), (ta1, tb1)):
+            u, v = a.derivative(1)(ta), b.derivative(1)(tb)
+            self.assertLess(abs(np.cross(u, v)) / (np.linalg.norm(u) * np.linalg.norm(v)), 1e-10)
+            self.assertGreater(np.dot(u, v), 0)
+        self.assertLess(abs(length(b) - L), 1e-9 * L)
+        ia, ib = inflections(a), inflections(b)
+        self.assertEqual(len(ia), 2)
+        self.assertEqual(len(ib), 2)
+        p, q = a(ia[0]), a(ia[1])
+        n = np.array([-(q - p)[1], (q - p)[0]]) / np.linalg.norm(q - p)
+        for t in ib:
+            self.assertLess(abs(np.dot(b(t) - p, n)), 1e-9 * L)
+        # The sampled deviation is a lower bound of the true Hausdorff distance and close to it.
+        pa = a(np.linspace(ta0, ta1, 3000))
+        pb = b(np.linspace(tb0, tb1, 3000))
+        d = np.sqrt(((pa[:, None, :] - pb[None, :, :]) ** 2).sum(-1))
+        h = max(d.min(1).max(), d.min(0).max())
+        self.assertAlmostEqual(r["deviation"], h, delta=0.02 * h + 1e-6 * L)
+
+    def test_cli_matches_module(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "in.json")
+            with open(path, "w") as f:
+                json.dump(self.req, f)
+            out = subprocess.run([CLI, "strip-improve", path, "--target-R", "3"], capture_output=True, text=True)
+            self.assertEqual(out.returncode, 0, out.stdout + out.stderr)
+            cli = json.loads(out.stdout)
+        self.assertEqual(cli["bspline"]["poles"], self.result["bspline"]["poles"])
+        self.assertEqual(cli["R"], self.result["R"])
+
+    def test_bad_input(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "in.json")
+            with open(path, "w") as f:
+                json.dump(request(p="x"), f)
+            out = subprocess.run([CLI, "strip-improve", path], capture_output=True, text=True)
+            self.assertEqual(out.returncode, 2)
+            self.assertIn("improve.p", json.loads(out.stdout)["error"]["message"])
+        with self.assertRaises(parafab.Error) as ctx:
+            parafab.strip_improve(request(unknown=1))
+        self.assertIn("improve.unknown", str(ctx.exception))
+        with self.assertRaises(parafab.Error):
+            parafab.strip_improve(request(), target_R=0.5)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,152 @@
+#include "strip_improve_json.h"
+
+#include <cmath>
+
+#include "common/error.h"
+#include "json_fields.h"
+#include "strip_json.h"
+#include "strips/curve_fairing.h"
+#include "strips/strip_improve.h"
+
+namespace parafab::entry {
+
+using nlohmann::json;
+using fields::number;
+using fields::require;
+
+namespace {
+json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
+json vec(const Vec2& v) { return json::array({v.x(), v.y()}); }
+json bspline_json(const BSplineCurve2& c) {
+  json poles = json::array();
+  for (const auto& p : c.poles()) poles.push_back(vec(p));
+  return {{"degree", c.degree()}, {"knots", c.knots()}, {"poles", poles}};
+}
+int integer(const json& v, const std::string& path, int lo, int hi) {
+  if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi)
+    PARAFAB_INPUT_ERROR(path << " must be an integer " << lo << ".." << hi << ", got " << v.dump());
+  return v.get<int>();
+}
+void only(const json& obj, const std::string& path, std::initializer_list<const char*> keys) {
+  if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.dump());
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool ok = false;
+    for (const char* k : keys) ok |= it.key() == k;
+    if (!ok) {
+      std::string list;
+      for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
+      PARAFAB_INPUT_ERROR(path << "." << it.key() << " is not a known field (known: " << list << ")");
+    }
+  }
+}
+std::vector<Vec2> points(const json& v) {
+  if (!v.is_array()) PARAFAB_INPUT_ERROR("curve.points must be an array of [x, y] pairs");
+  std::vector<Vec2> out;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string p = "curve.points[" + std::to_string(i) + "]";
+    if (!v[i].is_array() || v[i].size() != 2) PARAFAB_INPUT_ERROR(p << " must be a pair [x, y], got " << v[i].dump());
+    out.emplace_back(number(v[i][0], p + "[0]"), number(v[i][1], p + "[1]"));
+  }
+  return out;
+}
+}  // namespace
+
+json improve_strip_json(const json& request, double target_R) {
+  if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  StripImproveOptions o;
+  const json imp = request.value("improve", json::object());
+  only(imp, "improve", {"target_R", "max_iterations", "p", "samples", "max_seconds", "global_every",
+                        "initial_step", "fix_length", "fit_poles", "fair"});
+  if (imp.contains("target_R")) o.target_R = number(imp["target_R"], "improve.target_R");
+  if (target_R > 0) o.target_R = target_R;
+  if (!(o.target_R >= 1)) PARAFAB_INPUT_ERROR("improve.target_R (--target-R) must be >= 1, got " << o.target_R);
+  if (imp.contains("max_iterations")) o.max_iterations = integer(imp["max_iterations"], "improve.max_iterations", 0, 100000);
+  if (imp.contains("p")) {
+    o.p = number(imp["p"], "improve.p");
+    if (!(o.p >= 2 && o.p <= 200)) PARAFAB_INPUT_ERROR("improve.p must lie in [2, 200] (thesis: > 20), got " << o.p);
+  }
+  if (imp.contains("samples")) o.samples = integer(imp["samples"], "improve.samples", 16, 20000);
+  if (imp.contains("max_seconds")) o.max_seconds = number(imp["max_seconds"], "improve.max_seconds");
+  if (imp.contains("global_every")) o.global_every = integer(imp["global_every"], "improve.global_every", 1, 1000);
+  if (imp.contains("initial_step")) {
+    o.initial_step = number(imp["initial_step"], "improve.initial_step");
+    if (!(o.initial_step > 0 && o.initial_step < 1)) PARAFAB_INPUT_ERROR("improve.initial_step must lie in (0, 1), got " << o.initial_step);
+  }
+  if (imp.contains("fix_length")) {
+    if (!imp["fix_length"].is_boolean()) PARAFAB_INPUT_ERROR("improve.fix_length must be true or false");
+    o.constraints.fix_length = imp["fix_length"].get<bool>();
+  }
+  if (imp.contains("fit_poles")) o.fit_poles = integer(imp["fit_poles"], "improve.fit_poles", 6, 1000);
+
+  // The curve: a B-spline as given, or sampled points (sections) through the §4.8.2 fair fit
+  // with spurious-inflection removal (improve.fair), not the point interpolation of `strip`.
+  const json& curve_j = require(request, "curve", "request");
+  json fair_out = nullptr;
+  BSplineCurve2 curve = [&]() -> BSplineCurve2 {
+    if (curve_j.is_object() && curve_j.contains("points") && !curve_j.contains("bspline")) {
+      SpuriousInflectionOptions so;
+      const std::vector<Vec2> P = points(curve_j["points"]);
+      so.fit.poles = std::clamp(static_cast<int>(P.size()) / 4, 8, 24);
+      if (imp.contains("fair")) {
+        const json& f = imp["fair"];
+        only(f, "improve.fair", {"poles", "fairness", "min_separation", "end_separation"});
+        if (f.contains("poles")) so.fit.poles = integer(f["poles"], "improve.fair.poles", 6, 1000);
+        if (f.contains("fairness")) so.fit.fairness = number(f["fairness"], "improve.fair.fairness");
+        if (f.contains("min_separation")) so.min_separation = number(f["min_separation"], "improve.fair.min_separation");
+        if (f.contains("end_separation")) so.end_separation = number(f["end_separation"], "improve.fair.end_separation");
+      }
+      const SpuriousInflectionResult fr = fair_section_curve(P, so);
+      fair_out = {{"poles", so.fit.poles}, {"fairness", so.fit.fairness}, {"min_separation", so.min_separation},
+                  {"inflections_before", fr.inflections_before}, {"inflections", fr.inflections},
+                  {"inflection_s", fr.inflection_s}, {"rounds", fr.rounds}, {"done", fr.done},
+                  {"max_error", fr.max_error}, {"message", fr.message}};
+      return fr.curve;
+    }
+    return parse_strip_curve(request);
+  }();
+  // The final design: the strip request itself (material, gravity, ...) if it has one.
+  const bool has_design = request.contains("material") && request.contains("min_width");
+  const StripImproveResult r = improve_strip_fabricability(curve, o);
+
+  json out;
+  out["done"] = r.done;
+  out["status"] = r.status;
+  out["message"] = r.message;
+  out["target_R"] = o.target_R;
+  out["R_initial"] = num(r.R_initial);
+  out["R"] = num(r.R);
+  out["R_upper"] = num(r.R_upper);
+  out["bspline"] = bspline_json(r.curve);
+  out["original_bspline"] = bspline_json(curve);
+  out["max_pole_move"] = r.max_pole_move;
+  out["deviation"] = r.deviation;
+  out["deviation_relative"] = r.deviation_relative;
+  out["length"] = r.design.length;
+  out["inflections"] = r.inflections;
+  out["refit"] = r.refit;
+  out["refit_deviation"] = r.refit_deviation;
+  out["fair"] = fair_out;
+  out["seconds"] = r.seconds;
+  json hist = json::array();
+  for (const auto& h : r.history)
+    hist.push_back({{"iteration", h.iteration}, {"R", num(h.R)}, {"R_p", num(h.R_p)}, {"F", num(h.F)},
+                    {"step", h.step}, {"max_pole_move", h.max_pole_move}, {"seconds", h.seconds}});
+  out["history"] = hist;
+  if (has_design) {
+    json req = request;
+    req.erase("improve");
+    // As the improvement's own R (StripImproveOptions::design): certified to 1e-3 unless the
+    // request sets its own tolerance.
+    if (!req.contains("tolerance")) req["tolerance"] = 1e-3;
+    if (!req.contains("max_samples")) req["max_samples"] = 4097;
+    req["curve"] = {{"bspline", bspline_json(r.curve)}};
+    out["design"] = design_strip_json(req);  // gravity, if requested: LP Eq. 4.6 afterwards
+    out["R_gravity"] = req.contains("gravity") ? out["design"]["R"] : json(nullptr);
+  } else {
+    out["design"] = nullptr;
+    out["R_gravity"] = nullptr;
+  }
+  return out;
+}
+
+}  // namespace parafab::entry
