@@ -104,8 +104,12 @@ PYBIND11_MODULE(parafab, m) {
       "Face model of a STEP/BREP part (same JSON as `parafab inspect`).");
   m.def(
       "integrate_part",
-      [](const std::string& path, int cells, double cell_size, const std::string& segments, int solid) {
+      [](const std::string& path, int cells, double cell_size, const std::string& segments, int solid,
+         const std::string& cut) {
         parafab::entry::IntegrateOptions o;
+        if (cut != "splitter" && cut != "face")
+          throw parafab::Error("cut must be \"splitter\" or \"face\", got \"" + cut + "\"");
+        o.integration.grid.method = cut == "face" ? parafab::occ::CutMethod::FaceCut : parafab::occ::CutMethod::Splitter;
         o.read.solid_index = solid;
         o.integration.grid.cells_longest = cells;
         o.integration.grid.cell_size = cell_size;
@@ -120,7 +124,7 @@ PYBIND11_MODULE(parafab, m) {
         return to_python(out);
       },
       py::arg("path"), py::arg("cells") = 8, py::arg("cell_size") = 0.0, py::arg("segments") = "parabolic",
-      py::arg("solid") = -1,
+      py::arg("solid") = -1, py::arg("cut") = "splitter",
       "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`).");
   m.def(
       "simulate",

@@ -238,6 +238,10 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   go.grid.block_cells = static_cast<int>(number(grid_job.value("block_cells", json(8)), "grid.block_cells"));
   if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
   if (go.grid.block_cells < 0) PARAFAB_INPUT_ERROR("grid.block_cells must be >= 0");
+  const std::string cut_method = grid_job.value("method", std::string("splitter"));
+  if (cut_method != "splitter" && cut_method != "face")
+    PARAFAB_INPUT_ERROR("grid.method must be \"splitter\" or \"face\", got \"" << cut_method << "\"");
+  go.grid.method = cut_method == "face" ? occ::CutMethod::FaceCut : occ::CutMethod::Splitter;
 
   const json supports = job.value("supports", json::array());
   if (!supports.is_array() || supports.empty())
@@ -471,7 +475,9 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   json out{{"part", part_path_},
            {"grid", {{"cells", grid.cut->cells}, {"cell_size", grid.cut->cell_size.x()},
                      {"cut_cells", grid.cut->cut_cells.size()}, {"subvolumes", grid.cut->subvolumes.size()},
-                     {"interior_cells", grid.cut->interior_cells.size()}}},
+                     {"interior_cells", grid.cut->interior_cells.size()},
+                     {"method", grid.cut->method == occ::CutMethod::FaceCut ? "face" : "splitter"},
+                     {"fallback_reason", grid.cut->fallback_reason}}},
            {"dofs", r.dofs},
            {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}}},
            {"max_displacement", umax},
