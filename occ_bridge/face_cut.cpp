@@ -856,7 +856,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
   }
 
   // Subvolumes: connected components of each cut cell's patches (shared points).
-  auto sample_loops = [&](const Region& r) {
+  auto sample_loops = [&](const Region& r, int& segments) {
     std::vector<xfem::BoundaryLoop> out;
     Vec2 lo = Vec2::Constant(1e300), hi = Vec2::Constant(-1e300);
     for (const Loop& l : r)
@@ -867,7 +867,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
       bl.order = o.segment_order;
       bl.points.push_back(l.front().a());
       for (const Piece& p : l)
-        g.segments += append_curve<Vec2>([&](double t) { return p.curve->at(t); }, p.t0, p.t1, p.curve->straight(), o, tol, bl.points);
+        segments += append_curve<Vec2>([&](double t) { return p.curve->at(t); }, p.t0, p.t1, p.curve->straight(), o, tol, bl.points);
       bl.points.back() = bl.points.front();
       out.push_back(std::move(bl));
     }
@@ -883,6 +883,11 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
     bool level;
   };
   std::vector<CurveJob> curve_jobs;
+  struct LoopJob {
+    int subvolume, patch;
+    const Region* region;
+  };
+  std::vector<LoopJob> loop_jobs;
   int open_edges = 0, first_open = -1;
   double verify_seconds = 0;
   for (const auto& [cell, list] : in_cell) {
@@ -940,7 +945,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
       const int s = it->second;
       const PatchRef& r = refs[i];
       xfem::CutPatch patch;
-      patch.loops = sample_loops(region_of(r));
+      loop_jobs.push_back({s, static_cast<int>(g.subvolumes[s].patches.size()), &region_of(r)});
       if (r.face >= 0) {
         patch.surface = maps[r.face];
         patch.orientation = part.face(r.face).Orientation() == TopAbs_REVERSED ? -1 : 1;
@@ -972,6 +977,17 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
     else if (a >= 0 || b >= 0) g.interior_connections.push_back({std::max(a, b), -1 - std::min(a, b)});
   }
 
+  {  // the patches' boundary loops as polynomial segments, in parallel
+    std::vector<int> segs(loop_jobs.size(), 0);
+    auto run = [&](int i) {
+      const LoopJob& j = loop_jobs[i];
+      g.subvolumes[j.subvolume].patches[j.patch].loops = sample_loops(*j.region, segs[i]);
+    };
+    if (o.face_parallel) tbb::parallel_for(0, static_cast<int>(loop_jobs.size()), run);
+    else
+      for (int i = 0; i < static_cast<int>(loop_jobs.size()); ++i) run(i);
+    for (int n : segs) g.segments += n;
+  }
   // Intersection curves with their samples.
   std::map<int, std::array<int, 2>> edge_faces;
   for (int e = 0; e < part.edge_count(); ++e) edge_faces[e] = {-1, -1};
@@ -985,10 +1001,27 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
       if (fs.size() == 2) edge_faces[e] = {std::min(fs[0], fs[1]), std::max(fs[0], fs[1])};
     }
   }
+  // Which pieces are intersection curves: level pieces, and edge pieces (once, not seams).
   std::set<std::tuple<int, NodeId, NodeId>> edge_done;
+  std::vector<CurveJob> jobs;
   for (const CurveJob& job : curve_jobs) {
+    if (!job.level) {
+      const auto* pc = dynamic_cast<const PCurve*>(job.piece.curve.get());
+      if (!pc) continue;
+      const auto ff = edge_faces.at(pc->edge());
+      if (ff[0] < 0 || ff[0] == ff[1]) continue;  // seam or free edge: not an intersection curve
+      if (!edge_done.emplace(pc->edge(), std::min(job.piece.n0, job.piece.n1), std::max(job.piece.n0, job.piece.n1)).second)
+        continue;
+    }
+    jobs.push_back(job);
+  }
+  std::vector<CutCurve> curves(jobs.size());
+  std::vector<int> curve_segments(jobs.size(), 0);
+  auto make_curve = [&](int job_index) {
+    const CurveJob& job = jobs[job_index];
     const Piece& p = job.piece;
-    CutCurve curve;
+    CutCurve& curve = curves[job_index];
+    int& segments = curve_segments[job_index];
     curve.subvolume = job.subvolume;
     curve.order = o.segment_order;
     const Handle(Geom_Surface)& S = surfaces[job.face];
@@ -999,7 +1032,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
       curve.sources = {job.face, -1 - L.axis};
       auto at3 = [&](double t) { const Vec2 uv = L.at(t); return to_vec(S->Value(uv.x(), uv.y())); };
       curve.points.push_back(at3(p.t0));
-      g.segments += append_curve<Vec3>(at3, p.t0, p.t1, false, o, o.segment_tolerance * h, curve.points, &ts);
+      segments += append_curve<Vec3>(at3, p.t0, p.t1, false, o, o.segment_tolerance * h, curve.points, &ts);
       for (size_t i = 0; i < ts.size(); ++i) {
         CutSample smp;
         const Vec2 uv = L.at(ts[i]);
@@ -1022,19 +1055,16 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
         curve.samples.push_back(std::move(smp));
       }
     } else {
-      const auto* pc = dynamic_cast<const PCurve*>(p.curve.get());
-      if (!pc) continue;
+      const auto* pc = static_cast<const PCurve*>(p.curve.get());
       const int e = pc->edge();
-      const auto ff = edge_faces[e];
-      if (ff[0] < 0 || ff[0] == ff[1]) continue;  // seam or free edge: not an intersection curve
-      if (!edge_done.emplace(e, std::min(p.n0, p.n1), std::max(p.n0, p.n1)).second) continue;
+      const auto ff = edge_faces.at(e);
       const TopoDS_Edge& edge = part.edge(e);
       BRepAdaptor_Curve c3(edge);
       curve.kind = CutCurve::FaceFace;
       curve.sources = ff;
       auto at3 = [&](double t) { return to_vec(c3.Value(t)); };
       curve.points.push_back(at3(p.t0));
-      g.segments += append_curve<Vec3>(at3, p.t0, p.t1, c3.GetType() == GeomAbs_Line, o, o.segment_tolerance * h,
+      segments += append_curve<Vec3>(at3, p.t0, p.t1, c3.GetType() == GeomAbs_Line, o, o.segment_tolerance * h,
                                        curve.points, &ts);
       std::array<Handle(Geom2d_Curve), 2> pcs;
       for (int j = 0; j < 2; ++j) {
@@ -1059,8 +1089,12 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
         curve.samples.push_back(std::move(smp));
       }
     }
-    g.curves.push_back(std::move(curve));
-  }
+  };
+  if (o.face_parallel) tbb::parallel_for(0, static_cast<int>(jobs.size()), make_curve);
+  else
+    for (int i = 0; i < static_cast<int>(jobs.size()); ++i) make_curve(i);
+  for (int n : curve_segments) g.segments += n;
+  g.curves = std::move(curves);
   if (g.cut_cells.empty() && g.interior_cells.empty()) {
     g.message = "face route: no cell meets the part";
     return false;
