@@ -21,6 +21,7 @@
 #include <set>
 
 #include "grid_cut.h"
+#include "grid_model.h"
 #include "occt_shape.h"
 #include "part_reader.h"
 #include "xfem/area_rules.h"
@@ -224,6 +225,29 @@ TEST(FaceCut, UnsupportedSurfacesFallBackToTheSplitterWithTheReason) {
     EXPECT_EQ(g.method, CutMethod::Splitter) << name;
     EXPECT_NE(g.fallback_reason.find("torus"), std::string::npos) << name << ": " << g.fallback_reason;
   }
+}
+
+// The simulation path: a grid model on the face route has the splitter model's elements and
+// adjacency, and its rules hold OCCT's volume.
+TEST(FaceCut, GridModelOnTheFaceRouteMatchesTheSplitterModel) {
+  const auto part = posed("l_bracket", 17, 0.013);
+  GridModelOptions o;
+  o.grid.cells_longest = 8;
+  const GridModel ref = build_grid_model(*part, o);
+  o.grid.method = CutMethod::FaceCut;
+  const GridModel face = build_grid_model(*part, o);
+  ASSERT_TRUE(ref.done && face.done) << ref.message << face.message;
+  ASSERT_EQ(face.cut->method, CutMethod::FaceCut) << face.cut->fallback_reason;
+  EXPECT_EQ(face.elements.size(), ref.elements.size());
+  EXPECT_EQ(face.adjacent.size(), ref.adjacent.size());
+  double v = 0;
+  for (const auto& e : face.elements)
+    for (double w : e.rule.weights) v += w;
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(part->shape, props, 1e-13);
+  EXPECT_NEAR(v, props.Mass(), 1e-11 * props.Mass());
+  std::printf("grid model: %zu elements, %zu adjacent pairs, volume error %.1e\n", face.elements.size(),
+              face.adjacent.size(), std::abs(v / props.Mass() - 1));
 }
 
 }  // namespace
