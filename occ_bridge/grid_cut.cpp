@@ -36,6 +36,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "grid_cut_detail.h"
 #include "occt_shape.h"
 
 namespace parafab::occ {
@@ -43,6 +44,10 @@ namespace parafab::occ {
 using xfem::Box3;
 using xfem::Vec2;
 using xfem::Vec3;
+using detail::OcctSurfaceMap;
+using detail::append_curve;
+using detail::eval2;
+using detail::tight_box;
 
 xfem::Box3 GridCut::cell_box(const std::array<int, 3>& ijk) const {
   Box3 b;
@@ -57,74 +62,6 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-Box3 tight_box(const TopoDS_Shape& s) {
-  Bnd_Box bb;
-  BRepBndLib::AddOptimal(s, bb, /*useTriangulation=*/false, /*useShapeTolerance=*/false);
-  double x0, y0, z0, x1, y1, z1;
-  bb.Get(x0, y0, z0, x1, y1, z1);
-  Box3 b;
-  b.min = Vec3(x0, y0, z0);
-  b.max = Vec3(x1, y1, z1);
-  return b;
-}
-
-/// The surface of a face (location applied) as the quadrature's SurfaceMap.
-class OcctSurfaceMap : public xfem::SurfaceMap {
- public:
-  explicit OcctSurfaceMap(Handle(Geom_Surface) s) : surface_(std::move(s)) {}
-  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
-    gp_Pnt p;
-    gp_Vec du, dv;
-    surface_->D1(u, v, p, du, dv);
-    X = Vec3(p.X(), p.Y(), p.Z());
-    Xu = Vec3(du.X(), du.Y(), du.Z());
-    Xv = Vec3(dv.X(), dv.Y(), dv.Z());
-  }
-
- private:
-  Handle(Geom_Surface) surface_;
-};
-
-Vec2 eval2(const Handle(Geom2d_Curve)& c, double t) {
-  const gp_Pnt2d p = c->Value(t);
-  return Vec2(p.X(), p.Y());
-}
-
-// Appends the curve `at(t)` from t0 to t1 (t1 < t0 for a reversed edge) as `order`
-// polynomial segments (without the first point, which the caller already holds), refined by
-// doubling until the interpolant deviates less than `tol` from the curve at interior test
-// points. Returns the number of segments.
-template <class Vec, class Eval>
-int append_curve(const Eval& at, double t0, double t1, bool straight, const GridOptions& o,
-                 double tol, std::vector<Vec>& out) {
-  int n = 1;
-  const int order = o.segment_order;
-  auto point_at = [&](int k, int n_seg, double frac) { return at(t0 + (t1 - t0) * (k + frac) / n_seg); };
-  while (!straight && n < o.max_segments_per_edge) {
-    double err = 0;
-    for (int k = 0; k < n && err <= tol; ++k) {
-      const Vec p0 = point_at(k, n, 0), p1 = point_at(k, n, 1);
-      if (order == 1) {
-        for (double f : {0.25, 0.5, 0.75})
-          err = std::max(err, (point_at(k, n, f) - ((1 - f) * p0 + f * p1)).norm());
-      } else {
-        const Vec pm = point_at(k, n, 0.5);
-        for (double f : {0.25, 0.75}) {  // Lagrange parabola through t = 0, 1/2, 1
-          const Vec q = 2 * (f - 0.5) * (f - 1) * p0 - 4 * f * (f - 1) * pm + 2 * f * (f - 0.5) * p1;
-          err = std::max(err, (point_at(k, n, f) - q).norm());
-        }
-      }
-    }
-    if (err <= tol) break;
-    n *= 2;
-  }
-  for (int k = 0; k < n; ++k) {
-    if (order == 2) out.push_back(point_at(k, n, 0.5));
-    out.push_back(point_at(k, n, 1.0));
-  }
-  return n;
 }
 
 int append_pcurve(const Handle(Geom2d_Curve)& c, double t0, double t1, const GridOptions& o,
@@ -537,6 +474,17 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     g.planes[a] = grid_planes(lo, h, g.cells[a], avoid[a], o.perturbation, g.shifted_planes);
   }
   g.block_cells = o.block_cells;
+  if (o.method == CutMethod::FaceCut) {
+    GridCut f = g;
+    f.block_cells = 0;  // no blocks: re-cutting a face-route cut cuts it again whole
+    f.method = CutMethod::FaceCut;
+    if (detail::cut_by_faces(part, o, f)) {
+      f.split_seconds = seconds_since(t0);
+      f.done = true;
+      return f;
+    }
+    g.fallback_reason = f.message;
+  }
   TopoDS_Shape solid;
   TopTools_DataMapOfShapeInteger source;
   if (!shape_to_cut(part, o, solid, source, g.message)) return g;

@@ -1,8 +1,11 @@
-// Grid cutting for X-CAD (thesis §6.2.2, §6.3, Fig. 6.3/6.5): an axis-aligned grid over the
-// part's bounding box; every B-rep face is split by the grid planes with OCCT's Boolean
-// splitter (built on its surface–surface intersectors), giving for every cut cell its
-// connected subvolumes, each bounded by trimmed B-rep face pieces and planar regions on the
-// cell's faces, all as plain data (xfem::Subvolume) for the quadrature.
+// Grid cutting for X-CAD (thesis §6.2.2, §6.3, Fig. 6.3/6.5, 6.12): an axis-aligned grid over
+// the part's bounding box, giving for every cut cell its connected subvolumes, each bounded by
+// trimmed B-rep face pieces and planar regions on the cell's faces, all as plain data
+// (xfem::Subvolume) for the quadrature. Two routes: OCCT's Boolean splitter on the whole solid
+// (reference), or the face route (§6.3, Fig. 6.12): every face's trimming loops are split in
+// its (u, v) by the closed-form curves where the grid planes meet its surface, the cells' grid
+// faces are built from those curves, and every intersection point keeps its class and its
+// (u, v) on each surface it lies on (for the shape derivatives of §6.5.3).
 #pragma once
 
 #include <array>
@@ -15,7 +18,19 @@ namespace parafab::occ {
 
 struct PartShape;  // occ_bridge/occt_shape.h
 
+/// How the part is cut. FaceCut: per face, closed-form plane ∩ surface curves in (u, v)
+/// (planes and cylinders; other faces fall back to Splitter with the reason in
+/// GridCut::fallback_reason). Splitter: OCCT's Boolean splitter on the solid (the reference).
+enum class CutMethod { Splitter, FaceCut };
+
 struct GridOptions {
+  CutMethod method = CutMethod::Splitter;
+  /// Face route: check that every subvolume's boundary closes (each boundary curve is run
+  /// through once in each direction by the subvolume's outward-oriented patches) and fall back
+  /// to the splitter if not. build_grid_model also checks the rules' volume against OCCT's.
+  bool verify = true;
+  /// Face route: run the per-face work in parallel (oneTBB).
+  bool face_parallel = true;
   int cells_longest = 8;    ///< cells along the longest side of the bounding box
   double cell_size = 0;     ///< if > 0, overrides cells_longest [model units]
   /// Grid anchor: by default the grid is centred on the bounding box; with `anchored`, grid
@@ -52,6 +67,27 @@ struct CutCell {
   std::vector<int> subvolumes;  ///< indices into GridCut::subvolumes
 };
 
+/// One sample of an intersection curve of the face route (thesis Fig. 6.12): its class and its
+/// parameters on every surface it lies on, for the shape derivatives of §6.5.3.
+struct CutSample {
+  enum Kind {
+    FacePlane,       ///< inside a face, on one grid plane
+    EdgePlane,       ///< a B-rep edge crosses a grid plane (on two faces and the plane)
+    FacePlanePlane,  ///< inside a face, on a cell edge (two grid planes)
+    OnEdge,          ///< inside a B-rep edge, inside the cell (on two faces)
+    Vertex,          ///< a B-rep vertex
+    /// (a plane tangent to a face; not produced: grid planes are shifted off face extremes)
+    Tangent
+  } kind = FacePlane;
+  struct On {
+    int source = -1;     ///< B-rep face index ≥ 0, or −1 − axis for a grid plane
+    xfem::Vec2 uv{0, 0};  ///< face: its surface's (u, v); grid plane axis a: (X_{a+1}, X_{a+2})
+  };
+  std::vector<On> on;
+  int edge = -1;           ///< EdgePlane, OnEdge: the B-rep edge; Vertex: the vertex index
+  double edge_param = 0;   ///< the edge's curve parameter
+};
+
 /// An intersection curve inside a cut cell (an edge of a subvolume's boundary that is not a
 /// straight cell edge), sampled as polynomial segments like the boundary loops, in 3D.
 struct CutCurve {
@@ -61,6 +97,8 @@ struct CutCurve {
   std::array<int, 2> sources{-1, -1};
   int order = 2;                  ///< segment order, as BoundaryLoop::order
   std::vector<xfem::Vec3> points;
+  /// Face route only: one sample per point (empty from the splitter).
+  std::vector<CutSample> samples;
 };
 
 /// A grid-plane face of a subvolume or interior cell on a block face: how pieces cut in
@@ -92,6 +130,10 @@ struct GridCut {
   int patches = 0, segments = 0;
   double split_seconds = 0, extract_seconds = 0;
   int blocks_cut = 0;                             ///< blocks split at the second level
+  CutMethod method = CutMethod::Splitter;         ///< the route that produced this cut
+  std::string fallback_reason;                    ///< why the face route fell back to the splitter
+  double verify_seconds = 0;                      ///< face route: the closure check
+  int verify_open_edges = 0;                      ///< face route: unmatched boundary curves (check failed)
 
   xfem::Box3 cell_box(const std::array<int, 3>& ijk) const;
 };

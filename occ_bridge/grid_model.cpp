@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <sstream>
 
@@ -109,6 +110,24 @@ GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
     return m;
   }
   make_elements(m, o, [](int) -> const xfem::QuadratureRule3* { return nullptr; });
+  if (m.cut->method == CutMethod::FaceCut) {
+    // Safety net of the face route: the rules must hold OCCT's volume of the part; if not, the
+    // part is cut again by the splitter and the reason kept.
+    double volume = 0;
+    for (const auto& e : m.elements)
+      for (double w : e.rule.weights) volume += w;
+    GProp_GProps props;
+    BRepGProp::VolumeProperties(part.shape, props);
+    if (std::abs(volume - props.Mass()) > 1e-6 * std::abs(props.Mass())) {
+      GridModelOptions so = o;
+      so.grid.method = CutMethod::Splitter;
+      GridModel fallback = build_grid_model(part, so);
+      fallback.cut->fallback_reason = "the face route's rules hold volume " + std::to_string(volume) +
+                                      " against OCCT's " + std::to_string(props.Mass());
+      fallback.cut_seconds += m.cut_seconds;
+      return fallback;
+    }
+  }
   return m;
 }
 

@@ -1,13 +1,16 @@
-// Benchmark of the cut-cell quadrature (thesis §6.3, cf. Fig. 6.4 and 6.13): for every cut
-// cell of the sample parts and every monomial up to degree 2 in cell coordinates, the error of
-// the rules against the per-cell OCCT Boolean route (box ∩ part, BRepGProp), divided by the
-// cell volume; time per cell of both routes in the same run. Then error against time while
-// the curve-segment tolerance and the grid resolution vary, linear against parabolic segments.
+// Benchmark of the cut-cell quadrature (thesis §6.3, cf. Fig. 6.4, 6.12 and 6.13): for every
+// cut cell of the sample parts and every monomial up to degree 2 in cell coordinates, the error
+// of the rules against the per-cell OCCT Boolean route (box ∩ part, BRepGProp), divided by the
+// cell volume; time per cell (medians over repeats) of three routes in the same run: the face
+// route (cut by face + rules), the splitter route (OCCT splitter + rules) and the Boolean.
+// Then error against time while the curve-segment tolerance and the grid resolution vary,
+// linear against parabolic segments (splitter route).
 //   bench_cut_cells [--quick] [--out DIR] SAMPLES_DIR   → DIR/cut_cells.json
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <string>
@@ -68,6 +71,8 @@ struct RunResult {
   double rule_seconds_per_cell = 0;  ///< moment-fitted rules only
   int cells = 0, segments = 0;
   bool done = false;
+  bool fell_back = false;  ///< face route asked, splitter used
+  std::string reason;
 };
 RunResult run_rules(const occ::PartShape& part, const occ::IntegrationOptions& o,
                     const std::vector<CellReference>& refs) {
@@ -77,6 +82,8 @@ RunResult run_rules(const occ::PartShape& part, const occ::IntegrationOptions& o
   const double t = now() - t0;
   if (!r.done) return rr;
   rr.done = true;
+  rr.fell_back = o.grid.method != r.cut.method;
+  rr.reason = r.cut.fallback_reason;
   rr.cells = static_cast<int>(r.cut.cut_cells.size());
   rr.segments = r.cut.segments;
   rr.seconds_per_cell = t / std::max(1, rr.cells);
@@ -98,62 +105,93 @@ RunResult run_rules(const occ::PartShape& part, const occ::IntegrationOptions& o
 
 int main(int argc, char** argv) {
   bool quick = false;
+  int repeats = 0;
   std::string out_dir = ".", samples;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) quick = true;
     else if (!std::strcmp(argv[i], "--out") && i + 1 < argc) out_dir = argv[++i];
+    else if (!std::strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = std::atoi(argv[++i]);
     else samples = argv[i];
   }
   if (samples.empty()) {
-    std::fprintf(stderr, "usage: bench_cut_cells [--quick] [--out DIR] SAMPLES_DIR\n");
+    std::fprintf(stderr, "usage: bench_cut_cells [--quick] [--repeats N] [--out DIR] SAMPLES_DIR\n");
     return 2;
   }
   const std::vector<std::string> parts =
       quick ? std::vector<std::string>{"l_bracket"}
             : std::vector<std::string>{"box", "cylinder", "l_bracket", "wrench", "ring", "half_torus", "wheel", "housing"};
   const int cells = quick ? 4 : 6;
+  if (repeats <= 0) repeats = quick ? 1 : 5;
   json per_part = json::array();
-  std::vector<double> all_errors;
-  double rule_time = 0, bool_time = 0, cut_time = 0;
+  struct Totals {
+    std::vector<double> errors;
+    double cut = 0, rules = 0;
+  } tot[2];  // [0] face route, [1] splitter route
+  double bool_time = 0;
   int total_cells = 0;
-  std::printf("%-11s %6s %10s %10s %10s %9s %9s %9s %8s %8s\n", "part", "cells", "median", "p90", "max",
-              "cut ms", "rules ms", "bool ms", "speedup", "rules x");
+  const char* route_name[2] = {"face", "splitter"};
+  std::printf("%-11s %6s %-8s %10s %10s %9s %9s %9s %8s %s\n", "part", "cells", "route", "median", "max", "cut ms",
+              "rules ms", "bool ms", "speedup", "note");
   for (const std::string& name : parts) {
     const auto part = occ::read_part(samples + "/parts/" + name + ".step");
     occ::IntegrationOptions o;
     o.grid.cells_longest = cells;
     o.occt_reference = false;
-    // Reference: per-cell Boolean on the same grid.
+    // Reference: per-cell Boolean on the same grid (median over repeats of the whole loop).
     const occ::GridCut grid = occ::cut_by_grid(*part, o.grid);
     std::vector<CellReference> refs;
-    double t0 = now();
-    for (const auto& cell : grid.cut_cells) {
-      const xfem::Box3 box = grid.cell_box(cell.index);
-      const occ::CellBooleanResult b = occ::occt_cell_properties(*part, box);
-      if (b.done) refs.push_back({box, monomials(b.properties, box)});
+    std::vector<double> t_bools;
+    for (int rep = 0; rep < repeats; ++rep) {
+      refs.clear();
+      const double t0 = now();
+      for (const auto& cell : grid.cut_cells) {
+        const xfem::Box3 box = grid.cell_box(cell.index);
+        const occ::CellBooleanResult b = occ::occt_cell_properties(*part, box);
+        if (b.done) refs.push_back({box, monomials(b.properties, box)});
+      }
+      t_bools.push_back((now() - t0) / std::max<size_t>(1, grid.cut_cells.size()));
+      if (quick) break;
     }
-    const double t_bool = (now() - t0) / std::max<size_t>(1, grid.cut_cells.size());
-    const RunResult rr = run_rules(*part, o, refs);
-    const Stats s = stats(rr.errors);
-    std::printf("%-11s %6d %10.2e %10.2e %10.2e %9.3f %9.3f %9.3f %7.1fx %7.1fx\n", name.c_str(), rr.cells,
-                s.median, s.p90, s.max, 1e3 * rr.cut_seconds_per_cell, 1e3 * rr.rule_seconds_per_cell,
-                1e3 * t_bool, t_bool / rr.seconds_per_cell, t_bool / rr.rule_seconds_per_cell);
-    per_part.push_back({{"part", name}, {"cut_cells", rr.cells}, {"median", s.median}, {"p90", s.p90},
-                        {"max", s.max}, {"route_seconds_per_cell", rr.seconds_per_cell},
-                        {"cut_seconds_per_cell", rr.cut_seconds_per_cell},
-                        {"rules_seconds_per_cell", rr.rule_seconds_per_cell},
-                        {"boolean_seconds_per_cell", t_bool}});
-    cut_time += rr.cut_seconds_per_cell * rr.cells;
-    all_errors.insert(all_errors.end(), rr.errors.begin(), rr.errors.end());
-    rule_time += rr.rule_seconds_per_cell * rr.cells;
-    bool_time += t_bool * rr.cells;
-    total_cells += rr.cells;
+    std::sort(t_bools.begin(), t_bools.end());
+    const double t_bool = t_bools[t_bools.size() / 2];
+    json entry{{"part", name}, {"boolean_seconds_per_cell", t_bool}};
+    for (int route = 0; route < 2; ++route) {
+      o.grid.method = route == 0 ? occ::CutMethod::FaceCut : occ::CutMethod::Splitter;
+      std::vector<double> cut_t, rule_t;
+      RunResult rr;
+      for (int rep = 0; rep < repeats; ++rep) {
+        rr = run_rules(*part, o, refs);
+        cut_t.push_back(rr.cut_seconds_per_cell);
+        rule_t.push_back(rr.rule_seconds_per_cell);
+      }
+      std::sort(cut_t.begin(), cut_t.end());
+      std::sort(rule_t.begin(), rule_t.end());
+      const double tc = cut_t[cut_t.size() / 2], trl = rule_t[rule_t.size() / 2];
+      const Stats s = stats(rr.errors);
+      const std::string note = rr.fell_back ? "fell back: " + rr.reason : "";
+      std::printf("%-11s %6d %-8s %10.2e %10.2e %9.3f %9.3f %9.3f %7.1fx %s\n", name.c_str(), rr.cells, route_name[route],
+                  s.median, s.max, 1e3 * tc, 1e3 * trl, 1e3 * t_bool, t_bool / (tc + trl), note.c_str());
+      entry[route_name[route]] = {{"cut_cells", rr.cells}, {"median", s.median}, {"p90", s.p90}, {"max", s.max},
+                                  {"cut_seconds_per_cell", tc}, {"rules_seconds_per_cell", trl},
+                                  {"speedup", t_bool / (tc + trl)}, {"fell_back", rr.fell_back}, {"reason", rr.reason}};
+      tot[route].errors.insert(tot[route].errors.end(), rr.errors.begin(), rr.errors.end());
+      tot[route].cut += tc * rr.cells;
+      tot[route].rules += trl * rr.cells;
+      if (route == 0) total_cells += rr.cells, bool_time += t_bool * rr.cells;
+    }
+    per_part.push_back(entry);
   }
-  const Stats s = stats(all_errors);
-  std::printf("all %d cut cells x 10 monomials: median %.2e, p90 %.2e, max %.2e\n"
-              "per cell: cut %.3f ms + rules %.3f ms vs Boolean route %.3f ms: route %.1fx, rules alone %.1fx\n",
-              total_cells, s.median, s.p90, s.max, 1e3 * cut_time / total_cells, 1e3 * rule_time / total_cells,
-              1e3 * bool_time / total_cells, bool_time / (cut_time + rule_time), bool_time / rule_time);
+  json all{{"cells", total_cells}, {"boolean_seconds_per_cell", bool_time / total_cells}};
+  for (int route = 0; route < 2; ++route) {
+    const Stats s = stats(tot[route].errors);
+    const double tc = tot[route].cut / total_cells, trl = tot[route].rules / total_cells;
+    std::printf("%s route, all %d cut cells x 10 monomials: median %.2e, p90 %.2e, max %.2e; per cell: cut %.3f ms + "
+                "rules %.3f ms vs Boolean %.3f ms: %.1fx\n",
+                route_name[route], total_cells, s.median, s.p90, s.max, 1e3 * tc, 1e3 * trl, 1e3 * bool_time / total_cells,
+                bool_time / total_cells / (tc + trl));
+    all[route_name[route]] = {{"median", s.median}, {"p90", s.p90}, {"max", s.max}, {"cut_seconds_per_cell", tc},
+                              {"rules_seconds_per_cell", trl}, {"speedup", bool_time / total_cells / (tc + trl)}};
+  }
 
   // Error against time: segment tolerance × order on curved parts, at several grids.
   json sweep = json::array();
@@ -187,14 +225,8 @@ int main(int argc, char** argv) {
         }
     }
   }
-  json out{{"benchmark", "cut_cells"},
-           {"cells_longest", cells},
-           {"parts", per_part},
-           {"all", {{"cells", total_cells}, {"median", s.median}, {"p90", s.p90}, {"max", s.max},
-                    {"rules_seconds_per_cell", rule_time / total_cells},
-                    {"cut_seconds_per_cell", cut_time / total_cells},
-                    {"boolean_seconds_per_cell", bool_time / total_cells}}},
-           {"sweep", sweep}};
+  json out{{"benchmark", "cut_cells"}, {"cells_longest", cells}, {"repeats", repeats},
+           {"parts", per_part},           {"all", all},           {"sweep", sweep}};
   std::ofstream(out_dir + "/cut_cells.json") << out.dump(2) << "\n";
   std::printf("wrote %s/cut_cells.json\n", out_dir.c_str());
   return 0;

@@ -28,21 +28,22 @@ ax1.grid(True, which="both", alpha=0.3)
 ax1.legend(fontsize=6)
 parts = data["parts"]
 x = range(len(parts))
-ax2.bar([i - 0.27 for i in x], [p["cut_seconds_per_cell"] * 1e3 for p in parts], 0.27, label="grid cut (OCCT splitter), per cell")
-ax2.bar([i for i in x], [p["rules_seconds_per_cell"] * 1e3 for p in parts], 0.27, label="moment-fitted rules, per cell")
-ax2.bar([i + 0.27 for i in x], [p["boolean_seconds_per_cell"] * 1e3 for p in parts], 0.27, label="OCCT Boolean + GProp per cell")
+w = 0.2
+ax2.bar([i - 1.5 * w for i in x], [p["face"]["cut_seconds_per_cell"] * 1e3 for p in parts], w, label="cut by face, per cell")
+ax2.bar([i - 0.5 * w for i in x], [p["splitter"]["cut_seconds_per_cell"] * 1e3 for p in parts], w, label="cut by OCCT splitter, per cell")
+ax2.bar([i + 0.5 * w for i in x], [p["face"]["rules_seconds_per_cell"] * 1e3 for p in parts], w, label="moment-fitted rules, per cell")
+ax2.bar([i + 1.5 * w for i in x], [p["boolean_seconds_per_cell"] * 1e3 for p in parts], w, label="OCCT Boolean + GProp per cell")
 ax2.set_xticks(list(x))
-ax2.set_xticklabels([p["part"] for p in parts], rotation=30, fontsize=8)
-ax2.set_ylabel("ms per cut cell")
+ax2.set_xticklabels([p["part"] + (" *" if p["face"]["fell_back"] else "") for p in parts], rotation=30, fontsize=8)
+ax2.set_ylabel("ms per cut cell (median over %d repeats)" % data.get("repeats", 1))
 ax2.set_yscale("log")
-ax2.set_title("Time per cell, %d cells along the longest side" % data["cells_longest"])
-ax2.legend(fontsize=8)
+ax2.set_title("Time per cell, %d cells along the longest side (* face route fell back)" % data["cells_longest"])
+ax2.legend(fontsize=7)
 a = data["all"]
-fig.suptitle("Cut-cell quadrature vs OCCT Boolean per cell: median error %.1e, max %.1e over %d cells; "
-             "route %.1f× faster, rules alone %.1f×"
-             % (a["median"], a["max"], a["cells"],
-                a["boolean_seconds_per_cell"] / (a["cut_seconds_per_cell"] + a["rules_seconds_per_cell"]),
-                a["boolean_seconds_per_cell"] / a["rules_seconds_per_cell"]), fontsize=10)
+fig.suptitle("Cut-cell quadrature vs OCCT Boolean per cell over %d cells: face route %.1f× faster (median error %.1e, "
+             "max %.1e), splitter route %.1f× (median %.1e, max %.1e)"
+             % (a["cells"], a["face"]["speedup"], a["face"]["median"], a["face"]["max"],
+                a["splitter"]["speedup"], a["splitter"]["median"], a["splitter"]["max"]), fontsize=9)
 fig.tight_layout()
 out = os.path.join(d, "cut_cells.png")
 fig.savefig(out, dpi=110)

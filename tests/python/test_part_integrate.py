@@ -42,6 +42,22 @@ class Integrate(unittest.TestCase):
         self.assertEqual(lin["grid"]["segment_order"], 1)
         self.assertGreater(lin["grid"]["curve_segments"], out["grid"]["curve_segments"])
 
+    def test_cut_by_face_on_both_entry_points(self):
+        # Planes and cylinders: the face route; a torus: the splitter, with the reason.
+        path = os.path.join(PARTS, "wrench.step")
+        code, out = cli(path, "--cells", "6", "--cut", "face")
+        self.assertEqual(code, 0)
+        self.assertEqual(out["grid"]["method"], "face")
+        self.assertEqual(out["grid"]["fallback_reason"], "")
+        self.assertLess(out["relative_errors"]["volume"], 1e-11)
+        mod = parafab.integrate_part(path, cells=6, cut="face")
+        self.assertEqual(out["rules"]["volume"], mod["rules"]["volume"])
+        torus = parafab.integrate_part(os.path.join(PARTS, "housing.step"), cells=6, cut="face")
+        self.assertEqual(torus["grid"]["method"], "splitter")
+        self.assertIn("torus", torus["grid"]["fallback_reason"])
+        with self.assertRaises(Exception):
+            parafab.integrate_part(path, cut="boolean")
+
     def test_bad_input(self):
         with tempfile.TemporaryDirectory() as d:
             text = os.path.join(d, "notes.step")

@@ -43,7 +43,9 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
                  {"patches", g.patches},
                  {"curves", g.curves.size()},
                  {"curve_segments", g.segments},
-                 {"segment_order", options.integration.grid.segment_order}};
+                 {"segment_order", options.integration.grid.segment_order},
+                 {"method", g.method == occ::CutMethod::FaceCut ? "face" : "splitter"},
+                 {"fallback_reason", g.fallback_reason}};
   out["rules"] = properties(r.by_rules);
   if (options.integration.occt_reference) {
     out["occt"] = properties(r.by_occt);

@@ -319,6 +319,10 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   if (!(go.rule.flux_tolerance >= 0))
     PARAFAB_INPUT_ERROR("quadrature.flux_tolerance must be >= 0, got " << go.rule.flux_tolerance);
   if (go.grid.block_cells < 0) PARAFAB_INPUT_ERROR("grid.block_cells must be >= 0");
+  const std::string cut_method = grid_job.value("method", std::string("splitter"));
+  if (cut_method != "splitter" && cut_method != "face")
+    PARAFAB_INPUT_ERROR("grid.method must be \"splitter\" or \"face\", got \"" << cut_method << "\"");
+  go.grid.method = cut_method == "face" ? occ::CutMethod::FaceCut : occ::CutMethod::Splitter;
   go = occ::rules_for_element(S->fo.element, go);
 
   const json supports = job.value("supports", json::array());
@@ -610,7 +614,9 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   json out{{"part", part_path_},
            {"grid", {{"cells", grid.cut->cells}, {"cell_size", grid.cut->cell_size.x()},
                      {"cut_cells", grid.cut->cut_cells.size()}, {"subvolumes", grid.cut->subvolumes.size()},
-                     {"interior_cells", grid.cut->interior_cells.size()}}},
+                     {"interior_cells", grid.cut->interior_cells.size()},
+                     {"method", grid.cut->method == occ::CutMethod::FaceCut ? "face" : "splitter"},
+                     {"fallback_reason", grid.cut->fallback_reason}}},
            {"dofs", r.dofs},
            {"element", xfem::element_type_name(S.fo.element)},
            {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}, {"cut", to_json(S.cut_estimate)}}},

@@ -1,0 +1,1113 @@
+// Cut by face (thesis §6.3, Fig. 6.12): every B-rep face is split in its own (u, v) by the
+// grid planes crossing its box, with the plane ∩ surface curves in closed form (planes: lines,
+// cylinders: v(u) graphs or u(v) branches), its trimming loops split where the edges cross the
+// planes (roots on the edges' 3D curves, so both faces of an edge agree). The cells' grid faces
+// are built from the same curves and the cell-face squares; subvolumes are the connected
+// components of a cell's patches (shared boundary points). Cells no face reaches are classified
+// in connected runs, one OCCT point test per run. Every point the cut creates keeps its class
+// (face–plane, edge–plane, face–plane–plane, vertex) and its (u, v) on each surface it lies
+// on (CutSample), for the shape derivatives of §6.5.3.
+#include <BRepAdaptor_Curve.hxx>
+#include <BRepAdaptor_Surface.hxx>
+#include <BRepBndLib.hxx>
+#include <BRepClass3d_SolidClassifier.hxx>
+#include <BRepGProp.hxx>
+#include <BRepTools.hxx>
+#include <BRepTools_WireExplorer.hxx>
+#include <BRep_Tool.hxx>
+#include <Bnd_Box.hxx>
+#include <GProp_GProps.hxx>
+#include <Geom2d_Line.hxx>
+#include <Geom_Line.hxx>
+#include <Standard_Failure.hxx>
+#include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Vertex.hxx>
+#include <TopoDS_Wire.hxx>
+#include <gp_Cylinder.hxx>
+#include <gp_Pln.hxx>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <numeric>
+#include <set>
+#include <sstream>
+#include <tuple>
+
+#include "grid_cut_detail.h"
+#include "occt_shape.h"
+#include "xfem/area_rules.h"
+
+namespace parafab::occ::detail {
+
+namespace {
+
+using NodeId = std::int64_t;
+constexpr NodeId kVertexNode = 0, kEdgePlaneNode = 1LL << 60, kFaceNode = 2LL << 60, kCornerNode = 3LL << 60;
+
+struct FaceFailure {
+  std::string why;
+};
+
+double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+// A curve in a face's (u, v) (or, for grid faces, in a plane's coordinates).
+class UvCurve {
+ public:
+  virtual ~UvCurve() = default;
+  virtual Vec2 at(double t) const = 0;
+  virtual bool straight() const { return false; }
+};
+
+// An edge's pcurve on a face.
+class PCurve : public UvCurve {
+ public:
+  PCurve(Handle(Geom2d_Curve) c, int edge) : c_(std::move(c)), edge_(edge) {
+    straight_ = c_->DynamicType() == STANDARD_TYPE(Geom2d_Line);
+  }
+  Vec2 at(double t) const override { return eval2(c_, t); }
+  bool straight() const override { return straight_; }
+  int edge() const { return edge_; }
+
+ private:
+  Handle(Geom2d_Curve) c_;
+  int edge_;
+  bool straight_ = false;
+};
+
+// Where grid plane X_axis = q meets a face's surface, in the face's (u, v), in closed form.
+//   Line (plane face): uv = p0 + s·dir.
+//   Graph (cylinder, axis not ⟂ e_axis): uv = (s, (c − A cos(s − φ)) / d).
+//   Branch (cylinder, axis ⟂ or nearly ⟂ e_axis): uv = (φ + sgn·acos((c − s·d)/A) + off, s).
+class LevelCurve : public UvCurve {
+ public:
+  enum Type { Line, Graph, Branch } type = Line;
+  Vec2 p0{0, 0}, dir{1, 0};
+  double c = 0, A = 0, phi = 0, d = 0, sgn = 1, off = 0;
+  int face = -1, axis = -1, plane = -1;  // plane: index k (1..cells−1), coordinate planes[axis][k−1]
+
+  Vec2 at(double s) const override {
+    switch (type) {
+      case Line: return p0 + s * dir;
+      case Graph: return Vec2(s, (c - A * std::cos(s - phi)) / d);
+      case Branch: {
+        const double x = std::clamp((c - s * d) / A, -1.0, 1.0);
+        return Vec2(phi + sgn * std::acos(x) + off, s);
+      }
+    }
+    return p0;
+  }
+  bool straight() const override { return type == Line || (type == Branch && d == 0); }
+  double param(const Vec2& uv) const {
+    switch (type) {
+      case Line: return (uv - p0).dot(dir);
+      case Graph: return uv.x();
+      case Branch: return uv.y();
+    }
+    return 0;
+  }
+};
+
+// A level curve on a face seen in its grid plane's coordinates (X_{a+1}, X_{a+2}).
+class ProjectedCurve : public UvCurve {
+ public:
+  ProjectedCurve(std::shared_ptr<const LevelCurve> c, Handle(Geom_Surface) s) : c_(std::move(c)), s_(std::move(s)) {}
+  Vec2 at(double t) const override {
+    const Vec2 uv = c_->at(t);
+    const gp_Pnt p = s_->Value(uv.x(), uv.y());
+    const int a = c_->axis;
+    return Vec2(p.Coord((a + 1) % 3 + 1), p.Coord((a + 2) % 3 + 1));
+  }
+  const LevelCurve& level() const { return *c_; }
+
+ private:
+  std::shared_ptr<const LevelCurve> c_;
+  Handle(Geom_Surface) s_;
+};
+
+class Segment : public UvCurve {  // straight, t ∈ [0, 1]
+ public:
+  Segment(const Vec2& a, const Vec2& b) : a_(a), b_(b) {}
+  Vec2 at(double t) const override { return (1 - t) * a_ + t * b_; }
+  bool straight() const override { return true; }
+
+ private:
+  Vec2 a_, b_;
+};
+
+struct Piece {
+  std::shared_ptr<const UvCurve> curve;
+  double t0 = 0, t1 = 1;
+  NodeId n0 = -1, n1 = -1;  ///< global point ids at t0, t1
+  Vec2 a() const { return curve->at(t0); }
+  Vec2 b() const { return curve->at(t1); }
+};
+using Loop = std::vector<Piece>;
+using Region = std::vector<Loop>;
+
+// The face's part in one cell: outer loop first, then its holes.
+struct FacePatch {
+  std::array<int, 3> cell{0, 0, 0};
+  Region loops;
+};
+
+// Roots of g on (a, b) (a < b), from sign changes on `n` samples, refined by bisection.
+template <class G>
+std::vector<double> roots(const G& g, double a, double b, int n) {
+  std::vector<double> r;
+  double ta = a, ga = g(a);
+  for (int k = 1; k <= n; ++k) {
+    const double tb = a + (b - a) * k / n;
+    const double gb = g(tb);
+    if (ga == 0 && k > 1) r.push_back(ta);
+    else if ((ga < 0 && gb > 0) || (ga > 0 && gb < 0)) {
+      double lo = ta, hi = tb, glo = ga;
+      for (int it = 0; it < 200 && hi - lo > 0; ++it) {
+        const double m = 0.5 * (lo + hi);
+        if (m <= lo || m >= hi) break;
+        const double gm = g(m);
+        if (gm == 0) { lo = hi = m; break; }
+        if ((gm < 0) == (glo < 0)) lo = m, glo = gm;
+        else hi = m;
+      }
+      r.push_back(0.5 * (lo + hi));
+    }
+    ta = tb, ga = gb;
+  }
+  return r;
+}
+
+Vec3 to_vec(const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); }
+
+// Signed area of a loop (polyline through samples of its pieces).
+std::vector<Vec2> polyline(const Loop& loop, int per_piece = 16) {
+  std::vector<Vec2> pts;
+  for (const Piece& p : loop)
+    for (int k = 0; k < per_piece; ++k) pts.push_back(p.curve->at(p.t0 + (p.t1 - p.t0) * k / per_piece));
+  return pts;
+}
+double signed_area(const std::vector<Vec2>& pts) {
+  double a = 0;
+  for (size_t i = 0; i < pts.size(); ++i) a += cross2(pts[i], pts[(i + 1) % pts.size()]);
+  return 0.5 * a;
+}
+int winding(const std::vector<Vec2>& poly, const Vec2& q) {
+  int w = 0;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const Vec2& p0 = poly[i];
+    const Vec2& p1 = poly[(i + 1) % poly.size()];
+    if (p0.y() <= q.y()) {
+      if (p1.y() > q.y() && cross2(p1 - p0, q - p0) > 0) ++w;
+    } else if (p1.y() <= q.y() && cross2(p1 - p0, q - p0) < 0) --w;
+  }
+  return w;
+}
+
+// Groups loops into patches: each counter-clockwise loop with the clockwise loops it holds.
+std::vector<Region> group_loops(Region loops, const char* what) {
+  std::vector<std::vector<Vec2>> polys;
+  std::vector<double> areas;
+  for (const Loop& l : loops) polys.push_back(polyline(l)), areas.push_back(signed_area(polys.back()));
+  std::vector<Region> out;
+  std::vector<int> outer_of(loops.size(), -1);
+  std::vector<int> outers;
+  for (size_t i = 0; i < loops.size(); ++i)
+    if (areas[i] > 0) outer_of[i] = static_cast<int>(out.size()), outers.push_back(static_cast<int>(i)), out.push_back({loops[i]});
+  for (size_t i = 0; i < loops.size(); ++i) {
+    if (areas[i] > 0) continue;
+    int best = -1;
+    for (int o : outers)
+      if (winding(polys[o], polys[i][0]) != 0 && (best < 0 || areas[o] < areas[best])) best = o;
+    if (best < 0) throw FaceFailure{std::string("a hole of ") + what + " lies in no outer loop"};
+    out[outer_of[best]].push_back(loops[i]);
+  }
+  return out;
+}
+
+// Everything about one face the cut needs, read-only during its task.
+class FaceCutter {
+ public:
+  FaceCutter(const PartShape& part, const GridCut& g, int face) : part_(part), g_(g), index_(face) {
+    face_ = TopoDS::Face(part.face(face).Oriented(TopAbs_FORWARD));
+    surface_ = BRep_Tool::Surface(face_);
+    BRepAdaptor_Surface ad(face_, false);
+    type_ = ad.GetType();
+    if (type_ == GeomAbs_Plane) pln_ = ad.Plane();
+    else if (type_ == GeomAbs_Cylinder) cyl_ = ad.Cylinder();
+    else {
+      static const char* names[] = {"plane", "cylinder", "cone", "sphere", "torus", "Bezier", "B-spline",
+                                    "revolution", "extrusion", "offset", "other"};
+      throw FaceFailure{"face " + std::to_string(face) + " is a " + names[std::min<int>(type_, 10)] +
+                        " (the face route cuts planes and cylinders)"};
+    }
+  }
+
+  std::vector<FacePatch> cut() {
+    Region whole = loops();
+    Bnd_Box bb;
+    BRepBndLib::Add(face_, bb, false);
+    double lo[3], hi[3];
+    bb.Get(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+    // Slabs along x, then y, then z.
+    std::vector<std::pair<std::array<int, 3>, Region>> current{{{0, 0, 0}, std::move(whole)}};
+    for (int a = 0; a < 3; ++a) {
+      std::vector<std::pair<std::array<int, 3>, Region>> next;
+      const auto& pl = g_.planes[a];
+      const int k0 = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), lo[a]) - pl.begin());
+      const int k1 = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), hi[a]) - pl.begin());
+      for (auto& [cell, region] : current) {
+        Region rest = std::move(region);
+        for (int k = k0 + 1; k <= k1 && !rest.empty(); ++k) {  // plane k between cells k−1 and k
+          auto [neg, pos] = split(rest, a, k);
+          if (!neg.empty()) {
+            auto c = cell;
+            c[a] = k - 1;
+            next.emplace_back(c, std::move(neg));
+          }
+          rest = std::move(pos);
+        }
+        if (!rest.empty()) {
+          auto c = cell;
+          c[a] = k1;
+          next.emplace_back(c, std::move(rest));
+        }
+      }
+      current = std::move(next);
+    }
+    std::vector<FacePatch> out;
+    for (auto& [cell, region] : current)
+      for (Region& r : group_loops(std::move(region), ("face " + std::to_string(index_)).c_str()))
+        out.push_back({cell, std::move(r)});
+    return out;
+  }
+
+  const Handle(Geom_Surface)& surface() const { return surface_; }
+
+ private:
+  double plane_coord(int axis, int k) const { return g_.planes[axis][k - 1]; }
+
+  // The face's loops in (u, v), region on the left.
+  Region loops() {
+    Region out;
+    for (TopExp_Explorer wires(face_, TopAbs_WIRE); wires.More(); wires.Next()) {
+      Loop loop;
+      for (BRepTools_WireExplorer ex(TopoDS::Wire(wires.Current()), face_); ex.More(); ex.Next()) {
+        const TopoDS_Edge& e = ex.Current();
+        if (BRep_Tool::Degenerated(e)) throw FaceFailure{"face " + std::to_string(index_) + " has a degenerated edge"};
+        double f, l;
+        Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(e, face_, f, l);
+        if (pc.IsNull()) throw FaceFailure{"an edge of face " + std::to_string(index_) + " has no pcurve"};
+        const int ei = part_.edge_index(e);
+        const bool rev = e.Orientation() == TopAbs_REVERSED;
+        Piece p;
+        p.curve = std::make_shared<PCurve>(pc, ei);
+        p.t0 = rev ? l : f;
+        p.t1 = rev ? f : l;
+        p.n0 = kVertexNode + part_.vertices.FindIndex(TopExp::FirstVertex(e, true)) - 1;
+        p.n1 = kVertexNode + part_.vertices.FindIndex(TopExp::LastVertex(e, true)) - 1;
+        loop.push_back(p);
+        edges_.try_emplace(ei, e);
+      }
+      if (!loop.empty()) out.push_back(std::move(loop));
+    }
+    return out;
+  }
+
+  // Roots of plane (axis, k) on the whole edge, on its 3D curve (the same for both faces).
+  const std::vector<double>& edge_roots(int edge, int axis, int k) {
+    const auto key = std::array<int, 3>{edge, axis, k};
+    auto it = edge_roots_.find(key);
+    if (it != edge_roots_.end()) return it->second;
+    const TopoDS_Edge& e = edges_.at(edge);
+    BRepAdaptor_Curve c(TopoDS::Edge(e.Oriented(TopAbs_FORWARD)));
+    double f, l;
+    BRep_Tool::Range(e, f, l);
+    const double q = plane_coord(axis, k);
+    const int n = c.GetType() == GeomAbs_Line ? 1 : 64;
+    auto r = roots([&](double t) { return c.Value(t).Coord(axis + 1) - q; }, f, l, n);
+    return edge_roots_.emplace(key, std::move(r)).first->second;
+  }
+
+  double level_value(const Vec2& uv, int axis, double q) const {
+    return surface_->Value(uv.x(), uv.y()).Coord(axis + 1) - q;
+  }
+  Vec2 level_gradient(const Vec2& uv, int axis) const {
+    gp_Pnt p;
+    gp_Vec du, dv;
+    surface_->D1(uv.x(), uv.y(), p, du, dv);
+    return Vec2(du.Coord(axis + 1), dv.Coord(axis + 1));
+  }
+
+  // The components of {X_axis = q} on the surface, in (u, v).
+  std::vector<std::shared_ptr<LevelCurve>> level_curves(int axis, int k) const {
+    const double q = plane_coord(axis, k);
+    std::vector<std::shared_ptr<LevelCurve>> out;
+    auto make = [&]() {
+      auto c = std::make_shared<LevelCurve>();
+      c->face = index_, c->axis = axis, c->plane = k;
+      return c;
+    };
+    if (type_ == GeomAbs_Plane) {
+      const gp_Ax3 ax = pln_.Position();
+      const Vec2 grad(ax.XDirection().Coord(axis + 1), ax.YDirection().Coord(axis + 1));
+      if (grad.norm() < 1e-14) return out;  // parallel to the grid plane (never on it: shifted)
+      auto c = make();
+      c->type = LevelCurve::Line;
+      c->p0 = grad * (q - ax.Location().Coord(axis + 1)) / grad.squaredNorm();
+      c->dir = Vec2(-grad.y(), grad.x()) / grad.norm();
+      out.push_back(c);
+      return out;
+    }
+    const gp_Ax3 ax = cyl_.Position();
+    const double r = cyl_.Radius();
+    const double xa = ax.XDirection().Coord(axis + 1), ya = ax.YDirection().Coord(axis + 1);
+    const double d = ax.Direction().Coord(axis + 1);
+    const double rho = std::hypot(xa, ya);
+    const double A = r * rho, phi = std::atan2(ya, xa), cc = q - ax.Location().Coord(axis + 1);
+    if (std::abs(d) > 1e-3 * A) {
+      auto c = make();
+      c->type = LevelCurve::Graph;
+      c->A = A, c->phi = phi, c->c = cc, c->d = d;
+      out.push_back(c);
+      return out;
+    }
+    double u0, u1, v0, v1;
+    BRepTools::UVBounds(face_, u0, u1, v0, v1);
+    for (double sgn : {1.0, -1.0}) {
+      auto c = make();
+      c->type = LevelCurve::Branch;
+      c->A = A, c->phi = phi, c->c = cc, c->d = std::abs(d) < 1e-15 ? 0.0 : d, c->sgn = sgn;
+      const double vm = 0.5 * (v0 + v1);
+      const double um = c->at(vm).x();
+      c->off = std::floor((u0 - 1e-9 - um) / (2 * M_PI) + 1) * 2 * M_PI;  // into [u0 − ε, u0 − ε + 2π)
+      out.push_back(c);
+    }
+    return out;
+  }
+
+  struct Crossing {
+    Vec2 uv;
+    NodeId id;
+    double s = 0;
+    int component = -1;
+    bool enters = false;
+    Vec2 tangent{0, 0};  ///< of the loop at the crossing
+  };
+  struct Element {  // a run of boundary pieces or a level interval, from crossing `from` to `to`
+    int from, to;
+    Loop pieces;
+  };
+
+  // Splits the region by plane (axis, k) into the parts with X_axis < q and > q.
+  std::pair<Region, Region> split(const Region& region, int axis, int k) {
+    const double q = plane_coord(axis, k);
+    Region side[2];
+    std::vector<Crossing> crossings;
+    std::vector<Element> runs[2];
+    auto value_at = [&](const Piece& p, double t) { return level_value(p.curve->at(t), axis, q); };
+    for (const Loop& loop : region) {
+      // Sub-pieces with the crossings at their ends.
+      Loop subs;
+      std::vector<int> end_crossing;  // per sub-piece: crossing index at its end, or −1
+      for (const Piece& p : loop) {
+        std::vector<double> ts;
+        std::vector<NodeId> ids;
+        const double lo = std::min(p.t0, p.t1), hi = std::max(p.t0, p.t1);
+        if (auto pc = dynamic_cast<const PCurve*>(p.curve.get())) {
+          const auto& all = edge_roots(pc->edge(), axis, k);
+          for (size_t i = 0; i < all.size(); ++i)
+            if (all[i] > lo && all[i] < hi) {
+              ts.push_back(all[i]);
+              ids.push_back(kEdgePlaneNode + (static_cast<NodeId>(pc->edge()) << 28) + (axis << 26) + (k << 13) +
+                            static_cast<NodeId>(i));
+            }
+        } else {
+          const int n = p.curve->straight() ? 1 : 48;
+          ts = roots([&](double t) { return level_value(p.curve->at(t), axis, q); }, lo, hi, n);
+          // The same level piece lies in the regions on both sides of its plane and is split
+          // identically in both (same curve, same range): one id per curve, plane and root.
+          for (double t : ts) {
+            auto [it, fresh] = face_nodes_.try_emplace(std::make_tuple(p.curve.get(), axis, k, t), 0);
+            if (fresh) it->second = kFaceNode + (static_cast<NodeId>(index_) << 32) + next_node_++;
+            ids.push_back(it->second);
+          }
+        }
+        if (p.t1 < p.t0) std::reverse(ts.begin(), ts.end()), std::reverse(ids.begin(), ids.end());
+        double t = p.t0;
+        NodeId n = p.n0;
+        for (size_t i = 0; i < ts.size(); ++i) {
+          subs.push_back({p.curve, t, ts[i], n, ids[i]});
+          const double dt = 1e-7 * (p.t1 - p.t0);
+          const Vec2 tan = p.curve->at(ts[i] + dt) - p.curve->at(ts[i] - dt);
+          end_crossing.push_back(static_cast<int>(crossings.size()));
+          crossings.push_back({p.curve->at(ts[i]), ids[i]});
+          crossings.back().tangent = tan;
+          t = ts[i], n = ids[i];
+        }
+        subs.push_back({p.curve, t, p.t1, n, p.n1});
+        end_crossing.push_back(-1);
+      }
+      auto side_of = [&](const Piece& p) { return value_at(p, 0.5 * (p.t0 + p.t1)) < 0 ? 0 : 1; };
+      const size_t first_crossing = std::find_if(end_crossing.begin(), end_crossing.end(), [](int c) { return c >= 0; }) - end_crossing.begin();
+      if (first_crossing == end_crossing.size()) {  // the loop lies on one side
+        side[side_of(subs[0])].push_back(loop);
+        continue;
+      }
+      // Runs: start after a crossing, cut at every crossing.
+      const size_t n = subs.size();
+      Element run{end_crossing[first_crossing], -1, {}};
+      for (size_t j = 1; j <= n; ++j) {
+        const size_t i = (first_crossing + j) % n;
+        run.pieces.push_back(subs[i]);
+        if (end_crossing[i] >= 0) {
+          run.to = end_crossing[i];
+          runs[side_of(run.pieces[0])].push_back(run);
+          run = Element{end_crossing[i], -1, {}};
+        }
+      }
+    }
+    if (crossings.empty()) {
+      return {std::move(side[0]), std::move(side[1])};
+    }
+    // Level intervals between consecutive crossings along each component.
+    const auto comps = level_curves(axis, k);
+    if (comps.empty()) throw FaceFailure{"face " + std::to_string(index_) + ": crossings without a level curve"};
+    for (size_t i = 0; i < crossings.size(); ++i) {
+      Crossing& c = crossings[i];
+      double best = 1e300;
+      for (size_t j = 0; j < comps.size(); ++j) {
+        const double s = comps[j]->param(c.uv);
+        const double dist = (comps[j]->at(s) - c.uv).norm();
+        if (dist < best) best = dist, c.component = static_cast<int>(j), c.s = s;
+      }
+      if (best > 1e-6 * (1 + c.uv.norm()))
+        throw FaceFailure{"face " + std::to_string(index_) + ": a crossing of plane " + std::to_string(axis) + "/" +
+                          std::to_string(k) + " is off its level curve by " + std::to_string(best)};
+      const LevelCurve& L = *comps[c.component];
+      const double ds = 1e-7 * (1 + std::abs(c.s));
+      const Vec2 lt = L.at(c.s + ds) - L.at(c.s - ds);
+      c.enters = cross2(c.tangent, lt) > 0;
+    }
+    for (size_t j = 0; j < comps.size(); ++j) {
+      std::vector<int> on;
+      for (size_t i = 0; i < crossings.size(); ++i)
+        if (crossings[i].component == static_cast<int>(j)) on.push_back(static_cast<int>(i));
+      std::sort(on.begin(), on.end(), [&](int a, int b) { return crossings[a].s < crossings[b].s; });
+      if (on.size() % 2 != 0) throw FaceFailure{"face " + std::to_string(index_) + ": odd number of crossings on a level curve"};
+      for (size_t m = 0; m < on.size(); m += 2) {
+        const Crossing& c0 = crossings[on[m]];
+        const Crossing& c1 = crossings[on[m + 1]];
+        if (!c0.enters || c1.enters)
+          throw FaceFailure{"face " + std::to_string(index_) + ": level-curve crossings of plane " + std::to_string(axis) +
+                            "/" + std::to_string(k) + " do not alternate (tangent or ambiguous)"};
+        const double sm = 0.5 * (c0.s + c1.s);
+        const Vec2 lt = comps[j]->at(sm + 1e-7 * (c1.s - c0.s)) - comps[j]->at(sm - 1e-7 * (c1.s - c0.s));
+        const bool neg_left = Vec2(-lt.y(), lt.x()).dot(level_gradient(comps[j]->at(sm), axis)) < 0;
+        Piece fwd{comps[j], c0.s, c1.s, c0.id, c1.id};
+        Piece bwd{comps[j], c1.s, c0.s, c1.id, c0.id};
+        runs[neg_left ? 0 : 1].push_back({on[m], on[m + 1], {fwd}});
+        runs[neg_left ? 1 : 0].push_back({on[m + 1], on[m], {bwd}});
+      }
+    }
+    // Link elements into loops at the crossings.
+    for (int sd = 0; sd < 2; ++sd) {
+      std::map<int, int> starting;
+      for (size_t e = 0; e < runs[sd].size(); ++e)
+        if (!starting.emplace(runs[sd][e].from, static_cast<int>(e)).second)
+          throw FaceFailure{"face " + std::to_string(index_) + ": two boundary pieces leave one crossing"};
+      std::vector<bool> used(runs[sd].size(), false);
+      for (size_t e0 = 0; e0 < runs[sd].size(); ++e0) {
+        if (used[e0]) continue;
+        Loop loop;
+        int e = static_cast<int>(e0);
+        while (!used[e]) {
+          used[e] = true;
+          loop.insert(loop.end(), runs[sd][e].pieces.begin(), runs[sd][e].pieces.end());
+          auto it = starting.find(runs[sd][e].to);
+          if (it == starting.end()) throw FaceFailure{"face " + std::to_string(index_) + ": a boundary piece ends nowhere"};
+          e = it->second;
+        }
+        if (e != static_cast<int>(e0)) throw FaceFailure{"face " + std::to_string(index_) + ": boundary pieces do not close"};
+        side[sd].push_back(std::move(loop));
+      }
+    }
+    return {std::move(side[0]), std::move(side[1])};
+  }
+
+  const PartShape& part_;
+  const GridCut& g_;
+  int index_;
+  TopoDS_Face face_;
+  Handle(Geom_Surface) surface_;
+  GeomAbs_SurfaceType type_;
+  gp_Pln pln_;
+  gp_Cylinder cyl_;
+  std::map<int, TopoDS_Edge> edges_;
+  std::map<std::array<int, 3>, std::vector<double>> edge_roots_;
+  NodeId next_node_ = 0;
+  std::map<std::tuple<const UvCurve*, int, int, double>, NodeId> face_nodes_;
+};
+
+// Union–find over patch indices.
+struct Components {
+  std::vector<int> parent;
+  explicit Components(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int find(int i) { return parent[i] == i ? i : parent[i] = find(parent[i]); }
+  void join(int a, int b) { parent[find(a)] = find(b); }
+};
+
+// A plane's map σ(u, v): X_a = q, X_{a+1} = u, X_{a+2} = v (σu × σv = e_a).
+class GridPlaneMap : public xfem::SurfaceMap {
+ public:
+  GridPlaneMap(int axis, double q) : a_(axis), q_(q) {}
+  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
+    X[a_] = q_, X[(a_ + 1) % 3] = u, X[(a_ + 2) % 3] = v;
+    Xu = Vec3::Zero(), Xv = Vec3::Zero();
+    Xu[(a_ + 1) % 3] = 1, Xv[(a_ + 2) % 3] = 1;
+  }
+
+ private:
+  int a_;
+  double q_;
+};
+
+struct PatchRef {
+  int face = -1;     ///< B-rep face, or −1 for a grid patch
+  int index = -1;    ///< into the face's patches, or into the grid patches
+  int sign = 1;      ///< grid patch: +1 below its plane (normal +e_a), −1 above
+};
+
+struct GridPatch {
+  int axis, plane;
+  std::array<int, 2> cells2;  ///< the square's cell indices along axis+1, axis+2
+  Region loops;
+  std::array<int, 2> owner{INT32_MIN, INT32_MIN};  ///< below, above: subvolume ≥ 0 or −1 − interior cell
+};
+
+}  // namespace
+
+bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
+  const int nf = part.face_count();
+  std::vector<std::vector<FacePatch>> patches(nf);
+  std::vector<std::string> failures(nf);
+  std::vector<Handle(Geom_Surface)> surfaces(nf);
+  auto cut_face = [&](int f) {
+    try {
+      FaceCutter fc(part, g, f);
+      surfaces[f] = fc.surface();
+      patches[f] = fc.cut();
+    } catch (const FaceFailure& e) {
+      failures[f] = e.why;
+    } catch (const Standard_Failure& e) {
+      failures[f] = "face " + std::to_string(f) + ": OCCT: " + e.GetMessageString();
+    }
+  };
+  if (o.face_parallel) tbb::parallel_for(0, nf, cut_face);
+  else
+    for (int f = 0; f < nf; ++f) cut_face(f);
+  for (int f = 0; f < nf; ++f)
+    if (!failures[f].empty()) {
+      g.message = "face route: " + failures[f];
+      return false;
+    }
+
+  // Cut cells and the face patches in each.
+  std::map<std::array<int, 3>, std::vector<PatchRef>> in_cell;
+  for (int f = 0; f < nf; ++f)
+    for (size_t p = 0; p < patches[f].size(); ++p) in_cell[patches[f][p].cell].push_back({f, static_cast<int>(p), 1});
+
+  // Uncut cells: connected runs, one point test each.
+  const auto& n = g.cells;
+  auto lin = [&](const std::array<int, 3>& c) { return c[0] + n[0] * (c[1] + n[1] * c[2]); };
+  const int ncells = n[0] * n[1] * n[2];
+  std::vector<int> status(ncells, -1);  // −1 unknown, 0 outside, 1 inside, 2 cut
+  for (const auto& [c, list] : in_cell) status[lin(c)] = 2;
+  BRepClass3d_SolidClassifier classifier(part.shape);
+  const double h = g.cell_size.maxCoeff();
+  auto inside_at = [&](const Vec3& p) {
+    classifier.Perform(gp_Pnt(p.x(), p.y(), p.z()), 1e-9 * h);
+    return classifier.State();
+  };
+  // A cell's state from a point inside it, off-centre (aligned parts have faces through centres).
+  auto cell_inside = [&](const Box3& b) {
+    for (const Vec3& f : {Vec3(0.5123, 0.4871, 0.5377), Vec3(0.3137, 0.6911, 0.2719), Vec3(0.7211, 0.2293, 0.6631)}) {
+      const TopAbs_State s = inside_at(b.min + f.cwiseProduct(b.size()));
+      if (s == TopAbs_IN || s == TopAbs_OUT) return s == TopAbs_IN;
+    }
+    throw FaceFailure{"the point tests of an uncut cell landed on the boundary"};
+  };
+  try {
+    for (int start = 0; start < ncells; ++start) {
+      if (status[start] != -1) continue;
+      const std::array<int, 3> c0{start % n[0], (start / n[0]) % n[1], start / (n[0] * n[1])};
+      const Box3 b = g.cell_box(c0);
+      const int s = cell_inside(b) ? 1 : 0;
+      std::vector<int> stack{start};
+      status[start] = s;
+      while (!stack.empty()) {
+        const int i = stack.back();
+        stack.pop_back();
+        const std::array<int, 3> c{i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])};
+        for (int a = 0; a < 3; ++a)
+          for (int dlt : {-1, 1}) {
+            auto m = c;
+            m[a] += dlt;
+            if (m[a] < 0 || m[a] >= n[a]) continue;
+            const int j = lin(m);
+            if (status[j] == -1) status[j] = s, stack.push_back(j);
+          }
+      }
+    }
+  } catch (const FaceFailure& e) {
+    g.message = "face route: " + e.why;
+    return false;
+  }
+  std::map<std::array<int, 3>, int> interior_index;
+  for (int i = 0; i < ncells; ++i)
+    if (status[i] == 1) {
+      const std::array<int, 3> c{i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])};
+      interior_index[c] = static_cast<int>(g.interior_cells.size());
+      g.interior_cells.push_back(c);
+    }
+
+  // Grid patches on the squares of cut cells: the level pieces of the faces below the plane,
+  // reversed against the face's outward boundary, closed along the square's sides.
+  std::vector<GridPatch> grid_patches;
+  std::set<std::array<int, 4>> squares;  // axis, plane, j1, j2
+  for (const auto& [c, list] : in_cell)
+    for (int a = 0; a < 3; ++a) {
+      const int j1 = c[(a + 1) % 3], j2 = c[(a + 2) % 3];
+      if (c[a] > 0) squares.insert({a, c[a], j1, j2});
+      if (c[a] + 1 < n[a]) squares.insert({a, c[a] + 1, j1, j2});
+    }
+  try {
+    for (const auto& sq : squares) {
+      const int a = sq[0], k = sq[1], b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+      std::array<int, 3> below{}, above{};
+      below[a] = k - 1, above[a] = k, below[b1] = above[b1] = sq[2], below[b2] = above[b2] = sq[3];
+      const Box3 cb = g.cell_box(below);
+      const Vec2 lo(cb.min[b1], cb.min[b2]), hi(cb.max[b1], cb.max[b2]);
+      // Chain pieces.
+      std::vector<Piece> chain;
+      auto it = in_cell.find(below);
+      if (it != in_cell.end())
+        for (const PatchRef& r : it->second) {
+          const bool forward = part.face(r.face).Orientation() != TopAbs_REVERSED;
+          for (const Loop& loop : patches[r.face][r.index].loops)
+            for (const Piece& p : loop) {
+              auto lc = std::dynamic_pointer_cast<const LevelCurve>(p.curve);
+              if (!lc || lc->axis != a || lc->plane != k) continue;
+              auto pc = std::make_shared<ProjectedCurve>(lc, surfaces[r.face]);
+              chain.push_back(forward ? Piece{pc, p.t1, p.t0, p.n1, p.n0} : Piece{pc, p.t0, p.t1, p.n0, p.n1});
+            }
+        }
+      // Corner nodes and the perimeter parameter τ ∈ [0, 4).
+      auto corner_id = [&](int which) {  // 0: (lo,lo) 1: (hi,lo) 2: (hi,hi) 3: (lo,hi)
+        std::array<int, 3> v{};
+        v[a] = k, v[b1] = sq[2] + (which == 1 || which == 2), v[b2] = sq[3] + (which >= 2);
+        return kCornerNode + v[0] + (n[0] + 1) * (v[1] + (n[1] + 1) * static_cast<NodeId>(v[2]));
+      };
+      const Vec2 corners[4] = {lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())};
+      auto tau = [&](const Vec2& p) {
+        const double w1 = hi.x() - lo.x(), w2 = hi.y() - lo.y();
+        const double d[4] = {std::abs(p.y() - lo.y()) / w2, std::abs(p.x() - hi.x()) / w1, std::abs(p.y() - hi.y()) / w2,
+                             std::abs(p.x() - lo.x()) / w1};
+        const int side = static_cast<int>(std::min_element(d, d + 4) - d);
+        if (d[side] > 1e-7) throw FaceFailure{"a cut curve ends inside a cell face"};
+        switch (side) {
+          case 0: return std::clamp((p.x() - lo.x()) / w1, 0.0, 1.0);
+          case 1: return 1 + std::clamp((p.y() - lo.y()) / w2, 0.0, 1.0);
+          case 2: return 2 + std::clamp((hi.x() - p.x()) / w1, 0.0, 1.0);
+          default: return 3 + std::clamp((hi.y() - p.y()) / w2, 0.0, 1.0);
+        }
+      };
+      // Chains: link pieces at shared nodes.
+      std::map<NodeId, int> starting;
+      std::set<NodeId> ending;
+      for (size_t i = 0; i < chain.size(); ++i) {
+        if (!starting.emplace(chain[i].n0, static_cast<int>(i)).second)
+          throw FaceFailure{"two cut curves leave one point on a cell face"};
+        ending.insert(chain[i].n1);
+      }
+      std::vector<bool> used(chain.size(), false);
+      Region loops;
+      struct Open {
+        Loop pieces;
+        double t_start, t_end;
+      };
+      std::vector<Open> open;
+      for (size_t i = 0; i < chain.size(); ++i) {  // open chains start where no piece ends
+        if (used[i] || ending.count(chain[i].n0)) continue;
+        Open oc;
+        int j = static_cast<int>(i);
+        while (j >= 0 && !used[j]) {
+          used[j] = true;
+          oc.pieces.push_back(chain[j]);
+          auto s = starting.find(chain[j].n1);
+          j = s == starting.end() ? -1 : s->second;
+        }
+        oc.t_start = tau(oc.pieces.front().a());
+        oc.t_end = tau(oc.pieces.back().b());
+        open.push_back(std::move(oc));
+      }
+      for (size_t i = 0; i < chain.size(); ++i) {  // closed chains
+        if (used[i]) continue;
+        Loop l;
+        int j = static_cast<int>(i);
+        while (!used[j]) {
+          used[j] = true;
+          l.push_back(chain[j]);
+          auto s = starting.find(chain[j].n1);
+          if (s == starting.end()) throw FaceFailure{"a cut curve on a cell face does not close"};
+          j = s->second;
+        }
+        if (j != static_cast<int>(i)) throw FaceFailure{"cut curves on a cell face do not close"};
+        loops.push_back(std::move(l));
+      }
+      // Close the open chains along the square's sides, counter-clockwise.
+      auto side_pieces = [&](double t0, const Vec2& p0, NodeId n0, double t1, const Vec2& p1, NodeId n1, Loop& out) {
+        if (t1 <= t0) t1 += 4;
+        Vec2 from = p0;
+        NodeId from_id = n0;
+        for (int c = static_cast<int>(std::floor(t0)) + 1; c < t1; ++c) {
+          const Vec2 to = corners[c % 4];
+          out.push_back({std::make_shared<Segment>(from, to), 0, 1, from_id, corner_id(c % 4)});
+          from = to, from_id = corner_id(c % 4);
+        }
+        out.push_back({std::make_shared<Segment>(from, p1), 0, 1, from_id, n1});
+      };
+      if (!open.empty()) {
+        std::vector<bool> done(open.size(), false);
+        for (size_t i0 = 0; i0 < open.size(); ++i0) {
+          if (done[i0]) continue;
+          Loop l;
+          size_t i = i0;
+          while (!done[i]) {
+            done[i] = true;
+            l.insert(l.end(), open[i].pieces.begin(), open[i].pieces.end());
+            // next start counter-clockwise after this end
+            size_t best = open.size();
+            double best_d = 1e300;
+            for (size_t j = 0; j < open.size(); ++j) {
+              double d = open[j].t_start - open[i].t_end;
+              if (d <= 0) d += 4;
+              if (d < best_d) best_d = d, best = j;
+            }
+            side_pieces(open[i].t_end, open[i].pieces.back().b(), open[i].pieces.back().n1, open[best].t_start,
+                        open[best].pieces.front().a(), open[best].pieces.front().n0, l);
+            i = best;
+          }
+          if (i != i0) throw FaceFailure{"cut curves on a cell face close in the wrong order"};
+          loops.push_back(std::move(l));
+        }
+      } else {
+        // No curve reaches the square's sides: its sides lie wholly inside or outside.
+        int st = -1;
+        if (status[lin(below)] != 2) st = status[lin(below)];
+        else if (status[lin(above)] != 2) st = status[lin(above)];
+        else {  // the square's corners share the state of its sides (no curve reaches them)
+          for (int c = 0; c < 4 && st < 0; ++c) {
+            Vec3 p;
+            p[a] = g.planes[a][k - 1], p[b1] = corners[c].x(), p[b2] = corners[c].y();
+            const TopAbs_State s = inside_at(p);
+            if (s == TopAbs_IN || s == TopAbs_OUT) st = s == TopAbs_IN ? 1 : 0;
+          }
+          if (st < 0) throw FaceFailure{"the point tests of a cell face landed on the boundary"};
+        }
+        if (st == 1) {
+          Loop l;
+          for (int c = 0; c < 4; ++c)
+            l.push_back({std::make_shared<Segment>(corners[c], corners[(c + 1) % 4]), 0, 1, corner_id(c), corner_id((c + 1) % 4)});
+          loops.push_back(std::move(l));
+        }
+      }
+      for (Region& r : group_loops(std::move(loops), "a cell face"))
+        grid_patches.push_back({a, k, {sq[2], sq[3]}, std::move(r), {INT32_MIN, INT32_MIN}});
+    }
+  } catch (const FaceFailure& e) {
+    g.message = "face route: " + e.why;
+    return false;
+  }
+
+  // Grid patches of each cell.
+  std::map<std::array<int, 3>, std::vector<int>> grid_in_cell[2];  // [0]: cell below, [1]: above
+  for (size_t i = 0; i < grid_patches.size(); ++i) {
+    const GridPatch& gp = grid_patches[i];
+    std::array<int, 3> below{}, above{};
+    below[gp.axis] = gp.plane - 1, above[gp.axis] = gp.plane;
+    below[(gp.axis + 1) % 3] = above[(gp.axis + 1) % 3] = gp.cells2[0];
+    below[(gp.axis + 2) % 3] = above[(gp.axis + 2) % 3] = gp.cells2[1];
+    for (int sd = 0; sd < 2; ++sd) {
+      const auto& c = sd == 0 ? below : above;
+      const int st = status[lin(c)];
+      if (st == 2) grid_in_cell[sd][c].push_back(static_cast<int>(i));
+      else if (st == 1) grid_patches[i].owner[sd] = -1 - interior_index.at(c);
+      else {
+        g.message = "face route: a cell face's cross-section borders a cell outside the part";
+        return false;
+      }
+    }
+  }
+
+  // Subvolumes: connected components of each cut cell's patches (shared points).
+  auto sample_loops = [&](const Region& r, int& segments) {
+    std::vector<xfem::BoundaryLoop> out;
+    Vec2 lo = Vec2::Constant(1e300), hi = Vec2::Constant(-1e300);
+    for (const Loop& l : r)
+      for (const Vec2& p : polyline(l, 4)) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const double tol = o.segment_tolerance * (hi - lo).maxCoeff();
+    for (const Loop& l : r) {
+      xfem::BoundaryLoop bl;
+      bl.order = o.segment_order;
+      bl.points.push_back(l.front().a());
+      for (const Piece& p : l)
+        segments += append_curve<Vec2>([&](double t) { return p.curve->at(t); }, p.t0, p.t1, p.curve->straight(), o, tol, bl.points);
+      bl.points.back() = bl.points.front();
+      out.push_back(std::move(bl));
+    }
+    return out;
+  };
+  std::vector<std::shared_ptr<const xfem::SurfaceMap>> maps(nf);
+  for (int f = 0; f < nf; ++f)
+    if (!surfaces[f].IsNull()) maps[f] = std::make_shared<OcctSurfaceMap>(surfaces[f]);
+  struct CurveJob {
+    int subvolume;
+    Piece piece;
+    int face;
+    bool level;
+  };
+  std::vector<CurveJob> curve_jobs;
+  struct LoopJob {
+    int subvolume, patch;
+    const Region* region;
+  };
+  std::vector<LoopJob> loop_jobs;
+  int open_edges = 0, first_open = -1;
+  double verify_seconds = 0;
+  for (const auto& [cell, list] : in_cell) {
+    std::vector<PatchRef> refs = list;
+    for (int sd = 0; sd < 2; ++sd) {
+      auto it = grid_in_cell[sd].find(cell);
+      if (it != grid_in_cell[sd].end())
+        for (int i : it->second) refs.push_back({-1, i, sd == 0 ? 1 : -1});
+    }
+    auto region_of = [&](const PatchRef& r) -> const Region& {
+      return r.face >= 0 ? patches[r.face][r.index].loops : grid_patches[r.index].loops;
+    };
+    Components comp(static_cast<int>(refs.size()));
+    std::map<NodeId, int> first_with;
+    for (size_t i = 0; i < refs.size(); ++i)
+      for (const Loop& l : region_of(refs[i]))
+        for (const Piece& p : l)
+          for (NodeId id : {p.n0, p.n1}) {
+            auto [it, fresh] = first_with.emplace(id, static_cast<int>(i));
+            if (!fresh) comp.join(static_cast<int>(i), it->second);
+          }
+    // Check: every subvolume's boundary closes (each curve between two points is run through
+    // once in each direction by its patches, oriented outward).
+    if (o.verify) {
+      const auto tv = std::chrono::steady_clock::now();
+      std::map<int, std::map<std::pair<NodeId, NodeId>, int>> directed;  // component root → counts
+      for (size_t i = 0; i < refs.size(); ++i) {
+        const PatchRef& r = refs[i];
+        const int sign = r.face >= 0 ? (part.face(r.face).Orientation() == TopAbs_REVERSED ? -1 : 1) : r.sign;
+        auto& d = directed[comp.find(static_cast<int>(i))];
+        for (const Loop& l : region_of(r))
+          for (const Piece& p : l)
+            if (p.n0 != p.n1) ++d[sign > 0 ? std::make_pair(p.n0, p.n1) : std::make_pair(p.n1, p.n0)];
+      }
+      for (const auto& [root, d] : directed)
+        for (const auto& [e, count] : d) {
+          auto it = d.find({e.second, e.first});
+          if (it == d.end() || it->second != count) {
+            if (open_edges++ == 0) first_open = static_cast<int>(g.subvolumes.size());
+          }
+        }
+      verify_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tv).count();
+    }
+    std::map<int, int> sv_of_root;
+    CutCell cc{cell, {}};
+    for (size_t i = 0; i < refs.size(); ++i) {
+      const int root = comp.find(static_cast<int>(i));
+      auto [it, fresh] = sv_of_root.emplace(root, static_cast<int>(g.subvolumes.size()));
+      if (fresh) {
+        xfem::Subvolume sv;
+        sv.cell = g.cell_box(cell);
+        cc.subvolumes.push_back(it->second);
+        g.subvolumes.push_back(std::move(sv));
+      }
+      const int s = it->second;
+      const PatchRef& r = refs[i];
+      xfem::CutPatch patch;
+      loop_jobs.push_back({s, static_cast<int>(g.subvolumes[s].patches.size()), &region_of(r)});
+      if (r.face >= 0) {
+        patch.surface = maps[r.face];
+        patch.orientation = part.face(r.face).Orientation() == TopAbs_REVERSED ? -1 : 1;
+        patch.source_face = r.face;
+        for (const Loop& l : region_of(r))
+          for (const Piece& p : l) {
+            const bool level = dynamic_cast<const LevelCurve*>(p.curve.get()) != nullptr;
+            curve_jobs.push_back({s, p, r.face, level});
+          }
+      } else {
+        GridPatch& gp = grid_patches[r.index];
+        patch.surface = std::make_shared<GridPlaneMap>(gp.axis, g.planes[gp.axis][gp.plane - 1]);
+        patch.orientation = r.sign;
+        patch.grid_axis = gp.axis;
+        gp.owner[r.sign > 0 ? 0 : 1] = s;
+      }
+      g.subvolumes[s].patches.push_back(std::move(patch));
+      ++g.patches;
+    }
+    g.cut_cells.push_back(std::move(cc));
+  }
+  for (const GridPatch& gp : grid_patches) {
+    const int a = gp.owner[0], b = gp.owner[1];
+    if (a == INT32_MIN || b == INT32_MIN) {
+      g.message = "face route: a cell-face patch has no subvolume on one side";
+      return false;
+    }
+    if (a >= 0 && b >= 0) g.connections.push_back({std::min(a, b), std::max(a, b)});
+    else if (a >= 0 || b >= 0) g.interior_connections.push_back({std::max(a, b), -1 - std::min(a, b)});
+  }
+
+  {  // the patches' boundary loops as polynomial segments, in parallel
+    std::vector<int> segs(loop_jobs.size(), 0);
+    auto run = [&](int i) {
+      const LoopJob& j = loop_jobs[i];
+      g.subvolumes[j.subvolume].patches[j.patch].loops = sample_loops(*j.region, segs[i]);
+    };
+    if (o.face_parallel) tbb::parallel_for(0, static_cast<int>(loop_jobs.size()), run);
+    else
+      for (int i = 0; i < static_cast<int>(loop_jobs.size()); ++i) run(i);
+    for (int n : segs) g.segments += n;
+  }
+  // Intersection curves with their samples.
+  std::map<int, std::array<int, 2>> edge_faces;
+  for (int e = 0; e < part.edge_count(); ++e) edge_faces[e] = {-1, -1};
+  {
+    TopTools_IndexedDataMapOfShapeListOfShape ef;
+    TopExp::MapShapesAndAncestors(part.shape, TopAbs_EDGE, TopAbs_FACE, ef);
+    for (int i = 1; i <= ef.Extent(); ++i) {
+      const int e = part.edge_index(ef.FindKey(i));
+      std::vector<int> fs;
+      for (const TopoDS_Shape& f : ef(i)) fs.push_back(part.face_index(f));
+      if (fs.size() == 2) edge_faces[e] = {std::min(fs[0], fs[1]), std::max(fs[0], fs[1])};
+    }
+  }
+  // Which pieces are intersection curves: level pieces, and edge pieces (once, not seams).
+  std::set<std::tuple<int, NodeId, NodeId>> edge_done;
+  std::vector<CurveJob> jobs;
+  for (const CurveJob& job : curve_jobs) {
+    if (!job.level) {
+      const auto* pc = dynamic_cast<const PCurve*>(job.piece.curve.get());
+      if (!pc) continue;
+      const auto ff = edge_faces.at(pc->edge());
+      if (ff[0] < 0 || ff[0] == ff[1]) continue;  // seam or free edge: not an intersection curve
+      if (!edge_done.emplace(pc->edge(), std::min(job.piece.n0, job.piece.n1), std::max(job.piece.n0, job.piece.n1)).second)
+        continue;
+    }
+    jobs.push_back(job);
+  }
+  std::vector<CutCurve> curves(jobs.size());
+  std::vector<int> curve_segments(jobs.size(), 0);
+  auto make_curve = [&](int job_index) {
+    const CurveJob& job = jobs[job_index];
+    const Piece& p = job.piece;
+    CutCurve& curve = curves[job_index];
+    int& segments = curve_segments[job_index];
+    curve.subvolume = job.subvolume;
+    curve.order = o.segment_order;
+    const Handle(Geom_Surface)& S = surfaces[job.face];
+    std::vector<double> ts{p.t0};
+    if (job.level) {
+      const auto& L = static_cast<const LevelCurve&>(*p.curve);
+      curve.kind = CutCurve::FacePlane;
+      curve.sources = {job.face, -1 - L.axis};
+      auto at3 = [&](double t) { const Vec2 uv = L.at(t); return to_vec(S->Value(uv.x(), uv.y())); };
+      curve.points.push_back(at3(p.t0));
+      segments += append_curve<Vec3>(at3, p.t0, p.t1, false, o, o.segment_tolerance * h, curve.points, &ts);
+      for (size_t i = 0; i < ts.size(); ++i) {
+        CutSample smp;
+        const Vec2 uv = L.at(ts[i]);
+        const Vec3& X = curve.points[i];
+        smp.on.push_back({job.face, uv});
+        smp.on.push_back({-1 - L.axis, Vec2(X[(L.axis + 1) % 3], X[(L.axis + 2) % 3])});
+        const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
+        if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
+          smp.kind = CutSample::EdgePlane;
+          smp.edge = static_cast<int>((node - kEdgePlaneNode) >> 28);
+        } else if (node >= 0 && (node & (3LL << 60)) == kFaceNode) {
+          smp.kind = CutSample::FacePlanePlane;
+          for (int b = 0; b < 3; ++b) {
+            if (b == L.axis) continue;
+            const auto& pl = g.planes[b];
+            for (double x : pl)
+              if (std::abs(X[b] - x) < 1e-9 * h) smp.on.push_back({-1 - b, Vec2(X[(b + 1) % 3], X[(b + 2) % 3])});
+          }
+        }
+        curve.samples.push_back(std::move(smp));
+      }
+    } else {
+      const auto* pc = static_cast<const PCurve*>(p.curve.get());
+      const int e = pc->edge();
+      const auto ff = edge_faces.at(e);
+      const TopoDS_Edge& edge = part.edge(e);
+      BRepAdaptor_Curve c3(edge);
+      curve.kind = CutCurve::FaceFace;
+      curve.sources = ff;
+      auto at3 = [&](double t) { return to_vec(c3.Value(t)); };
+      curve.points.push_back(at3(p.t0));
+      segments += append_curve<Vec3>(at3, p.t0, p.t1, c3.GetType() == GeomAbs_Line, o, o.segment_tolerance * h,
+                                       curve.points, &ts);
+      std::array<Handle(Geom2d_Curve), 2> pcs;
+      for (int j = 0; j < 2; ++j) {
+        double f, l;
+        pcs[j] = BRep_Tool::CurveOnSurface(edge, part.face(ff[j]), f, l);
+      }
+      for (size_t i = 0; i < ts.size(); ++i) {
+        CutSample smp;
+        smp.kind = CutSample::OnEdge;
+        smp.edge = e;
+        smp.edge_param = ts[i];
+        for (int j = 0; j < 2; ++j)
+          if (!pcs[j].IsNull()) smp.on.push_back({ff[j], eval2(pcs[j], ts[i])});
+        const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
+        if (node >= 0 && (node & (3LL << 60)) == kVertexNode) smp.kind = CutSample::Vertex, smp.edge = static_cast<int>(node);
+        else if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
+          smp.kind = CutSample::EdgePlane;
+          const int axis = static_cast<int>(((node - kEdgePlaneNode) >> 26) & 3);
+          const Vec3& X = curve.points[i];
+          smp.on.push_back({-1 - axis, Vec2(X[(axis + 1) % 3], X[(axis + 2) % 3])});
+        }
+        curve.samples.push_back(std::move(smp));
+      }
+    }
+  };
+  if (o.face_parallel) tbb::parallel_for(0, static_cast<int>(jobs.size()), make_curve);
+  else
+    for (int i = 0; i < static_cast<int>(jobs.size()); ++i) make_curve(i);
+  for (int n : curve_segments) g.segments += n;
+  g.curves = std::move(curves);
+  if (g.cut_cells.empty() && g.interior_cells.empty()) {
+    g.message = "face route: no cell meets the part";
+    return false;
+  }
+
+  g.verify_seconds = verify_seconds;
+  if (open_edges > 0) {
+    g.verify_open_edges = open_edges;
+    g.message = "face route check failed: " + std::to_string(open_edges) + " boundary curve(s) of subvolume " +
+                std::to_string(first_open) + " are not matched by an opposite curve (its boundary does not close)";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace parafab::occ::detail

@@ -1,0 +1,101 @@
+// Private helpers shared by the two grid-cutting routes (thesis §6.3): the OCCT surface as the
+// quadrature's SurfaceMap and the sampling of curves into polynomial boundary segments.
+// Only for occ_bridge/*.cpp.
+#pragma once
+
+#include <BRepBndLib.hxx>
+#include <Bnd_Box.hxx>
+#include <Geom2d_Curve.hxx>
+#include <Geom_Surface.hxx>
+#include <TopoDS_Shape.hxx>
+
+#include <string>
+
+#include "grid_cut.h"
+
+namespace parafab::occ::detail {
+
+using xfem::Box3;
+using xfem::Vec2;
+using xfem::Vec3;
+
+inline Box3 tight_box(const TopoDS_Shape& s) {
+  Bnd_Box bb;
+  BRepBndLib::AddOptimal(s, bb, /*useTriangulation=*/false, /*useShapeTolerance=*/false);
+  double x0, y0, z0, x1, y1, z1;
+  bb.Get(x0, y0, z0, x1, y1, z1);
+  Box3 b;
+  b.min = Vec3(x0, y0, z0);
+  b.max = Vec3(x1, y1, z1);
+  return b;
+}
+
+/// The surface of a face (location applied) as the quadrature's SurfaceMap.
+class OcctSurfaceMap : public xfem::SurfaceMap {
+ public:
+  explicit OcctSurfaceMap(Handle(Geom_Surface) s) : surface_(std::move(s)) {}
+  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
+    gp_Pnt p;
+    gp_Vec du, dv;
+    surface_->D1(u, v, p, du, dv);
+    X = Vec3(p.X(), p.Y(), p.Z());
+    Xu = Vec3(du.X(), du.Y(), du.Z());
+    Xv = Vec3(dv.X(), dv.Y(), dv.Z());
+  }
+  const Handle(Geom_Surface)& surface() const { return surface_; }
+
+ private:
+  Handle(Geom_Surface) surface_;
+};
+
+inline Vec2 eval2(const Handle(Geom2d_Curve)& c, double t) {
+  const gp_Pnt2d p = c->Value(t);
+  return Vec2(p.X(), p.Y());
+}
+
+// Appends the curve `at(t)` from t0 to t1 (t1 < t0 for a reversed edge) as `order`
+// polynomial segments (without the first point, which the caller already holds), refined by
+// doubling until the interpolant deviates less than `tol` from the curve at interior test
+// points. Returns the number of segments. `param`, if given, receives t of every point added.
+template <class Vec, class Eval>
+int append_curve(const Eval& at, double t0, double t1, bool straight, const GridOptions& o,
+                 double tol, std::vector<Vec>& out, std::vector<double>* param = nullptr) {
+  int n = 1;
+  const int order = o.segment_order;
+  auto t_at = [&](int k, int n_seg, double frac) { return t0 + (t1 - t0) * (k + frac) / n_seg; };
+  auto point_at = [&](int k, int n_seg, double frac) { return at(t_at(k, n_seg, frac)); };
+  while (!straight && n < o.max_segments_per_edge) {
+    double err = 0;
+    for (int k = 0; k < n && err <= tol; ++k) {
+      const Vec p0 = point_at(k, n, 0), p1 = point_at(k, n, 1);
+      if (order == 1) {
+        for (double f : {0.25, 0.5, 0.75})
+          err = std::max(err, (point_at(k, n, f) - ((1 - f) * p0 + f * p1)).norm());
+      } else {
+        const Vec pm = point_at(k, n, 0.5);
+        for (double f : {0.25, 0.75}) {  // Lagrange parabola through t = 0, 1/2, 1
+          const Vec q = 2 * (f - 0.5) * (f - 1) * p0 - 4 * f * (f - 1) * pm + 2 * f * (f - 0.5) * p1;
+          err = std::max(err, (point_at(k, n, f) - q).norm());
+        }
+      }
+    }
+    if (err <= tol) break;
+    n *= 2;
+  }
+  for (int k = 0; k < n; ++k) {
+    if (order == 2) {
+      out.push_back(point_at(k, n, 0.5));
+      if (param) param->push_back(t_at(k, n, 0.5));
+    }
+    out.push_back(point_at(k, n, 1.0));
+    if (param) param->push_back(t_at(k, n, 1.0));
+  }
+  return n;
+}
+
+/// The face route (face_cut.cpp): fills the cut cells, subvolumes, connections and curves of
+/// `g`, whose grid (box, cells, planes) is set. False with `g.message` = the reason when the
+/// part has faces it does not handle or its consistency check fails.
+bool cut_by_faces(const PartShape& part, const GridOptions& options, GridCut& g);
+
+}  // namespace parafab::occ::detail

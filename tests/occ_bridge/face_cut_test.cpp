@@ -1,0 +1,254 @@
+// Cut by face (thesis §6.3, Fig. 6.12) against the reference, OCCT's Boolean splitter, on every
+// sample part, aligned with the grid and turned/shifted against it: the same cut cells,
+// subvolumes per cell, interior cells and connections (subvolumes matched by cell and
+// centroid, not by index), and the same volume rules (moments of order 0, 1, 2 in cell
+// coordinates); the intersection samples lie where their (u, v) say.
+#include <gtest/gtest.h>
+
+#include <BRepBuilderAPI_Transform.hxx>
+#include <BRepBndLib.hxx>
+#include <BRep_Tool.hxx>
+#include <BRepGProp.hxx>
+#include <GProp_GProps.hxx>
+#include <Bnd_Box.hxx>
+#include <gp_Ax1.hxx>
+#include <gp_Trsf.hxx>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+
+#include "grid_cut.h"
+#include "grid_model.h"
+#include "occt_shape.h"
+#include "part_reader.h"
+#include "xfem/area_rules.h"
+#include "xfem/volume_rules.h"
+
+namespace parafab::occ {
+namespace {
+
+std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name + ".step"; }
+
+// The part turned by `degrees` about the skew axis (1, 2, 3) through its box centre and
+// shifted by `shift` × its box diagonal (0°: the part as read).
+std::shared_ptr<const PartShape> posed(const std::string& name, double degrees, double shift, int solid = -1) {
+  ReadOptions ro;
+  ro.solid_index = solid;
+  const auto part = read_part(sample(name), ro);
+  if (degrees == 0 && shift == 0) return part;
+  Bnd_Box bb;
+  BRepBndLib::Add(part->shape, bb);
+  double x0, y0, z0, x1, y1, z1;
+  bb.Get(x0, y0, z0, x1, y1, z1);
+  const gp_Pnt c(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * (z0 + z1));
+  const double diag = std::sqrt((x1 - x0) * (x1 - x0) + (y1 - y0) * (y1 - y0) + (z1 - z0) * (z1 - z0));
+  gp_Trsf rot, move;
+  rot.SetRotation(gp_Ax1(c, gp_Dir(1, 2, 3)), degrees * M_PI / 180);
+  move.SetTranslation(gp_Vec(0.37 * shift * diag, -0.21 * shift * diag, 0.13 * shift * diag));
+  const TopoDS_Shape s = BRepBuilderAPI_Transform(part->shape, move * rot, true).Shape();
+  return make_part(s, name + " posed");
+}
+
+// Moments ∫1, ∫ξ, ∫ξξᵀ (upper triangle) of a subvolume's volume rule, ξ = (X − cell.min)/h.
+std::array<double, 10> moments(const xfem::Subvolume& sv) {
+  const xfem::VolumeRule r = xfem::volume_rule(sv);
+  const double h = sv.cell.size().maxCoeff();
+  std::array<double, 10> m{};
+  for (size_t j = 0; j < r.rule.weights.size(); ++j) {
+    const double w = r.rule.weights[j] / (h * h * h);
+    const Eigen::Vector3d x = (r.rule.points[j] - sv.cell.min) / h;
+    m[0] += w;
+    for (int a = 0; a < 3; ++a) m[1 + a] += w * x[a];
+    int k = 4;
+    for (int a = 0; a < 3; ++a)
+      for (int b = a; b < 3; ++b) m[k++] += w * x[a] * x[b];
+  }
+  return m;
+}
+
+struct Compared {
+  double worst_moment = 0;  ///< largest moment difference, relative to the cell volume
+  int subvolumes = 0;
+  double face_volume = 0, ref_volume = 0;  ///< Σ subvolume rules + interior cells
+};
+
+// Asserts the two cuts agree; returns the largest moment difference.
+Compared compare_cuts(const GridCut& face, const GridCut& ref, const std::string& what, double moment_tol) {
+  Compared out;
+  // Cells.
+  std::map<std::array<int, 3>, const CutCell*> fc, rc;
+  for (const auto& c : face.cut_cells) fc[c.index] = &c;
+  for (const auto& c : ref.cut_cells) rc[c.index] = &c;
+  std::set<std::array<int, 3>> fk, rk;
+  for (const auto& [k, c] : fc) fk.insert(k);
+  for (const auto& [k, c] : rc) rk.insert(k);
+  EXPECT_EQ(fk, rk) << what << ": cut cells";
+  using CellSet = std::set<std::array<int, 3>>;
+  const CellSet fi(face.interior_cells.begin(), face.interior_cells.end()), ri(ref.interior_cells.begin(), ref.interior_cells.end());
+  EXPECT_EQ(fi, ri) << what << ": interior cells";
+  if (fk != rk) return out;
+  // Subvolumes matched by centroid within each cell: face index → reference index.
+  std::vector<int> match(face.subvolumes.size(), -1);
+  for (const auto& [k, c] : fc) {
+    const CutCell& r = *rc.at(k);
+    EXPECT_EQ(c->subvolumes.size(), r.subvolumes.size()) << what << ": subvolumes of cell " << k[0] << " " << k[1] << " " << k[2];
+    if (c->subvolumes.size() != r.subvolumes.size()) continue;
+    std::vector<std::array<double, 10>> mf, mr;
+    for (int s : c->subvolumes) mf.push_back(moments(face.subvolumes[s]));
+    for (int s : r.subvolumes) mr.push_back(moments(ref.subvolumes[s]));
+    std::vector<bool> taken(mr.size(), false);
+    for (size_t i = 0; i < mf.size(); ++i) {
+      int best = -1;
+      double best_d = 1e300;
+      for (size_t j = 0; j < mr.size(); ++j) {
+        if (taken[j]) continue;
+        double d = 0;
+        for (int a = 1; a < 4; ++a) d += std::pow(mf[i][a] / mf[i][0] - mr[j][a] / mr[j][0], 2);
+        if (d < best_d) best_d = d, best = static_cast<int>(j);
+      }
+      if (best < 0) continue;
+      taken[best] = true;
+      const double h3 = std::pow(face.subvolumes[c->subvolumes[i]].cell.size().maxCoeff(), 3);
+      out.face_volume += mf[i][0] * h3, out.ref_volume += mr[best][0] * h3;
+      match[c->subvolumes[i]] = r.subvolumes[best];
+      double worst = 0;
+      for (int m = 0; m < 10; ++m) worst = std::max(worst, std::abs(mf[i][m] - mr[best][m]));
+      EXPECT_LT(worst, moment_tol) << what << ": moments of a subvolume of cell " << k[0] << " " << k[1] << " " << k[2]
+                                   << " (volume fraction " << mr[best][0] << ")";
+      out.worst_moment = std::max(out.worst_moment, worst);
+      ++out.subvolumes;
+    }
+  }
+  // Connections through grid faces, in reference numbering.
+  std::multiset<std::array<int, 2>> fcon, rcon;
+  for (const auto& [a, b] : face.connections)
+    fcon.insert({std::min(match[a], match[b]), std::max(match[a], match[b])});
+  for (const auto& c : ref.connections) rcon.insert(c);
+  EXPECT_EQ(fcon, rcon) << what << ": connections";
+  std::multiset<std::pair<int, std::array<int, 3>>> fic, ric;
+  for (const auto& [s, c] : face.interior_connections) fic.insert({match[s], face.interior_cells[c]});
+  for (const auto& [s, c] : ref.interior_connections) ric.insert({s, ref.interior_cells[c]});
+  EXPECT_EQ(fic, ric) << what << ": interior connections";
+  return out;
+}
+
+// Every sample of the face route lies on the surfaces its (u, v) name, and on its grid planes.
+void expect_samples_on_their_surfaces(const PartShape& part, const GridCut& g, const std::string& what) {
+  const double h = g.cell_size.maxCoeff();
+  int checked = 0;
+  double worst = 0;
+  for (const CutCurve& c : g.curves) {
+    ASSERT_EQ(c.samples.size(), c.points.size()) << what;
+    for (size_t i = 0; i < c.points.size(); ++i)
+      for (const CutSample::On& on : c.samples[i].on) {
+        xfem::Vec3 X;
+        if (on.source >= 0) {
+          const gp_Pnt p = BRep_Tool::Surface(part.face(on.source))->Value(on.uv.x(), on.uv.y());
+          X = xfem::Vec3(p.X(), p.Y(), p.Z());
+        } else {
+          const int a = -1 - on.source;
+          X = c.points[i];
+          X[(a + 1) % 3] = on.uv.x(), X[(a + 2) % 3] = on.uv.y();
+          bool on_plane = false;
+          for (double q : g.planes[a]) on_plane |= std::abs(c.points[i][a] - q) < 1e-9 * h;
+          EXPECT_TRUE(on_plane) << what << ": a sample off its grid plane";
+        }
+        worst = std::max(worst, (X - c.points[i]).norm() / h);
+        ++checked;
+      }
+  }
+  EXPECT_GT(checked, 0) << what;
+  EXPECT_LT(worst, 1e-9) << what;
+}
+
+struct Case {
+  const char* part;
+  int cells;
+  int solid = -1;
+};
+
+void expect_face_route_matches(const Case& c, double degrees, double shift, double moment_tol) {
+  const auto part = posed(c.part, degrees, shift, c.solid);
+  GridOptions o;
+  o.cells_longest = c.cells;
+  const GridCut ref = cut_by_grid(*part, o);
+  o.method = CutMethod::FaceCut;
+  const GridCut face = cut_by_grid(*part, o);
+  const std::string what = std::string(c.part) + " at " + std::to_string(degrees) + "°";
+  ASSERT_TRUE(ref.done && face.done) << what << ": " << ref.message << " / " << face.message;
+  ASSERT_EQ(face.method, CutMethod::FaceCut) << what << ": fell back: " << face.fallback_reason;
+  Compared cmp = compare_cuts(face, ref, what, moment_tol);
+  for (const auto& c : face.interior_cells) cmp.face_volume += face.cell_box(c).volume(), cmp.ref_volume += face.cell_box(c).volume();
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(part->shape, props, 1e-13);
+  const double v_face = std::abs(cmp.face_volume / props.Mass() - 1), v_ref = std::abs(cmp.ref_volume / props.Mass() - 1);
+  std::printf("  volume vs OCCT: face route %.2e, splitter %.2e\n", v_face, v_ref);
+  EXPECT_LT(v_face, 1e-11) << what << ": the face route's rules miss OCCT's volume of the whole part";
+  expect_samples_on_their_surfaces(*part, face, what);
+  std::printf("%-12s %5.1f°: %zu cut cells, %d subvolumes, worst moment difference %.2e; "
+              "face %.3f s (check %.4f s), splitter %.3f s\n",
+              c.part, degrees, face.cut_cells.size(), cmp.subvolumes, cmp.worst_moment, face.split_seconds, face.verify_seconds, ref.split_seconds);
+}
+
+// Moments agree to round-off where both routes have exact curves (planar parts). Where planes
+// meet cylinders the splitter's pcurves are B-spline approximations; neighbouring subvolumes
+// then differ by up to 2.4e-9 of the cell volume (measured, two_blocks turned 17°), while the
+// face route's total volume matches OCCT's to ≤ 1.2e-12 (the splitter's: ≤ 2.8e-11).
+constexpr double kPlanar = 1e-14, kCurved = 3e-9;
+
+TEST(FaceCut, PlanarPartsMatchTheSplitter) {
+  for (const Case c : {Case{"box", 4}, Case{"two_blocks", 6, 0}})
+    for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kPlanar);
+}
+
+TEST(FaceCut, CylinderAndBracketMatchTheSplitter) {
+  for (const Case c : {Case{"cylinder", 6}, Case{"l_bracket", 6}})
+    for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
+}
+
+TEST(FaceCut, CurvedPartsMatchTheSplitter) {
+  for (const Case c : {Case{"ring", 6}, Case{"wheel", 8}, Case{"wrench", 8}, Case{"two_blocks", 6, 1}})
+    for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
+}
+
+TEST(FaceCut, UnsupportedSurfacesFallBackToTheSplitterWithTheReason) {
+  for (const char* name : {"half_torus", "housing"}) {
+    const auto part = posed(name, 0, 0);
+    GridOptions o;
+    o.cells_longest = 5;
+    o.method = CutMethod::FaceCut;
+    const GridCut g = cut_by_grid(*part, o);
+    ASSERT_TRUE(g.done) << name << ": " << g.message;
+    EXPECT_EQ(g.method, CutMethod::Splitter) << name;
+    EXPECT_NE(g.fallback_reason.find("torus"), std::string::npos) << name << ": " << g.fallback_reason;
+  }
+}
+
+// The simulation path: a grid model on the face route has the splitter model's elements and
+// adjacency, and its rules hold OCCT's volume.
+TEST(FaceCut, GridModelOnTheFaceRouteMatchesTheSplitterModel) {
+  const auto part = posed("l_bracket", 17, 0.013);
+  GridModelOptions o;
+  o.grid.cells_longest = 8;
+  const GridModel ref = build_grid_model(*part, o);
+  o.grid.method = CutMethod::FaceCut;
+  const GridModel face = build_grid_model(*part, o);
+  ASSERT_TRUE(ref.done && face.done) << ref.message << face.message;
+  ASSERT_EQ(face.cut->method, CutMethod::FaceCut) << face.cut->fallback_reason;
+  EXPECT_EQ(face.elements.size(), ref.elements.size());
+  EXPECT_EQ(face.adjacent.size(), ref.adjacent.size());
+  double v = 0;
+  for (const auto& e : face.elements)
+    for (double w : e.rule.weights) v += w;
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(part->shape, props, 1e-13);
+  EXPECT_NEAR(v, props.Mass(), 1e-11 * props.Mass());
+  std::printf("grid model: %zu elements, %zu adjacent pairs, volume error %.1e\n", face.elements.size(),
+              face.adjacent.size(), std::abs(v / props.Mass() - 1));
+}
+
+}  // namespace
+}  // namespace parafab::occ
