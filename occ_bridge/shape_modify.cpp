@@ -25,6 +25,7 @@
 #include <Geom_TrimmedCurve.hxx>
 #include <Geom2d_Curve.hxx>
 #include <IFSelect_ReturnStatus.hxx>
+#include <Precision.hxx>
 #include <Interface_Static.hxx>
 #include <STEPControl_Writer.hxx>
 #include <Standard_Failure.hxx>
@@ -91,8 +92,10 @@ class ParameterModification : public BRepTools_Modification {
       surfaces_[f] = BRep_Tool::Surface(part.face(f));
       const auto* b = sp.block(f);
       if (!b) continue;
-      if ((p.segment(b->offset, b->size()) - sp.initial.segment(b->offset, b->size())).cwiseAbs().maxCoeff() == 0)
-        continue;
+      // Moves below OCCT's confusion tolerance (Precision::Confusion, 1e-7) are not written: the
+      // face and its edges stay as they are (the projection tightens tangencies found to 1e-6).
+      const Eigen::VectorXd old = sp.initial.segment(b->offset, b->size());
+      if ((p.segment(b->offset, b->size()) - old).cwiseAbs().maxCoeff() <= Precision::Confusion()) continue;
       primitives_[f] = primitive_of_block(*b, p, model.faces[f].primitive);
       surfaces_[f] = new_surface(part.face(f), primitives_[f]);
       modified_[f] = true;
@@ -246,8 +249,14 @@ class ParameterModification : public BRepTools_Modification {
         if (last <= first) last += T;
       }
     } else if (last <= first) {
-      throw Failure{"edge " + std::to_string(e) + ": its vertices are in reverse order on the new curve (" +
-                    curves_[e]->DynamicType()->Name() + ")"};
+    {
+      std::ostringstream os;
+      const gp_Pnt a = points_[part_.vertices.FindIndex(v1) - 1], b = points_[part_.vertices.FindIndex(v2) - 1];
+      os << "edge " << e << ": its vertices are in reverse order on the new curve (" << curves_[e]->DynamicType()->Name()
+         << ", old range " << of << ".." << ol << ", new " << first << ".." << last << ", vertices (" << a.X() << ", "
+         << a.Y() << ", " << a.Z() << ") (" << b.X() << ", " << b.Y() << ", " << b.Z() << "))";
+      throw Failure{os.str()};
+    }
     }
   }
 

@@ -113,7 +113,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     lower[k] = std::max(sp.lower[design[k]], x0[k] - span);
     upper[k] = std::min(sp.upper[design[k]], x0[k] + span);
   }
-  Eigen::VectorXd warm_p = start.p, warm_lambda = start.multipliers;
+  Eigen::VectorXd warm_p = start.p;
 
   double V0 = 0, f_scale = 1;
   Evaluation last;
@@ -123,7 +123,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     Eigen::VectorXd target = anchor;
     for (int k = 0; k < nd; ++k) target[design[k]] = x[k];
     const optimize::ProjectionResult proj =
-        optimize::project(sp.constraints, target, warm_p, sp.lower, sp.upper, warm_lambda, popt);
+        optimize::project(sp.constraints, target, warm_p, sp.lower, sp.upper, {}, popt);  // primal warm start
     if (!proj.done) {
       ++result.failed_projections;
       return false;  // never evaluate an invalid model
@@ -160,7 +160,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     last.p = proj.p;
     last.lambda = proj.multipliers;
     last.part = mod.part;
-    warm_p = proj.p, warm_lambda = proj.multipliers;
+    warm_p = proj.p;
     return true;
   };
 

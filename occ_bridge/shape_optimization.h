@@ -49,7 +49,7 @@ struct ShapeOptimizationOptions {
   double penalty = 1e4;            ///< penalty weight relative to max(|f0|, tiny)
   /// Projection weight of the entries that are not design variables (design entries: 1), so
   /// that tangent neighbours follow a design change instead of pulling it back.
-  double follower_weight = 1e-6;
+  double follower_weight = 1e-4;
   optimize::LbfgsOptions lbfgs;
   optimize::ProjectionOptions projection;
   BoundaryQuadratureOptions quadrature;

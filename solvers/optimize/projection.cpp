@@ -183,15 +183,20 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
   }
   result.constraint_violation = system.size() ? system.values(result.p).cwiseAbs().maxCoeff() : 0.0;
   result.distance = std::sqrt((result.p - target).cwiseAbs2().dot(w));
-  result.done = result.constraint_violation <= options.feasible_violation;
+  // "Search direction too small": no progress possible at machine precision (Ipopt: likely optimal).
+  const bool converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
+                         status == Ipopt::Search_Direction_Becomes_Too_Small;
+  result.done = converged && result.constraint_violation <= options.feasible_violation;
   result.message = status_words(status);
   result.status = result.done ? "solved"
                   : status == Ipopt::Infeasible_Problem_Detected || status == Ipopt::Restoration_Failed
                       ? "infeasible"
                       : "failed";
-  if (!result.done)
+  if (!result.done && result.constraint_violation > options.feasible_violation)
     result.message += "; constraint violation " + std::to_string(result.constraint_violation) +
                       " (the nearest model found is returned, it is not valid)";
+  else if (!result.done)
+    result.message += " (the constraints hold but the point is not the nearest: not used)";
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;
 }

@@ -67,7 +67,7 @@ struct PartSetup {
     for (auto [i, v] : changes) t[i] = v, design.push_back(i);
     optimize::ProjectionOptions o;
     o.weights = weights(design);
-    return optimize::project(sp.constraints, t, start.p, sp.lower, sp.upper, start.multipliers, o);
+    return optimize::project(sp.constraints, t, start.p, sp.lower, sp.upper, {}, o);
   }
 };
 
