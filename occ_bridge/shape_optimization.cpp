@@ -200,13 +200,20 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   result.design_final.resize(nd);
   for (int k = 0; k < nd; ++k) result.design_initial[k] = start.p[design[k]], result.design_final[k] = accepted.p[design[k]];
   result.part = accepted.part;
-  // Tangency on the final B-rep: the face model of the written part, its own relations.
-  const FaceModel final_model = build_face_model(*accepted.part, options.face_model);
-  for (const TangencyRelation& r : final_model.relations)
-    for (double v : r.residuals) result.tangency_residual_max = std::max(result.tangency_residual_max, std::abs(v));
-  if (final_model.relations.size() != model.relations.size())
-    result.notes.push_back("the final part has " + std::to_string(final_model.relations.size()) +
-                           " tangency relations, the original " + std::to_string(model.relations.size()));
+  // Tangency on the final B-rep: the face model of the written part, its own relations (if its
+  // NURBS conversion fails, the original relations evaluated at p⊥).
+  try {
+    const FaceModel final_model = build_face_model(*accepted.part, options.face_model);
+    for (const TangencyRelation& r : final_model.relations)
+      for (double v : r.residuals) result.tangency_residual_max = std::max(result.tangency_residual_max, std::abs(v));
+    if (final_model.relations.size() != model.relations.size())
+      result.notes.push_back("the final part has " + std::to_string(final_model.relations.size()) +
+                             " tangency relations, the original " + std::to_string(model.relations.size()));
+  } catch (const Error& e) {
+    result.tangency_residual_max = tangency_residual_max(model, sp, accepted.p);
+    result.notes.push_back(std::string("tangency residual from the parameters (face model of the result: ") +
+                           e.what() + ")");
+  }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;
 }

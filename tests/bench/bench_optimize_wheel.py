@@ -2,7 +2,7 @@
 """Wheel balancing on its own CAD parameters (thesis §6.6, Table 6.1 "asymmetric wheel", mass
 properties only: the compliance part needs the elasticity derivatives, not done yet).
 14 design parameters of samples/parts/wheel.step: the offsets of the 10 spoke side planes and
-the radii of the hub hole, hub, rim inside and rim outside. Objective: |c⊥|², the centre of
+the radii of the hub hole, hub, rim inside and rim outside (hub and rim-inside arcs tied). Objective: |c⊥|², the centre of
 mass's squared distance from the z axis. Reports iterations, seconds per iteration and the
 offset reached; writes DIR/optimize_wheel.json and the run's history.png/optimized.step.
 Usage: bench_optimize_wheel.py [--quick] [--out DIR]"""
@@ -31,10 +31,16 @@ for f in faces:
     p = f["parameters"]
     if f["type"] == "plane" and abs(p["n"][2]) < 0.5:
         params.append({"face": f["index"], "parameter": "offset"})
-for f in faces:
-    if f["type"] == "cylinder" and any(abs(f["parameters"]["r"] - r) < 1e-6 for r in (5, 12, 42, 50)):
-        params.append({"face": f["index"], "parameter": "radius"})
-job = {"objective": {"type": "center_of_mass", "axis": {"point": [0, 0, 0], "direction": [0, 0, 1]}},
+# Radii: hub hole (5) and rim outside (50) are one face each; the hub (12) and the rim inside
+# (42) are split by the spokes into arcs, tied into one design variable each.
+ties = []
+for r in (5, 12, 42, 50):
+    group = [{"face": f["index"], "parameter": "radius"} for f in faces
+             if f["type"] == "cylinder" and abs(f["parameters"]["r"] - r) < 1e-6]
+    params.append(group[0])
+    if len(group) > 1:
+        ties.append(group)
+job = {"ties": ties, "objective": {"type": "center_of_mass", "axis": {"point": [0, 0, 0], "direction": [0, 0, 1]}},
        "parameters": params, "max_iterations": 2 if args.quick else 40, "relative_improvement": 1e-9,
        "bound": 0.3}
 t0 = time.time()
