@@ -25,6 +25,8 @@
 #include <Geom_TrimmedCurve.hxx>
 #include <Geom2d_Curve.hxx>
 #include <IFSelect_ReturnStatus.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
 #include <Precision.hxx>
 #include <Interface_Static.hxx>
 #include <STEPControl_Writer.hxx>
@@ -468,6 +470,16 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
 }
 
 void write_step(const PartShape& part, const std::string& path) {
+  // The STEP writer prints transfer statistics through OCCT's default messenger (stdout): the
+  // CLI's stdout is JSON, so the printers are detached while writing.
+  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
+  const Message_SequenceOfPrinters printers = messenger->Printers();
+  messenger->ChangePrinters().Clear();
+  struct Restore {
+    const Handle(Message_Messenger)& m;
+    const Message_SequenceOfPrinters& p;
+    ~Restore() { m->ChangePrinters() = p; }
+  } restore{messenger, printers};
   STEPControl_Writer writer;
   Interface_Static::SetCVal("write.step.schema", "AP214IS");
   Interface_Static::SetCVal("write.step.unit", "MM");
