@@ -13,6 +13,7 @@
 #include "revolution_json.h"
 #include "sections_json.h"
 #include "simulate_json.h"
+#include "optimize_json.h"
 #include "outline_export.h"
 #include "strip_json.h"
 #include "stability_json.h"
@@ -138,6 +139,13 @@ int main(int argc, char** argv) {
       "revolution", "Meridian of a surface of revolution tiled by strips without gaps, and the strips (JSON)");
   revolution->add_option("job", in_path, "Revolution job JSON (see README)")->required();
   revolution->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  auto* optimize = app.add_subcommand(
+      "optimize", "Shape optimization of a part on its own CAD parameters, tangencies kept (JSON job)");
+  optimize->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp); only read")->required();
+  optimize->add_option("job", job_path, "Job JSON: parameters, objective, constraints, max_iterations")->required();
+  optimize->add_option("-o,--output", out_dir, "Folder for optimized.step, history.json and history.png")->required();
+  bool optimize_progress = false;
+  optimize->add_flag("--progress", optimize_progress, "Print one JSON line per iterate to stderr");
   auto* version = app.add_subcommand("version", "Print versions as JSON");
   try {
     app.parse(argc, argv);
@@ -171,6 +179,15 @@ int main(int argc, char** argv) {
       if (simulate_threads > 0 && job.is_object()) job["threads"] = simulate_threads;
       if (estimate_only) return emit(parafab::entry::SimulationSession(in_path, job).estimate(), "");
       return emit(parafab::entry::simulate_part_json(in_path, job, out_dir, progress), "");
+    }
+    if (*optimize) {
+      parafab::entry::OptimizeProgressFn progress;
+      if (optimize_progress)
+        progress = [](const json& it) {
+          std::cerr << json{{"progress", it}}.dump() << std::endl;
+          return true;
+        };
+      return emit(parafab::entry::optimize_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
     }
     if (*revolution) return emit(parafab::entry::revolution_strips_json(read_json_file(in_path)), out_path);
     if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);

@@ -9,6 +9,7 @@
 #include "revolution_json.h"
 #include "sections_json.h"
 #include "simulate_json.h"
+#include "optimize_json.h"
 #include "outline_export.h"
 #include "strip_json.h"
 #include "stability_json.h"
@@ -189,6 +190,29 @@ PYBIND11_MODULE(parafab, m) {
       "threads > 0 overrides the job's \"threads\" (default: all cores). "
       "progress(phase, fraction) is called at phase boundaries; returning False cancels the run "
       "(parafab.Error 'simulation cancelled by the user').");
+  m.def(
+      "optimize",
+      [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress) {
+        const nlohmann::json in = to_json(job);
+        parafab::entry::OptimizeProgressFn report;
+        if (!progress.is_none())
+          report = [progress](const nlohmann::json& it) {
+            py::gil_scoped_acquire acquire;
+            const py::object keep_going = progress(to_python(it));
+            return keep_going.is_none() || keep_going.cast<bool>();
+          };
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::optimize_part_json(path, in, out_dir, report);
+        }
+        return to_python(out);
+      },
+      py::arg("path"), py::arg("job"), py::arg("out_dir") = "", py::arg("progress") = py::none(),
+      "Shape optimization of a part on its own CAD parameters (same job and history JSON as `parafab optimize`); "
+      "writes optimized.step, history.json and history.png into out_dir when given. progress(iterate) is called "
+      "after every accepted iterate with {iteration, objective, constraint_violation, seconds}; returning False "
+      "cancels (status 'cancelled', the last valid model is kept). The part file is only read.");
   // A simulation that keeps its grid: update(new_part) re-cuts only the blocks a change touches.
   py::class_<parafab::entry::SimulationSession>(
       m, "Simulation",

@@ -1,0 +1,160 @@
+// Hadamard shape derivatives of volume moments over trimmed B-rep faces (thesis §6.2.3,
+// Eq. 6.5; boundary velocity from the face's surface parameters, §6.5.1).
+#include "shape_derivatives.h"
+
+#include <BRepAdaptor_Surface.hxx>
+#include <BRepGProp.hxx>
+#include <BRepTools.hxx>
+#include <BRep_Tool.hxx>
+#include <GProp_GProps.hxx>
+#include <Geom2d_Curve.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopoDS.hxx>
+#include <chrono>
+#include <cmath>
+
+#include "common/error.h"
+#include "occt_shape.h"
+
+namespace parafab::occ {
+
+namespace {
+
+// n-point Gauss-Legendre on [0, 1] by Newton on P_n.
+void gauss01(int n, std::vector<double>& x, std::vector<double>& w) {
+  x.resize(n);
+  w.resize(n);
+  for (int i = 0; i < n; ++i) {
+    double z = std::cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 0;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1, p1 = 0;
+      for (int k = 1; k <= n; ++k) {
+        const double p2 = p1;
+        p1 = p0;
+        p0 = ((2.0 * k - 1) * z * p1 - (k - 1.0) * p2) / k;
+      }
+      dp = n * (z * p0 - p1) / (z * z - 1);
+      const double dz = p0 / dp;
+      z -= dz;
+      if (std::abs(dz) < 1e-16) break;
+    }
+    x[i] = 0.5 * (1 - z);
+    w[i] = 1.0 / ((1 - z * z) * dp * dp);  // 2/((1−z²)P'²) on [−1,1], halved
+  }
+}
+
+Moments monomials(const Vec3& X) {
+  Moments m;
+  m << 1, X.x(), X.y(), X.z(), X.x() * X.x(), X.y() * X.y(), X.z() * X.z(), X.x() * X.y(), X.y() * X.z(),
+      X.x() * X.z();
+  return m;
+}
+
+// ∫_Ω g dV = ∫_∂Ω G·n dA with div G = g: G = (X g_X-antiderivative) per monomial.
+Moments flux(const Vec3& X, const Vec3& n) {
+  const double x = X.x(), y = X.y(), z = X.z();
+  Moments m;
+  m << X.dot(n) / 3,             // 1: G = X/3
+      0.5 * x * x * n.x(),       // X: G = (x²/2, 0, 0)
+      0.5 * y * y * n.y(),       // Y
+      0.5 * z * z * n.z(),       // Z
+      x * x * x / 3 * n.x(),     // XX
+      y * y * y / 3 * n.y(),     // YY
+      z * z * z / 3 * n.z(),     // ZZ
+      0.5 * x * x * y * n.x(),   // XY: G = (x²y/2, 0, 0)
+      0.5 * y * y * z * n.y(),   // YZ
+      0.5 * x * x * z * n.x();   // XZ
+  return m;
+}
+
+}  // namespace
+
+MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameters& sp, const Eigen::VectorXd& p,
+                                     const BoundaryQuadratureOptions& options) {
+  PARAFAB_VERIFY(p.size() == sp.size(), "moment_derivatives: p has " << p.size() << " entries, the parameters "
+                                                                     << sp.size());
+  PARAFAB_VERIFY(static_cast<int>(sp.block_of_face.size()) == part.face_count(),
+                 "moment_derivatives: the parameters describe " << sp.block_of_face.size() << " faces, the part has "
+                                                                << part.face_count());
+  const auto t0 = std::chrono::steady_clock::now();
+  MomentDerivatives r;
+  r.gradient = Eigen::MatrixXd::Zero(10, sp.size());
+  std::vector<double> ex, ew, ix, iw;
+  gauss01(options.edge_points, ex, ew);
+  gauss01(options.inner_points, ix, iw);
+  for (int fi = 0; fi < part.face_count(); ++fi) {
+    const TopoDS_Face& original = part.face(fi);
+    const double orient = original.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
+    const TopoDS_Face face = TopoDS::Face(original.Oriented(TopAbs_FORWARD));
+    const BRepAdaptor_Surface surface(face, false);
+    const optimize::ParameterBlock* block = sp.block(fi);
+    double u0, u1, v0, v1;
+    BRepTools::UVBounds(face, u0, u1, v0, v1);
+    // h(u, v)·du dv summed into the moments and gradient.
+    auto point = [&](double u, double v, double weight) {
+      gp_Pnt P;
+      gp_Vec du, dv;
+      surface.D1(u, v, P, du, dv);
+      const gp_Vec N = du.Crossed(dv);
+      const double jac = N.Magnitude();
+      if (jac < 1e-300) return;
+      const Vec3 X(P.X(), P.Y(), P.Z()), n = orient * Vec3(N.X(), N.Y(), N.Z()) / jac;
+      const double dA = weight * jac;
+      r.moments += dA * flux(X, n);
+      ++r.points;
+      if (!block) return;
+      const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, X);
+      const int nb = block->size();
+      const Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+      const double gn = grad.norm();
+      const double s = grad.dot(n) >= 0 ? 1.0 : -1.0;
+      const Moments g = monomials(X);
+      for (int k = 0; k < nb; ++k) {
+        const double vn = -s * phi.g[k] / gn;  // ∂X/∂p_k · n
+        if (vn != 0) r.gradient.col(block->offset + k) += (dA * vn) * g;
+      }
+    };
+    for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
+      const TopoDS_Edge& edge = TopoDS::Edge(e.Current());
+      double f, l;
+      const Handle(Geom2d_Curve) c = BRep_Tool::CurveOnSurface(edge, face, f, l);
+      PARAFAB_VERIFY(!c.IsNull(), part.source << ": face " << fi << ": an edge has no pcurve");
+      const double dir = edge.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
+      for (int sgm = 0; sgm < options.edge_segments; ++sgm)
+        for (int q = 0; q < options.edge_points; ++q) {
+          const double t = f + (l - f) * (sgm + ex[q]) / options.edge_segments;
+          gp_Pnt2d uv;
+          gp_Vec2d d;
+          c->D1(t, uv, d);
+          const double dvdt = d.Y() * dir * (l - f) / options.edge_segments * ew[q];
+          if (dvdt == 0) continue;
+          // ∫_{u0}^{u} h(s, v) ds by Gauss in s.
+          const double span = uv.X() - u0;
+          if (span == 0) continue;
+          for (int k = 0; k < options.inner_points; ++k) point(u0 + span * ix[k], uv.Y(), dvdt * span * iw[k]);
+        }
+    }
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+Moments occt_moments(const PartShape& part, double eps) {
+  GProp_GProps g;
+  BRepGProp::VolumeProperties(part.shape, g, eps, Standard_True);
+  const double m0 = g.Mass();
+  const gp_Pnt c = g.CentreOfMass();
+  const Vec3 C(c.X(), c.Y(), c.Z());
+  const gp_Mat I = g.MatrixOfInertia();
+  Eigen::Matrix3d inertia;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) inertia(i, j) = I.Value(i + 1, j + 1);
+  // inertia = tr(S) I − S with S the central second moments: tr(S) = tr(inertia) / 2.
+  const Eigen::Matrix3d S = 0.5 * inertia.trace() * Eigen::Matrix3d::Identity() - inertia;
+  const Eigen::Matrix3d M2 = S + m0 * C * C.transpose();
+  Moments m;
+  m << m0, m0 * C.x(), m0 * C.y(), m0 * C.z(), M2(0, 0), M2(1, 1), M2(2, 2), M2(0, 1), M2(1, 2), M2(0, 2);
+  return m;
+}
+
+}  // namespace parafab::occ

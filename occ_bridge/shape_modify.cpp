@@ -1,0 +1,491 @@
+// Write-back of shape parameters through BRepTools_Modification (thesis §6.5.1, q = q(p⊥)),
+// modelled on OCCT's Draft_Modification: new surfaces per face, edges as intersections of the
+// new neighbouring surfaces (tangent edges in closed form), vertices as curve/surface
+// intersections, pcurves by projection.
+#include "shape_modify.h"
+
+#include <BRepCheck_Analyzer.hxx>
+#include <BRepLib.hxx>
+#include <BRepTools.hxx>
+#include <BRepTools_Modification.hxx>
+#include <BRepTools_Modifier.hxx>
+#include <BRep_Tool.hxx>
+#include <BRepAdaptor_Surface.hxx>
+#include <GeomAPI_IntCS.hxx>
+#include <GeomAPI_IntSS.hxx>
+#include <GeomAPI_ProjectPointOnCurve.hxx>
+#include <GeomProjLib.hxx>
+#include <Geom_Circle.hxx>
+#include <Geom_ConicalSurface.hxx>
+#include <Geom_CylindricalSurface.hxx>
+#include <Geom_Line.hxx>
+#include <Geom_Plane.hxx>
+#include <Geom_SphericalSurface.hxx>
+#include <Geom_ToroidalSurface.hxx>
+#include <Geom_TrimmedCurve.hxx>
+#include <Geom2d_Curve.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <Precision.hxx>
+#include <Interface_Static.hxx>
+#include <STEPControl_Writer.hxx>
+#include <Standard_Failure.hxx>
+#include <TopExp.hxx>
+#include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
+#include <TopoDS.hxx>
+#include <chrono>
+#include <map>
+#include <sstream>
+
+#include "common/error.h"
+#include "occt_shape.h"
+
+namespace parafab::occ {
+
+namespace {
+
+gp_Pnt pnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
+gp_Dir dir(const Vec3& v) { return gp_Dir(v.x(), v.y(), v.z()); }
+Vec3 vec(const gp_XYZ& p) { return {p.X(), p.Y(), p.Z()}; }
+
+struct Failure {
+  std::string what;
+};
+
+// The new surface of a face: the old frame (handedness, x direction) moved to the new primitive.
+Handle(Geom_Surface) new_surface(const TopoDS_Face& face, const Primitive& pr) {
+  const BRepAdaptor_Surface s(face, false);
+  auto moved = [&](gp_Ax3 ax, const Vec3& axis) {
+    ax.SetLocation(pnt(pr.location));
+    ax.SetDirection(dir(axis));
+    return ax;
+  };
+  switch (s.GetType()) {
+    case GeomAbs_Plane: {
+      const gp_Ax3 old = s.Plane().Position();
+      return new Geom_Plane(moved(old, old.Direct() ? pr.axis : Vec3(-pr.axis)));
+    }
+    case GeomAbs_Cylinder:
+      return new Geom_CylindricalSurface(moved(s.Cylinder().Position(), pr.axis), pr.radius);
+    case GeomAbs_Cone:
+      return new Geom_ConicalSurface(moved(s.Cone().Position(), pr.axis), pr.semi_angle, pr.radius);
+    case GeomAbs_Sphere:
+      return new Geom_SphericalSurface(moved(s.Sphere().Position(), vec(s.Sphere().Position().Direction().XYZ())),
+                                       pr.radius);
+    case GeomAbs_Torus:
+      return new Geom_ToroidalSurface(moved(s.Torus().Position(), pr.axis), pr.major_radius, pr.radius);
+    default:
+      throw Failure{"face type not parameterized"};
+  }
+}
+
+class ParameterModification : public BRepTools_Modification {
+ public:
+  ParameterModification(const PartShape& part, const FaceModel& model, const ShapeParameters& sp,
+                        const Eigen::VectorXd& p)
+      : part_(part) {
+    const int nf = part.face_count();
+    surfaces_.resize(nf);
+    modified_.assign(nf, false);
+    primitives_.resize(nf);
+    for (int f = 0; f < nf; ++f) {
+      primitives_[f] = model.faces[f].primitive;
+      surfaces_[f] = BRep_Tool::Surface(part.face(f));
+      const auto* b = sp.block(f);
+      if (!b) continue;
+      // Moves below OCCT's confusion tolerance (Precision::Confusion, 1e-7) are not written: the
+      // face and its edges stay as they are (the projection tightens tangencies found to 1e-6).
+      const Eigen::VectorXd old = sp.initial.segment(b->offset, b->size());
+      if ((p.segment(b->offset, b->size()) - old).cwiseAbs().maxCoeff() <= Precision::Confusion()) continue;
+      primitives_[f] = primitive_of_block(*b, p, model.faces[f].primitive);
+      surfaces_[f] = new_surface(part.face(f), primitives_[f]);
+      modified_[f] = true;
+      ++modified_count;
+    }
+    for (const TangencyRelation& r : model.relations) relation_[{r.faces[0], r.faces[1]}] = &r;
+    TopExp::MapShapesAndAncestors(part.shape, TopAbs_EDGE, TopAbs_FACE, edge_faces_);
+    TopExp::MapShapesAndAncestors(part.shape, TopAbs_VERTEX, TopAbs_EDGE, vertex_edges_);
+    TopExp::MapShapesAndAncestors(part.shape, TopAbs_VERTEX, TopAbs_FACE, vertex_faces_);
+    // Edges first (vertices need their curves).
+    curves_.resize(part.edge_count());
+    edge_modified_.assign(part.edge_count(), false);
+    for (int e = 0; e < part.edge_count(); ++e) {
+      const EdgeInfo& info = model.edges[e];
+      double f, l;
+      curves_[e] = BRep_Tool::Curve(part.edge(e), f, l);
+      if (info.degenerated) continue;
+      if (!modified_[info.faces[0]] && !modified_[info.faces[1]]) continue;
+      curves_[e] = new_curve(e, info);
+      edge_modified_[e] = true;
+    }
+    const TopTools_IndexedMapOfShape& vertices = part.vertices;
+    points_.resize(vertices.Extent());
+    vertex_modified_.assign(vertices.Extent(), false);
+    for (int v = 0; v < vertices.Extent(); ++v) {
+      const TopoDS_Vertex& V = TopoDS::Vertex(vertices(v + 1));
+      points_[v] = BRep_Tool::Pnt(V);
+      bool any = false;
+      for (const TopoDS_Shape& F : vertex_faces_.FindFromKey(V)) any = any || modified_[part.face_index(F)];
+      if (!any) continue;
+      points_[v] = new_point(V);
+      vertex_modified_[v] = true;
+    }
+  }
+
+  int modified_count = 0;
+
+  Standard_Boolean NewSurface(const TopoDS_Face& F, Handle(Geom_Surface)& S, TopLoc_Location& L, Standard_Real& tol,
+                              Standard_Boolean& rev_wires, Standard_Boolean& rev_face) override {
+    const int f = part_.face_index(F);
+    if (f < 0 || !modified_[f]) return Standard_False;
+    S = surfaces_[f];
+    L = TopLoc_Location();
+    tol = BRep_Tool::Tolerance(F);
+    rev_wires = rev_face = Standard_False;
+    return Standard_True;
+  }
+
+  Standard_Boolean NewCurve(const TopoDS_Edge& E, Handle(Geom_Curve)& C, TopLoc_Location& L,
+                            Standard_Real& tol) override {
+    const int e = part_.edge_index(E);
+    if (e < 0 || !edge_modified_[e]) return Standard_False;
+    C = curves_[e];
+    L = TopLoc_Location();
+    tol = BRep_Tool::Tolerance(E);
+    return Standard_True;
+  }
+
+  Standard_Boolean NewPoint(const TopoDS_Vertex& V, gp_Pnt& P, Standard_Real& tol) override {
+    const int v = part_.vertices.FindIndex(V) - 1;
+    if (v < 0 || !vertex_modified_[v]) return Standard_False;
+    P = points_[v];
+    tol = BRep_Tool::Tolerance(V);
+    return Standard_True;
+  }
+
+  Standard_Boolean NewCurve2d(const TopoDS_Edge& E, const TopoDS_Face& F, const TopoDS_Edge&, const TopoDS_Face&,
+                              Handle(Geom2d_Curve)& C, Standard_Real& tol) override {
+    const int e = part_.edge_index(E), f = part_.face_index(F);
+    if (e < 0 || f < 0) return Standard_False;
+    if (!edge_modified_[e] && !modified_[f]) return Standard_False;
+    double of, ol;
+    const Handle(Geom2d_Curve) old = BRep_Tool::CurveOnSurface(E, F, of, ol);
+    tol = BRep_Tool::Tolerance(E);
+    if (BRep_Tool::Degenerated(E)) {  // a pole: same (u, v) line on the moved surface
+      C = Handle(Geom2d_Curve)::DownCast(old->Copy());
+      return Standard_True;
+    }
+    double first, last;
+    range(E, e, first, last);
+    const Handle(Geom_Surface)& S = surfaces_[f];
+    Handle(Geom2d_Curve) pc;
+    try {
+      pc = GeomProjLib::Curve2d(curves_[e], first, last, S, tol);
+    } catch (const Standard_Failure&) {
+    }
+    if (pc.IsNull()) {
+      std::ostringstream os;
+      os << "edge " << e << ": no pcurve on face " << f << " (" << S->DynamicType()->Name() << ", curve "
+         << curves_[e]->DynamicType()->Name() << " on [" << first << ", " << last << "])";
+      throw Failure{os.str()};
+    }
+    // Same sheet of a periodic surface as the old pcurve (seams: the side of this orientation).
+    const gp_Pnt2d a = old->Value(0.5 * (of + ol)), b = pc->Value(0.5 * (first + last));
+    gp_Vec2d shift(0, 0);
+    if (S->IsUPeriodic()) shift.SetX(std::round((a.X() - b.X()) / S->UPeriod()) * S->UPeriod());
+    if (S->IsVPeriodic()) shift.SetY(std::round((a.Y() - b.Y()) / S->VPeriod()) * S->VPeriod());
+    if (shift.Magnitude() > 0) pc->Translate(shift);
+    C = pc;
+    return Standard_True;
+  }
+
+  Standard_Boolean NewParameter(const TopoDS_Vertex& V, const TopoDS_Edge& E, Standard_Real& P,
+                                Standard_Real& tol) override {
+    const int v = part_.vertices.FindIndex(V) - 1, e = part_.edge_index(E);
+    if (v < 0 || e < 0 || BRep_Tool::Degenerated(E)) return Standard_False;
+    if (!vertex_modified_[v] && !edge_modified_[e]) return Standard_False;
+    double first, last;
+    range(E, e, first, last);
+    // V's orientation relative to the edge's own (FORWARD) orientation decides first or last.
+    const bool forward = (V.Orientation() == TopAbs_FORWARD) != (E.Orientation() == TopAbs_REVERSED);
+    P = forward ? first : last;
+    tol = BRep_Tool::Tolerance(V);
+    return Standard_True;
+  }
+
+  GeomAbs_Shape Continuity(const TopoDS_Edge& E, const TopoDS_Face& F1, const TopoDS_Face& F2, const TopoDS_Edge&,
+                           const TopoDS_Face&, const TopoDS_Face&) override {
+    return BRep_Tool::Continuity(E, F1, F2);
+  }
+
+ private:
+  // The parameter of the (new) vertex on the (new) curve of edge e, nearest `old` modulo a period.
+  double parameter(const TopoDS_Vertex& V, int e, double old) const {
+    const int v = part_.vertices.FindIndex(V) - 1;
+    GeomAPI_ProjectPointOnCurve proj(points_[v], curves_[e]);
+    if (proj.NbPoints() == 0) throw Failure{"vertex " + std::to_string(v) + " does not project on edge " + std::to_string(e)};
+    double t = proj.LowerDistanceParameter();
+    if (curves_[e]->IsPeriodic()) {
+      const double T = curves_[e]->Period();
+      t += std::round((old - t) / T) * T;
+    }
+    return t;
+  }
+
+  // The new range of edge e: its vertices projected on its (new) curve; on a periodic curve the
+  // first near the old first parameter and the last within one period after it.
+  void range(const TopoDS_Edge& E, int e, double& first, double& last) const {
+    TopoDS_Vertex v1, v2;
+    TopExp::Vertices(TopoDS::Edge(E.Oriented(TopAbs_FORWARD)), v1, v2);
+    double of, ol;
+    BRep_Tool::Range(E, of, ol);
+    first = parameter(v1, e, of);
+    last = parameter(v2, e, ol);
+    if (curves_[e]->IsPeriodic()) {
+      const double T = curves_[e]->Period();
+      if (v1.IsSame(v2) && std::abs(ol - of - T) < 1e-9) {
+        last = first + T;  // a full circle
+      } else {
+        last = first + std::fmod(std::fmod(last - first, T) + T, T);
+        if (last <= first) last += T;
+      }
+    } else if (last <= first) {
+    {
+      std::ostringstream os;
+      const gp_Pnt a = points_[part_.vertices.FindIndex(v1) - 1], b = points_[part_.vertices.FindIndex(v2) - 1];
+      os << "edge " << e << ": its vertices are in reverse order on the new curve (" << curves_[e]->DynamicType()->Name()
+         << ", old range " << of << ".." << ol << ", new " << first << ".." << last << ", vertices (" << a.X() << ", "
+         << a.Y() << ", " << a.Z() << ") (" << b.X() << ", " << b.Y() << ", " << b.Z() << "))";
+      throw Failure{os.str()};
+    }
+    }
+  }
+
+  // A new curve with the old one's direction and (line, circle) parameterization frame.
+  Handle(Geom_Curve) oriented_like(const Handle(Geom_Curve)& c, int e) const {
+    double f, l;
+    const Handle(Geom_Curve) old = BRep_Tool::Curve(part_.edge(e), f, l);
+    gp_Pnt M;
+    gp_Vec T;
+    old->D1(0.5 * (f + l), M, T);
+    Handle(Geom_Curve) base = c, cc = c;
+    if (auto tc = Handle(Geom_TrimmedCurve)::DownCast(c)) {
+      base = tc->BasisCurve();
+      if (base->IsPeriodic() || Handle(Geom_Line)::DownCast(base)) cc = base;  // untrimmed: the range comes from the vertices
+    }
+    if (auto line = Handle(Geom_Line)::DownCast(base)) {
+      gp_Lin lin = line->Lin();
+      if (lin.Direction().XYZ().Dot(T.XYZ()) < 0) lin.Reverse();
+      if (auto oldline = Handle(Geom_Line)::DownCast(old)) {
+        const gp_Pnt O = oldline->Lin().Location();
+        const gp_XYZ d = lin.Direction().XYZ();
+        lin.SetLocation(gp_Pnt(lin.Location().XYZ() + d * d.Dot(O.XYZ() - lin.Location().XYZ())));
+      }
+      return new Geom_Line(lin);
+    }
+    if (auto circle = Handle(Geom_Circle)::DownCast(base)) {
+      gp_Circ circ = circle->Circ();
+      gp_Ax2 ax = circ.Position();
+      // Direction: the tangent at the old midpoint's projection.
+      GeomAPI_ProjectPointOnCurve proj(M, circle);
+      gp_Pnt P;
+      gp_Vec D;
+      circle->D1(proj.LowerDistanceParameter(), P, D);
+      gp_Dir N = ax.Direction();
+      if (D.Dot(T) < 0) N.Reverse();
+      gp_Dir X = ax.XDirection();
+      if (auto oldc = Handle(Geom_Circle)::DownCast(old)) {
+        const gp_XYZ ox = oldc->Position().XDirection().XYZ();
+        const gp_XYZ xo = ox - N.XYZ() * N.XYZ().Dot(ox);
+        if (xo.Modulus() > 1e-9) X = gp_Dir(xo);
+      }
+      return new Geom_Circle(gp_Ax2(circ.Location(), N, X), circ.Radius());
+    }
+    // Other curves (ellipses, B-splines): reverse if needed.
+    GeomAPI_ProjectPointOnCurve proj(M, cc);
+    if (proj.NbPoints() == 0) throw Failure{"edge " + std::to_string(e) + ": the new curve misses the old edge"};
+    gp_Pnt P;
+    gp_Vec D;
+    cc->D1(proj.LowerDistanceParameter(), P, D);
+    if (D.Dot(T) < 0) return cc->Reversed();
+    return cc;
+  }
+
+  Handle(Geom_Curve) new_curve(int e, const EdgeInfo& info) {
+    const int fa = info.faces[0], fb = info.faces[1];
+    if (info.seam) {
+      double f, l;
+      const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(part_.edge(e), part_.face(fa), f, l);
+      return oriented_like(surfaces_[fa]->UIso(pc->Value(0.5 * (f + l)).X()), e);
+    }
+    if (info.tangent) {
+      auto it = relation_.find({std::min(fa, fb), std::max(fa, fb)});
+      if (it == relation_.end()) it = relation_.find({std::max(fa, fb), std::min(fa, fb)});
+      if (it != relation_.end()) {
+        const TangencyRelation& r = *it->second;
+        const Primitive &A = primitives_[r.faces[0]], &B = primitives_[r.faces[1]];
+        Handle(Geom_Curve) c;
+        if (r.kind == "plane-cylinder") {
+          const Vec3 foot = B.location - (A.axis.dot(B.location - A.location)) * A.axis;
+          c = new Geom_Line(pnt(foot), dir(B.axis));
+        } else if (r.kind == "cylinder-cylinder") {
+          Vec3 w = B.location - A.location;
+          w -= w.dot(A.axis) * A.axis;
+          if (w.norm() <= 1e-9 * (1 + A.radius)) {  // one cylinder split in two: the same ruling
+            double f, l;
+            const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(part_.edge(e), part_.face(fa), f, l);
+            c = surfaces_[fa]->UIso(pc->Value(0.5 * (f + l)).X());
+          } else {
+            c = new Geom_Line(pnt(A.location + A.radius * w.normalized()), dir(A.axis));
+          }
+        } else if (r.kind == "plane-torus") {
+          const Vec3 foot = B.location - (A.axis.dot(B.location - A.location)) * A.axis;
+          c = new Geom_Circle(gp_Ax2(pnt(foot), dir(B.axis)), B.major_radius);
+        } else if (r.kind == "cylinder-torus") {
+          c = new Geom_Circle(gp_Ax2(pnt(B.location), dir(A.axis)), A.radius);
+        } else if (r.kind == "cylinder-sphere") {
+          c = new Geom_Circle(gp_Ax2(pnt(B.location), dir(A.axis)), A.radius);
+        }
+        if (!c.IsNull()) return oriented_like(c, e);
+      }
+      throw Failure{"edge " + std::to_string(e) + ": tangent edge between faces " + std::to_string(fa) + " and " +
+                    std::to_string(fb) + " without a closed form"};
+    }
+    GeomAPI_IntSS inter(surfaces_[fa], surfaces_[fb], 1e-9);
+    if (!inter.IsDone() || inter.NbLines() == 0)
+      throw Failure{"edge " + std::to_string(e) + ": faces " + std::to_string(fa) + " and " + std::to_string(fb) +
+                    " no longer intersect"};
+    double f, l;
+    const Handle(Geom_Curve) old = BRep_Tool::Curve(part_.edge(e), f, l);
+    const gp_Pnt M = old->Value(0.5 * (f + l));
+    Handle(Geom_Curve) best;
+    double best_d = 1e300;
+    for (int k = 1; k <= inter.NbLines(); ++k) {
+      GeomAPI_ProjectPointOnCurve proj(M, inter.Line(k));
+      if (proj.NbPoints() && proj.LowerDistance() < best_d) best_d = proj.LowerDistance(), best = inter.Line(k);
+    }
+    if (best.IsNull()) throw Failure{"edge " + std::to_string(e) + ": no intersection branch near the old edge"};
+    return oriented_like(best, e);
+  }
+
+  gp_Pnt new_point(const TopoDS_Vertex& V) const {
+    const gp_Pnt P0 = BRep_Tool::Pnt(V);
+    double best_angle = -1;
+    gp_Pnt best = P0;
+    for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
+      const int e = part_.edge_index(Es);
+      if (BRep_Tool::Degenerated(TopoDS::Edge(Es))) continue;
+      const auto& faces_of_edge = edge_faces_.FindFromKey(Es);
+      for (const TopoDS_Shape& F : vertex_faces_.FindFromKey(V)) {
+        bool on_edge = false;
+        for (const TopoDS_Shape& G : faces_of_edge) on_edge = on_edge || G.IsSame(F);
+        if (on_edge) continue;
+        const int f = part_.face_index(F);
+        GeomAPI_IntCS inter(curves_[e], surfaces_[f]);
+        if (!inter.IsDone()) continue;
+        for (int k = 1; k <= inter.NbPoints(); ++k) {
+          const gp_Pnt Q = inter.Point(k);
+          if (Q.Distance(P0) > 0.25 * (1 + P0.XYZ().Modulus())) continue;
+          // Transversality: |tangent · normal| at the intersection.
+          double u, v, w;
+          inter.Parameters(k, u, v, w);
+          gp_Pnt X;
+          gp_Vec T, Su, Sv;
+          curves_[e]->D1(w, X, T);
+          surfaces_[f]->D1(u, v, X, Su, Sv);
+          const gp_Vec N = Su.Crossed(Sv);
+          if (T.Magnitude() < 1e-12 || N.Magnitude() < 1e-12) continue;
+          const double angle = std::abs(T.Dot(N)) / (T.Magnitude() * N.Magnitude()) - 1e-3 * Q.Distance(P0);
+          if (angle > best_angle) best_angle = angle, best = Q;
+        }
+      }
+    }
+    if (best_angle < 0) {
+      // Two faces only (e.g. a closed edge): the vertex's projection on a modified edge's curve.
+      for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
+        const int e = part_.edge_index(Es);
+        if (!edge_modified_[e] || BRep_Tool::Degenerated(TopoDS::Edge(Es))) continue;
+        GeomAPI_ProjectPointOnCurve proj(P0, curves_[e]);
+        if (proj.NbPoints()) return proj.NearestPoint();
+      }
+      throw Failure{"vertex " + std::to_string(part_.vertices.FindIndex(V) - 1) + ": no curve/surface intersection"};
+    }
+    return best;
+  }
+
+  const PartShape& part_;
+  std::vector<Handle(Geom_Surface)> surfaces_;
+  std::vector<bool> modified_, edge_modified_, vertex_modified_;
+  std::vector<Primitive> primitives_;
+  std::vector<Handle(Geom_Curve)> curves_;
+  std::vector<gp_Pnt> points_;
+  std::map<std::pair<int, int>, const TangencyRelation*> relation_;
+  TopTools_IndexedDataMapOfShapeListOfShape edge_faces_, vertex_edges_, vertex_faces_;
+};
+
+}  // namespace
+
+ModifyResult modify_part(const PartShape& part, const FaceModel& model, const ShapeParameters& sp,
+                         const Eigen::VectorXd& p) {
+  PARAFAB_VERIFY(p.size() == sp.size(), "modify_part: p has " << p.size() << " entries, the parameters " << sp.size());
+  const auto t0 = std::chrono::steady_clock::now();
+  ModifyResult r;
+  auto finish = [&](std::string message) {
+    r.message = std::move(message);
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return r;
+  };
+  try {
+    Handle(ParameterModification) mod = new ParameterModification(part, model, sp, p);
+    r.modified_faces = mod->modified_count;
+    if (mod->modified_count == 0) {
+      r.done = true;
+      r.part = make_part(part.shape, part.source);
+      return finish("ok (no face changed)");
+    }
+    BRepTools_Modifier modifier(part.shape, mod);
+    if (!modifier.IsDone()) return finish("BRepTools_Modifier failed");
+    TopoDS_Shape result = modifier.ModifiedShape(part.shape);
+    BRepLib::SameParameter(result, 1e-7, Standard_True);
+    BRepCheck_Analyzer check(result);
+    if (!check.IsValid()) return finish("the modified solid fails BRepCheck_Analyzer");
+    std::shared_ptr<const PartShape> out = make_part(result, part.source + " (optimized)");
+    if (out->face_count() != part.face_count() || out->edge_count() != part.edge_count() ||
+        out->vertices.Extent() != part.vertices.Extent())
+      return finish("the modified solid has another topology");
+    // Same numbering: face i of the result is the image of face i.
+    for (int f = 0; f < part.face_count(); ++f)
+      if (!modifier.ModifiedShape(part.face(f)).IsSame(out->face(f))) return finish("face numbering changed");
+    r.part = out;
+    r.done = true;
+    return finish("ok");
+  } catch (const Failure& f) {
+    return finish(f.what);
+  } catch (const Standard_Failure& e) {
+    return finish(std::string("OCCT: ") + e.GetMessageString());
+  } catch (const Error& e) {
+    return finish(e.what());
+  }
+}
+
+void write_step(const PartShape& part, const std::string& path) {
+  // The STEP writer prints transfer statistics through OCCT's default messenger (stdout): the
+  // CLI's stdout is JSON, so the printers are detached while writing.
+  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
+  const Message_SequenceOfPrinters printers = messenger->Printers();
+  messenger->ChangePrinters().Clear();
+  struct Restore {
+    const Handle(Message_Messenger)& m;
+    const Message_SequenceOfPrinters& p;
+    ~Restore() { m->ChangePrinters() = p; }
+  } restore{messenger, printers};
+  STEPControl_Writer writer;
+  Interface_Static::SetCVal("write.step.schema", "AP214IS");
+  Interface_Static::SetCVal("write.step.unit", "MM");
+  PARAFAB_VERIFY(writer.Transfer(part.shape, STEPControl_AsIs) == IFSelect_RetDone,
+                 "STEP export of " << part.source << " failed");
+  PARAFAB_VERIFY(writer.Write(path.c_str()) == IFSelect_RetDone, "cannot write STEP file '" << path << "'");
+}
+
+}  // namespace parafab::occ

@@ -1,0 +1,221 @@
+// Shape optimization over projected CAD parameters (thesis §6.2.3 Eq. 6.5 objectives, §6.5.1
+// projection Eq. 6.25-6.26, §6.5.2 chain rule Eq. 6.28-6.29).
+#include "shape_optimization.h"
+
+#include <chrono>
+#include <cmath>
+#include <set>
+
+#include "common/error.h"
+#include "occt_shape.h"
+#include "optimize/jet.h"
+#include "shape_modify.h"
+
+namespace parafab::occ {
+
+double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient) {
+  using optimize::Dual;
+  using optimize::V3;
+  std::vector<Dual> x;
+  for (int k = 0; k < 10; ++k) x.push_back(Dual::variable(m[k], k, 10));
+  const Vec3 an = spec.axis.normalized();
+  auto constant = [](double v) { return Dual(v, 10); };
+  const V3<Dual> a{constant(an.x()), constant(an.y()), constant(an.z())};
+  auto center_term = [&]() {
+    const V3<Dual> c{x[1] / x[0], x[2] / x[0], x[3] / x[0]};
+    const V3<Dual> w = c - V3<Dual>{constant(spec.point.x()), constant(spec.point.y()), constant(spec.point.z())};
+    const V3<Dual> perp = w - dot(w, a) * a;
+    return dot(perp, perp);
+  };
+  auto alignment_term = [&]() {
+    // Central second moments S = M2 − m1 m1ᵀ / m0; I a − (aᵀ I a) a = −(S a − (aᵀ S a) a).
+    const Dual sxx = x[4] - x[1] * x[1] / x[0], syy = x[5] - x[2] * x[2] / x[0], szz = x[6] - x[3] * x[3] / x[0];
+    const Dual sxy = x[7] - x[1] * x[2] / x[0], syz = x[8] - x[2] * x[3] / x[0], sxz = x[9] - x[1] * x[3] / x[0];
+    const V3<Dual> Sa{sxx * a.x + sxy * a.y + sxz * a.z, sxy * a.x + syy * a.y + syz * a.z,
+                      sxz * a.x + syz * a.y + szz * a.z};
+    const V3<Dual> off = Sa - dot(a, Sa) * a;
+    const Dual trace_i = 2.0 * (sxx + syy + szz);
+    return dot(off, off) / (trace_i * trace_i);
+  };
+  Dual f;
+  if (spec.type == "mass") f = spec.density * x[0];
+  else if (spec.type == "volume") f = x[0] * 1.0;
+  else if (spec.type == "center_of_mass") f = center_term();
+  else if (spec.type == "inertia_alignment") f = alignment_term();
+  else if (spec.type == "balance") f = center_term() / (spec.length_scale * spec.length_scale) + alignment_term();
+  else
+    PARAFAB_INPUT_ERROR("objective.type '" << spec.type
+                                           << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance)");
+  if (gradient) *gradient = f.g;
+  return f.v;
+}
+
+namespace {
+
+struct Evaluation {
+  bool ok = false;
+  double objective = 0, penalized = 0, violation = 0, volume = 0, tangency = 0;
+  Eigen::VectorXd p, lambda;
+  std::shared_ptr<const PartShape> part;
+};
+
+}  // namespace
+
+ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimizationOptions& options,
+                                       const ShapeProgress& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ShapeOptimizationResult result;
+  const FaceModel model = build_face_model(part, options.face_model);
+  const ShapeParameters sp = build_shape_parameters(model, options.parameterization);
+  result.notes = sp.notes;
+  ObjectiveSpec spec = options.objective;
+  {
+    Eigen::Matrix<double, 10, 1> g;
+    objective_from_moments(spec, Moments::Zero().unaryExpr([](double) { return 1.0; }), &g);  // validates the type
+  }
+  if (spec.length_scale <= 0) {
+    const PartInfo info = part_info(part);
+    spec.length_scale = (info.bbox_max - info.bbox_min).norm();
+  }
+  // Design entries.
+  std::vector<int> design = options.design;
+  std::set<int> fixed(sp.fixed_faces.begin(), sp.fixed_faces.end());
+  if (design.empty())
+    for (const auto& b : sp.blocks)
+      if (!fixed.count(b.face))
+        for (int k = 0; k < b.size(); ++k) design.push_back(b.offset + k);
+  PARAFAB_VERIFY(!design.empty(), "no design parameters: every analytic face is fixed");
+  for (int i : design) {
+    PARAFAB_VERIFY(i >= 0 && i < sp.size(), "design parameter index " << i << " outside 0.." << sp.size() - 1);
+    PARAFAB_VERIFY(sp.lower[i] < sp.upper[i], "design parameter '" << sp.names[i] << "' belongs to a fixed face");
+  }
+  const int nd = static_cast<int>(design.size());
+  for (int i : design) result.design_names.push_back(sp.names[i]);
+
+  optimize::ProjectionOptions popt = options.projection;
+  {
+    const PartInfo info = part_info(part);
+    popt.weights = projection_weights(sp, design, options.follower_weight, (info.bbox_max - info.bbox_min).norm());
+  }
+  // The start: the part's own parameters projected (the face model's relations hold to ~1e-6).
+  optimize::ProjectionResult start =
+      optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper, {}, popt);
+  if (!start.done) {
+    result.status = "invalid_start";
+    result.message = "the part's own parameters do not project onto its constraints: " + start.message;
+    return result;
+  }
+  Eigen::VectorXd anchor = start.p;  // p̃ outside the design entries
+  Eigen::VectorXd x0(nd), lower(nd), upper(nd);
+  for (int k = 0; k < nd; ++k) {
+    x0[k] = anchor[design[k]];
+    const double span = options.relative_bound > 0 ? options.relative_bound * std::max(1.0, std::abs(x0[k])) : 1e19;
+    lower[k] = std::max(sp.lower[design[k]], x0[k] - span);
+    upper[k] = std::min(sp.upper[design[k]], x0[k] + span);
+  }
+  Eigen::VectorXd warm_p = start.p;
+
+  double V0 = 0, f_scale = 1;
+  Evaluation last;
+  auto evaluate = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
+    ++result.evaluations;
+    last = Evaluation{};
+    Eigen::VectorXd target = anchor;
+    for (int k = 0; k < nd; ++k) target[design[k]] = x[k];
+    const optimize::ProjectionResult proj =
+        optimize::project(sp.constraints, target, warm_p, sp.lower, sp.upper, {}, popt);  // primal warm start
+    if (!proj.done) {
+      ++result.failed_projections;
+      return false;  // never evaluate an invalid model
+    }
+    const ModifyResult mod = modify_part(part, model, sp, proj.p);
+    if (!mod.done) {
+      if (result.invalid_models++ == 0) result.notes.push_back("first invalid B-rep update: " + mod.message);
+      return false;
+    }
+    const MomentDerivatives md = moment_derivatives(*mod.part, sp, proj.p, options.quadrature);
+    Eigen::Matrix<double, 10, 1> dfdm;
+    const double f = objective_from_moments(spec, md.moments, &dfdm);
+    Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;
+    // Volume bounds by a quadratic penalty on the relative violation.
+    const double V = md.moments[0];
+    if (V0 == 0) V0 = V, f_scale = std::max(std::abs(f), 1e-300);
+    double violation = 0, dviol = 0;
+    if (options.volume_max_ratio > 0 && V / V0 > options.volume_max_ratio)
+      violation = V / V0 - options.volume_max_ratio, dviol = 1 / V0;
+    if (options.volume_min_ratio > 0 && V / V0 < options.volume_min_ratio)
+      violation = options.volume_min_ratio - V / V0, dviol = -1 / V0;
+    F = f + options.penalty * f_scale * violation * violation;
+    dfdp += (2 * options.penalty * f_scale * violation * dviol) * md.gradient.row(0).transpose();
+    // Chain rule through the projection (Eq. 6.29): dF/dp̃ = (dp⊥/dp̃)ᵀ dF/dp⊥.
+    const optimize::ProjectionDerivative D = optimize::projection_derivative(sp.constraints, proj, sp.lower, sp.upper, popt.weights);
+    const Eigen::VectorXd g_target = D.jacobian.transpose() * dfdp;
+    grad.resize(nd);
+    for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]];
+    last.ok = true;
+    last.objective = f;
+    last.penalized = F;
+    last.violation = violation;
+    last.volume = V;
+    last.p = proj.p;
+    last.lambda = proj.multipliers;
+    last.part = mod.part;
+    warm_p = proj.p;
+    return true;
+  };
+
+  Evaluation accepted;
+  auto on_iterate = [&](const optimize::LbfgsIterate& it) {
+    accepted = last;
+    ShapeIterate s;
+    s.iteration = it.iteration;
+    s.objective = accepted.objective;
+    s.constraint_violation = accepted.violation;
+    s.tangency_residual = tangency_residual_max(model, sp, accepted.p);
+    s.design.resize(nd);
+    for (int k = 0; k < nd; ++k) s.design[k] = accepted.p[design[k]];
+    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    result.iterations.push_back(s);
+    return !progress || progress(s);
+  };
+  optimize::LbfgsResult run;
+  try {
+    run = optimize::minimize_lbfgs(evaluate, x0, lower, upper, options.lbfgs, on_iterate);
+  } catch (const Error& e) {
+    result.status = "invalid_start";
+    result.message = std::string("the start cannot be evaluated: ") + e.what() +
+                     (result.notes.empty() ? "" : " (" + result.notes.back() + ")");
+    return result;
+  }
+  result.done = run.done;
+  result.status = run.status;
+  result.message = run.message;
+  result.initial_objective = result.iterations.front().objective;
+  result.final_objective = accepted.objective;
+  result.initial_volume = V0;
+  result.final_volume = accepted.volume;
+  result.p_initial = start.p;
+  result.p_final = accepted.p;
+  result.design_initial.resize(nd);
+  result.design_final.resize(nd);
+  for (int k = 0; k < nd; ++k) result.design_initial[k] = start.p[design[k]], result.design_final[k] = accepted.p[design[k]];
+  result.part = accepted.part;
+  // Tangency on the final B-rep: the face model of the written part, its own relations (if its
+  // NURBS conversion fails, the original relations evaluated at p⊥).
+  try {
+    const FaceModel final_model = build_face_model(*accepted.part, options.face_model);
+    for (const TangencyRelation& r : final_model.relations)
+      for (double v : r.residuals) result.tangency_residual_max = std::max(result.tangency_residual_max, std::abs(v));
+    if (final_model.relations.size() != model.relations.size())
+      result.notes.push_back("the final part has " + std::to_string(final_model.relations.size()) +
+                             " tangency relations, the original " + std::to_string(model.relations.size()));
+  } catch (const Error& e) {
+    result.tangency_residual_max = tangency_residual_max(model, sp, accepted.p);
+    result.notes.push_back(std::string("tangency residual from the parameters (face model of the result: ") +
+                           e.what() + ")");
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+}  // namespace parafab::occ

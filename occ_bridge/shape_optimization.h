@@ -1,0 +1,92 @@
+// Shape optimization of a part on its own CAD parameters (thesis §6.2.3, §6.5): design
+// variables are entries of p (face parameters), every evaluation projects them onto c_para = 0
+// (Eq. 6.25-6.26, Ipopt), writes the valid model back into the B-rep (shape_modify.h), and
+// evaluates a mass-property objective with exact Hadamard shape derivatives
+// (shape_derivatives.h) chained through dp⊥/dp̃ (Eq. 6.29); L-BFGS with bounds drives it.
+// Objectives that need the elasticity solve (compliance, stress) are not implemented yet.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "face_model.h"
+#include "optimize/lbfgs.h"
+#include "optimize/projection.h"
+#include "shape_derivatives.h"
+#include "shape_parameters.h"
+
+namespace parafab::occ {
+
+struct PartShape;
+
+/// What to minimize, from the ten volume moments (density ρ, axis through `point` along `axis`):
+///  "mass": ρV;  "volume": V;  "center_of_mass": |c⊥|², c⊥ the centre's offset from the axis;
+///  "inertia_alignment": |I a − (aᵀ I a) a|² / (tr I)², I the inertia about the centre (the axis
+///  a a principal axis); "balance": center_of_mass / L² + inertia_alignment (L: bbox diagonal).
+struct ObjectiveSpec {
+  std::string type = "mass";
+  double density = 1;
+  Vec3 point = Vec3::Zero();
+  Vec3 axis = Vec3::UnitZ();
+  double length_scale = 1;  ///< L of "balance" (set from the part when 0 or negative)
+};
+
+/// The objective value and d value / d moments.
+double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient);
+
+struct ShapeOptimizationOptions {
+  ObjectiveSpec objective;
+  /// Design variables (indices into p); empty: every entry of every face that is not fixed.
+  std::vector<int> design;
+  ShapeParameterOptions parameterization;
+  /// Bounds on design entries: ± this times max(1, |initial|) around the start (0: none).
+  double relative_bound = 0.5;
+  double volume_max_ratio = 0;     ///< V ≤ ratio·V0 (0: no bound), by a quadratic penalty
+  double volume_min_ratio = 0;     ///< V ≥ ratio·V0 (0: no bound)
+  double penalty = 1e4;            ///< penalty weight relative to max(|f0|, tiny)
+  /// Projection weight of the entries that are not design variables (design entries: 1), so
+  /// that tangent neighbours follow a design change instead of pulling it back.
+  double follower_weight = 1e-4;
+  optimize::LbfgsOptions lbfgs;
+  optimize::ProjectionOptions projection;
+  BoundaryQuadratureOptions quadrature;
+  FaceModelOptions face_model;
+};
+
+struct ShapeIterate {
+  int iteration = 0;
+  double objective = 0;             ///< without the penalty
+  double constraint_violation = 0;  ///< volume bound violation (relative), 0 if none
+  double tangency_residual = 0;     ///< face model relations at p⊥
+  Eigen::VectorXd design;           ///< design entries of p⊥
+  double seconds = 0;
+};
+
+struct ShapeOptimizationResult {
+  bool done = false;            ///< finished by a stopping rule (not cancelled, not failed)
+  std::string status, message;
+  double initial_objective = 0, final_objective = 0;
+  double initial_volume = 0, final_volume = 0;
+  std::vector<ShapeIterate> iterations;
+  std::vector<std::string> design_names;
+  Eigen::VectorXd design_initial, design_final;
+  Eigen::VectorXd p_initial, p_final;  ///< p⊥ at the start and at the end
+  double tangency_residual_max = 0;    ///< face model relations on the final part
+  std::shared_ptr<const PartShape> part;  ///< the final valid model
+  int evaluations = 0, invalid_models = 0, failed_projections = 0;
+  std::vector<std::string> notes;      ///< parameterization notes and first invalid-model message
+  double seconds = 0;
+};
+
+/// Called after every accepted iterate; returning false cancels (the last valid model is kept).
+using ShapeProgress = std::function<bool(const ShapeIterate&)>;
+
+/// Throws parafab::Error for invalid options (unknown objective, design index out of range);
+/// a failing projection or B-rep update is a status, never an exception.
+ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimizationOptions& options,
+                                       const ShapeProgress& progress = {});
+
+}  // namespace parafab::occ

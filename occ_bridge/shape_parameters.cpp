@@ -1,0 +1,202 @@
+// Shape parameters and c_para of a part from its face model (thesis §6.5.1, Fig. 6.11).
+#include "shape_parameters.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <set>
+#include <sstream>
+
+#include "common/error.h"
+
+namespace parafab::occ {
+
+namespace {
+
+bool kind_of(SurfaceType t, optimize::PrimitiveKind& k) {
+  using K = optimize::PrimitiveKind;
+  switch (t) {
+    case SurfaceType::plane: k = K::plane; return true;
+    case SurfaceType::cylinder: k = K::cylinder; return true;
+    case SurfaceType::cone: k = K::cone; return true;
+    case SurfaceType::sphere: k = K::sphere; return true;
+    case SurfaceType::torus: k = K::torus; return true;
+    default: return false;
+  }
+}
+
+void write_block(const optimize::ParameterBlock& b, const Primitive& pr, Eigen::VectorXd& p) {
+  using K = optimize::PrimitiveKind;
+  double* x = p.data() + b.offset;
+  switch (b.kind) {
+    case K::plane:
+      for (int i = 0; i < 3; ++i) x[i] = pr.axis[i];
+      x[3] = pr.axis.dot(pr.location);
+      break;
+    case K::sphere:
+      for (int i = 0; i < 3; ++i) x[i] = pr.location[i];
+      x[3] = pr.radius;
+      break;
+    default:
+      for (int i = 0; i < 3; ++i) x[i] = pr.location[i], x[3 + i] = pr.axis[i];
+      if (b.kind == K::torus) {
+        x[6] = pr.major_radius;
+        x[7] = pr.radius;
+      } else {
+        x[6] = pr.radius;
+        if (b.kind == K::cone) x[7] = pr.semi_angle;
+      }
+  }
+}
+
+}  // namespace
+
+Primitive primitive_of_block(const optimize::ParameterBlock& b, const Eigen::VectorXd& p, const Primitive& like) {
+  using K = optimize::PrimitiveKind;
+  Primitive pr = like;
+  const double* x = p.data() + b.offset;
+  const Vec3 v0(x[0], x[1], x[2]);
+  switch (b.kind) {
+    case K::plane: {
+      const Vec3 n = v0;
+      pr.axis = n.normalized();
+      // The point of the new plane nearest the old origin keeps the (u, v) parameterization close.
+      pr.location = like.location - (n.dot(like.location) - x[3]) / n.squaredNorm() * n;
+      break;
+    }
+    case K::sphere:
+      pr.location = v0;
+      pr.radius = x[3];
+      break;
+    default:
+      pr.location = v0;
+      pr.axis = Vec3(x[3], x[4], x[5]).normalized();
+      if (b.kind == K::torus) {
+        pr.major_radius = x[6];
+        pr.radius = x[7];
+      } else {
+        pr.radius = x[6];
+        if (b.kind == K::cone) pr.semi_angle = x[7];
+      }
+  }
+  if (b.kind != K::sphere) {  // x direction: the old one made orthogonal to the new axis
+    Vec3 xd = like.x_direction - like.x_direction.dot(pr.axis) * pr.axis;
+    if (xd.norm() < 1e-9) xd = pr.axis.unitOrthogonal();
+    pr.x_direction = xd.normalized();
+  }
+  return pr;
+}
+
+ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParameterOptions& options) {
+  ShapeParameters sp;
+  const int nf = static_cast<int>(model.faces.size());
+  sp.block_of_face.assign(nf, -1);
+  int offset = 0;
+  for (const FaceInfo& f : model.faces) {
+    optimize::PrimitiveKind k;
+    if (!kind_of(f.primitive.type, k)) continue;
+    sp.block_of_face[f.index] = static_cast<int>(sp.blocks.size());
+    sp.blocks.push_back({f.index, k, offset});
+    offset += optimize::block_size(k);
+  }
+  sp.initial.resize(offset);
+  sp.lower = Eigen::VectorXd::Constant(offset, -1e19);
+  sp.upper = Eigen::VectorXd::Constant(offset, 1e19);
+  for (const auto& b : sp.blocks) {
+    write_block(b, model.faces[b.face].primitive, sp.initial);
+    const auto& names = optimize::block_parameter_names(b.kind);
+    for (int k = 0; k < b.size(); ++k) {
+      sp.names.push_back("face " + std::to_string(b.face) + " " + optimize::to_string(b.kind) + " " + names[k]);
+      if (names[k].find("radius") != std::string::npos) sp.lower[b.offset + k] = options.min_radius;
+      if (names[k] == "half-angle") sp.lower[b.offset + k] = 1e-3, sp.upper[b.offset + k] = M_PI / 2 - 1e-3;
+    }
+  }
+  // Fixed faces: the user's, and analytic faces tangent to a face without parameters.
+  std::set<int> fixed;
+  for (int f : options.fixed_faces) {
+    PARAFAB_VERIFY(f >= 0 && f < nf, "fixed face " << f << " does not exist (the part has " << nf << " faces)");
+    fixed.insert(f);
+  }
+  for (const TangencyRelation& r : model.relations) {
+    const bool a = sp.block_of_face[r.faces[0]] >= 0, b = sp.block_of_face[r.faces[1]] >= 0;
+    if (r.kind == "g1" || !a || !b) {
+      std::ostringstream os;
+      os << "faces " << r.faces[0] << " and " << r.faces[1] << " (" << to_string(model.faces[r.faces[0]].primitive.type)
+         << ", " << to_string(model.faces[r.faces[1]].primitive.type) << ") are tangent without equations in p: both kept fixed";
+      sp.notes.push_back(os.str());
+      fixed.insert(r.faces[0]);
+      fixed.insert(r.faces[1]);
+    }
+  }
+  for (int f : fixed)
+    if (const auto* b = sp.block(f)) {
+      sp.fixed_faces.push_back(f);
+      for (int k = 0; k < b->size(); ++k) sp.lower[b->offset + k] = sp.upper[b->offset + k] = sp.initial[b->offset + k];
+    }
+  auto is_fixed = [&](int face) { return fixed.count(face) > 0; };
+
+  sp.constraints = optimize::ConstraintSystem(offset);
+  for (const auto& b : sp.blocks)
+    if (!is_fixed(b.face)) optimize::add_unit_axis(sp.constraints, b, "face " + std::to_string(b.face));
+  for (const TangencyRelation& r : model.relations) {
+    const auto *a = sp.block(r.faces[0]), *b = sp.block(r.faces[1]);
+    if (r.kind == "g1" || !a || !b || (is_fixed(r.faces[0]) && is_fixed(r.faces[1]))) continue;
+    sp.relation_equations += optimize::add_tangency(sp.constraints, r.kind, *a, *b, r.sign, sp.initial,
+                                                    "faces " + std::to_string(r.faces[0]) + "-" +
+                                                        std::to_string(r.faces[1]) + " " + r.kind);
+  }
+  for (const auto& tie : options.ties) {
+    PARAFAB_VERIFY(tie.size() >= 2, "a tie needs at least two parameters");
+    const int first = parameter_index(sp, tie[0].face, tie[0].parameter);
+    for (size_t k = 1; k < tie.size(); ++k) {
+      const int other = parameter_index(sp, tie[k].face, tie[k].parameter);
+      optimize::add_linear(sp.constraints, {first, other}, {1.0, -1.0}, 0.0,
+                           "tie " + sp.names[first] + " = " + sp.names[other]);
+    }
+  }
+  for (const auto& m : options.mirrors) {
+    const auto *a = sp.block(m.face_a), *b = sp.block(m.face_b);
+    PARAFAB_VERIFY(a && b, "mirror: faces " << m.face_a << " and " << m.face_b << " need analytic surfaces");
+    optimize::add_mirror(sp.constraints, *a, *b, m.normal, m.offset, sp.initial,
+                         "mirror " + std::to_string(m.face_a) + "/" + std::to_string(m.face_b));
+  }
+  return sp;
+}
+
+Eigen::VectorXd projection_weights(const ShapeParameters& sp, const std::vector<int>& design, double follower,
+                                   double length) {
+  Eigen::VectorXd w = Eigen::VectorXd::Constant(sp.size(), follower);
+  for (int i : design) w[i] = 1;
+  for (const auto& b : sp.blocks) {
+    const auto& names = optimize::block_parameter_names(b.kind);
+    for (int k = 0; k < b.size(); ++k)
+      if (names[k].rfind("normal", 0) == 0 || (names[k].size() == 6 && names[k].rfind("axis ", 0) == 0) || names[k] == "half-angle")
+        w[b.offset + k] = length * length;
+  }
+  return w;
+}
+
+int parameter_index(const ShapeParameters& sp, int face, const std::string& parameter) {
+  const auto* b = sp.block(face);
+  PARAFAB_VERIFY(b, "face " << face << " has no shape parameters (not an analytic face of the part, or absent)");
+  const auto& names = optimize::block_parameter_names(b->kind);
+  for (int k = 0; k < b->size(); ++k)
+    if (names[k] == parameter) return b->offset + k;
+  std::ostringstream os;
+  for (const auto& n : names) os << " '" << n << "'";
+  PARAFAB_INPUT_ERROR("face " << face << " (" << optimize::to_string(b->kind) << ") has no parameter '" << parameter
+                              << "'; it has" << os.str());
+}
+
+double tangency_residual_max(const FaceModel& model, const ShapeParameters& sp, const Eigen::VectorXd& p) {
+  double worst = 0;
+  for (const TangencyRelation& r : model.relations) {
+    if (r.kind == "g1") continue;
+    FaceInfo a = model.faces[r.faces[0]], b = model.faces[r.faces[1]];
+    if (const auto* ba = sp.block(a.index)) a.primitive = primitive_of_block(*ba, p, a.primitive);
+    if (const auto* bb = sp.block(b.index)) b.primitive = primitive_of_block(*bb, p, b.primitive);
+    for (double x : tangency_residuals(r, a, b)) worst = std::max(worst, std::abs(x));
+  }
+  return worst;
+}
+
+}  // namespace parafab::occ

@@ -1,0 +1,74 @@
+// Shape parameters of a part (thesis §6.5.1): the mid-level parameters p of its analytic faces
+// from the face model, named ("face 7 cylinder radius"), the tangency relations as constraints
+// c_para(p) = 0 in a reduced independent form, unit axes, and user constraints (fixed faces,
+// ties into one design variable, mirror symmetry, bounds). The math lives in
+// solvers/optimize/shape_constraints.h; this file maps the face model onto it.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "face_model.h"
+#include "optimize/shape_constraints.h"
+
+namespace parafab::occ {
+
+struct ParameterRef {
+  int face = -1;
+  std::string parameter;  ///< a block parameter name: "radius", "offset", "normal x", ...
+};
+
+struct ShapeParameterOptions {
+  std::vector<int> fixed_faces;                   ///< faces that keep their surface (supported, loaded)
+  std::vector<std::vector<ParameterRef>> ties;    ///< each list: parameters kept equal
+  struct Mirror {
+    int face_a = -1, face_b = -1;
+    Vec3 normal = Vec3::UnitX();  ///< mirror plane normal·X = offset
+    double offset = 0;
+  };
+  std::vector<Mirror> mirrors;
+  double min_radius = 1e-3;  ///< lower bound of every radius (units of the part)
+};
+
+struct ShapeParameters {
+  std::vector<optimize::ParameterBlock> blocks;  ///< one per analytic face
+  std::vector<int> block_of_face;                ///< per face: index into blocks, or −1
+  std::vector<std::string> names;                ///< per entry of p: "face 7 cylinder radius"
+  Eigen::VectorXd initial, lower, upper;         ///< p of the part as read; bounds (fixed: equal)
+  optimize::ConstraintSystem constraints;
+  std::vector<int> fixed_faces;                  ///< fixed by the options or by a relation with a free-form face
+  std::vector<std::string> notes;                ///< what was not expressible and what was done about it
+  int relation_equations = 0;                    ///< tangency equations in `constraints`
+
+  int size() const { return static_cast<int>(initial.size()); }
+  const optimize::ParameterBlock* block(int face) const {
+    return face >= 0 && face < static_cast<int>(block_of_face.size()) && block_of_face[face] >= 0
+               ? &blocks[block_of_face[face]]
+               : nullptr;
+  }
+};
+
+/// Builds p, its names, bounds and c_para from the face model. Throws parafab::Error naming
+/// the face for a fixed/tied/mirrored face that does not exist or has no such parameter.
+ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParameterOptions& options = {});
+
+/// Index in p of (face, parameter name); throws parafab::Error listing the face's parameters.
+int parameter_index(const ShapeParameters& parameters, int face, const std::string& parameter);
+
+/// Weights of the projection distance ½ Σ w_i (p_i − p̃_i)²: lengths (offsets, points, radii)
+/// 1 for design entries and `follower` for the others; dimensionless entries (normals, axes,
+/// half-angles) length² always (a unit tilt costs like a move of `length`, the part's size), so
+/// that a moved plane drags its tangent fillet along by translation instead of tilting.
+Eigen::VectorXd projection_weights(const ShapeParameters& parameters, const std::vector<int>& design,
+                                   double follower, double length);
+
+/// The primitive of a face for the block values `p` (location, axis, radii; plane location =
+/// the foot of the origin's perpendicular... precisely d·n/|n|²; x_direction from `like`).
+Primitive primitive_of_block(const optimize::ParameterBlock& block, const Eigen::VectorXd& p, const Primitive& like);
+
+/// max |residual| of the face model's tangency relations re-evaluated at p (faces of `model`
+/// with their primitives replaced by those of p); "g1" relations are skipped.
+double tangency_residual_max(const FaceModel& model, const ShapeParameters& parameters, const Eigen::VectorXd& p);
+
+}  // namespace parafab::occ

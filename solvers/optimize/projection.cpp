@@ -1,0 +1,240 @@
+// Parameter projection (thesis §6.5.1-6.5.2, Eq. 6.25-6.26 solved by Ipopt; Eq. 6.29 by the
+// implicit function theorem on the reduced KKT system).
+#include "optimize/projection.h"
+
+#include <IpIpoptApplication.hpp>
+#include <IpSolveStatistics.hpp>
+#include <IpTNLP.hpp>
+#include <Eigen/Dense>
+#include <chrono>
+#include <cmath>
+
+#include "common/error.h"
+
+namespace parafab::optimize {
+
+namespace {
+
+using Ipopt::Index;
+using Ipopt::Number;
+
+class ProjectionNlp : public Ipopt::TNLP {
+ public:
+  ProjectionNlp(const ConstraintSystem& system, const Eigen::VectorXd& target, const Eigen::VectorXd& start,
+                const Eigen::VectorXd& lower, const Eigen::VectorXd& upper, const Eigen::VectorXd& lambda0,
+                const Eigen::VectorXd& weights)
+      : system_(system), target_(target), start_(start), lower_(lower), upper_(upper), lambda0_(lambda0), w_(weights) {
+    system_.jacobian_structure(jrows_, jcols_);
+    system_.hessian_structure(hrows_, hcols_);
+  }
+
+  Eigen::VectorXd x, lambda;
+  Ipopt::SolverReturn status = Ipopt::UNASSIGNED;
+
+  bool get_nlp_info(Index& n, Index& m, Index& nnz_jac, Index& nnz_h, IndexStyleEnum& style) override {
+    n = system_.parameters();
+    m = system_.size();
+    nnz_jac = static_cast<Index>(jrows_.size());
+    nnz_h = static_cast<Index>(hrows_.size());
+    style = C_STYLE;
+    return true;
+  }
+  bool get_bounds_info(Index n, Number* xl, Number* xu, Index m, Number* gl, Number* gu) override {
+    for (Index i = 0; i < n; ++i) xl[i] = lower_[i], xu[i] = upper_[i];
+    for (Index i = 0; i < m; ++i) gl[i] = gu[i] = 0;
+    return true;
+  }
+  bool get_starting_point(Index n, bool init_x, Number* x0, bool, Number*, Number*, Index m, bool init_lambda,
+                          Number* l0) override {
+    if (init_x)
+      for (Index i = 0; i < n; ++i) x0[i] = start_[i];
+    if (init_lambda)
+      for (Index i = 0; i < m; ++i) l0[i] = lambda0_.size() == m ? lambda0_[i] : 0.0;
+    return true;
+  }
+  bool eval_f(Index n, const Number* xv, bool, Number& f) override {
+    f = 0.5 * (Eigen::Map<const Eigen::VectorXd>(xv, n) - target_).cwiseAbs2().dot(w_);
+    return true;
+  }
+  bool eval_grad_f(Index n, const Number* xv, bool, Number* g) override {
+    Eigen::Map<Eigen::VectorXd>(g, n) = (Eigen::Map<const Eigen::VectorXd>(xv, n) - target_).cwiseProduct(w_);
+    return true;
+  }
+  bool eval_g(Index n, const Number* xv, bool, Index m, Number* g) override {
+    Eigen::Map<Eigen::VectorXd>(g, m) = system_.values(Eigen::Map<const Eigen::VectorXd>(xv, n));
+    return true;
+  }
+  bool eval_jac_g(Index n, const Number* xv, bool, Index, Index, Index* rows, Index* cols, Number* values) override {
+    if (!values) {
+      for (size_t k = 0; k < jrows_.size(); ++k) rows[k] = jrows_[k], cols[k] = jcols_[k];
+      return true;
+    }
+    system_.jacobian_values(Eigen::Map<const Eigen::VectorXd>(xv, n), values);
+    return true;
+  }
+  bool eval_h(Index n, const Number* xv, bool, Number obj_factor, Index m, const Number* l, bool, Index,
+              Index* rows, Index* cols, Number* values) override {
+    if (!values) {
+      for (size_t k = 0; k < hrows_.size(); ++k) rows[k] = hrows_[k], cols[k] = hcols_[k];
+      return true;
+    }
+    system_.hessian_values(Eigen::Map<const Eigen::VectorXd>(xv, n), obj_factor,
+                           Eigen::Map<const Eigen::VectorXd>(l, m), values);
+    for (Index i = 0; i < n; ++i) values[i] += obj_factor * (w_[i] - 1.0);  // diagonal: obj_factor·w_i
+    return true;
+  }
+  void finalize_solution(Ipopt::SolverReturn s, Index n, const Number* xv, const Number*, const Number*, Index m,
+                         const Number*, const Number* l, Number, const Ipopt::IpoptData*,
+                         Ipopt::IpoptCalculatedQuantities*) override {
+    status = s;
+    x = Eigen::Map<const Eigen::VectorXd>(xv, n);
+    lambda = Eigen::Map<const Eigen::VectorXd>(l, m);
+  }
+
+ private:
+  const ConstraintSystem& system_;
+  Eigen::VectorXd target_, start_, lower_, upper_, lambda0_, w_;
+  std::vector<int> jrows_, jcols_, hrows_, hcols_;
+};
+
+const char* status_words(Ipopt::ApplicationReturnStatus s) {
+  switch (s) {
+    case Ipopt::Solve_Succeeded: return "solved";
+    case Ipopt::Solved_To_Acceptable_Level: return "solved to an acceptable level";
+    case Ipopt::Infeasible_Problem_Detected: return "no parameters satisfy all constraints (infeasible)";
+    case Ipopt::Maximum_Iterations_Exceeded: return "maximum iterations exceeded";
+    case Ipopt::Restoration_Failed: return "restoration phase failed";
+    case Ipopt::Error_In_Step_Computation: return "error in step computation";
+    case Ipopt::Not_Enough_Degrees_Of_Freedom: return "not enough degrees of freedom";
+    case Ipopt::Search_Direction_Becomes_Too_Small: return "search direction too small";
+    default: return "Ipopt failed";
+  }
+}
+
+// Free entries: strictly inside their bounds.
+std::vector<int> free_entries(const Eigen::VectorXd& p, const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                              double gap) {
+  std::vector<int> free;
+  for (int i = 0; i < p.size(); ++i)
+    if (upper[i] - lower[i] > 0 && p[i] - lower[i] > gap && upper[i] - p[i] > gap) free.push_back(i);
+  return free;
+}
+
+Eigen::MatrixXd columns(const Eigen::MatrixXd& A, const std::vector<int>& cols) {
+  Eigen::MatrixXd B(A.rows(), cols.size());
+  for (size_t k = 0; k < cols.size(); ++k) B.col(k) = A.col(cols[k]);
+  return B;
+}
+
+}  // namespace
+
+ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& target, const Eigen::VectorXd& start,
+                         const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                         const Eigen::VectorXd& start_multipliers, const ProjectionOptions& options) {
+  const int n = system.parameters();
+  PARAFAB_VERIFY(target.size() == n && start.size() == n && lower.size() == n && upper.size() == n,
+                 "project: target, start and bounds need " << n << " entries (got " << target.size() << ", "
+                                                           << start.size() << ", " << lower.size() << ", "
+                                                           << upper.size() << ")");
+  const auto t0 = std::chrono::steady_clock::now();
+  ProjectionResult result;
+  const Eigen::VectorXd w = options.weights.size() == n ? options.weights : Eigen::VectorXd::Ones(n);
+  PARAFAB_VERIFY(options.weights.size() == 0 || options.weights.size() == n,
+                 "project: weights need " << n << " entries, got " << options.weights.size());
+  PARAFAB_VERIFY(w.minCoeff() > 0, "project: weights must be positive");
+  Ipopt::SmartPtr<ProjectionNlp> nlp = new ProjectionNlp(system, target, start, lower, upper, start_multipliers, w);
+  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
+  app->Options()->SetIntegerValue("print_level", options.print ? 5 : 0);
+  app->Options()->SetStringValue("sb", "yes");
+  app->Options()->SetNumericValue("tol", options.tolerance);
+  app->Options()->SetNumericValue("constr_viol_tol", options.tolerance);
+  app->Options()->SetIntegerValue("max_iter", options.max_iterations);
+  app->Options()->SetNumericValue("bound_relax_factor", 0.0);
+  app->Options()->SetNumericValue("bound_push", 1e-10);
+  app->Options()->SetNumericValue("bound_frac", 1e-10);
+  if (start_multipliers.size() == system.size() && system.size() > 0)
+    app->Options()->SetStringValue("warm_start_init_point", "yes");
+  Ipopt::ApplicationReturnStatus status = app->Initialize();
+  PARAFAB_VERIFY(status == Ipopt::Solve_Succeeded, "project: Ipopt failed to initialize");
+  Eigen::VectorXd p = start;
+  if (system.size() == 0) {  // nothing to satisfy: the target clamped to the bounds
+    result.p = target.cwiseMax(lower).cwiseMin(upper);
+    result.multipliers.resize(0);
+    status = Ipopt::Solve_Succeeded;
+  } else {
+    status = app->OptimizeTNLP(nlp);
+    result.p = nlp->x.size() == n ? nlp->x : start;
+    result.multipliers = nlp->lambda.size() == system.size() ? nlp->lambda : Eigen::VectorXd::Zero(system.size());
+    Ipopt::SmartPtr<Ipopt::SolveStatistics> stats = app->Statistics();
+    if (IsValid(stats)) result.iterations = stats->IterationCount();
+    // Polish: min-norm Newton steps on the free entries (moves of the order of the tolerance).
+    const std::vector<int> free = free_entries(result.p, lower, upper, 0.0);
+    for (int k = 0; k < 3 && !free.empty(); ++k) {
+      const Eigen::VectorXd c = system.values(result.p);
+      if (c.cwiseAbs().maxCoeff() < 1e-15) break;
+      const Eigen::MatrixXd J = columns(system.jacobian(result.p), free);
+      const Eigen::VectorXd step = J.completeOrthogonalDecomposition().solve(c);
+      if (step.norm() > 1e-6 * (1 + result.p.norm())) break;  // far from feasible: no polishing
+      Eigen::VectorXd q = result.p;
+      for (size_t i = 0; i < free.size(); ++i) q[free[i]] -= step[i];
+      if (system.values(q).cwiseAbs().maxCoeff() >= c.cwiseAbs().maxCoeff()) break;
+      result.p = q;
+    }
+  }
+  result.constraint_violation = system.size() ? system.values(result.p).cwiseAbs().maxCoeff() : 0.0;
+  result.distance = std::sqrt((result.p - target).cwiseAbs2().dot(w));
+  // "Search direction too small": no progress possible at machine precision (Ipopt: likely optimal).
+  const bool converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
+                         status == Ipopt::Search_Direction_Becomes_Too_Small;
+  result.done = converged && result.constraint_violation <= options.feasible_violation;
+  result.message = status_words(status);
+  result.status = result.done ? "solved"
+                  : status == Ipopt::Infeasible_Problem_Detected || status == Ipopt::Restoration_Failed
+                      ? "infeasible"
+                      : "failed";
+  if (!result.done && result.constraint_violation > options.feasible_violation)
+    result.message += "; constraint violation " + std::to_string(result.constraint_violation) +
+                      " (the nearest model found is returned, it is not valid)";
+  else if (!result.done)
+    result.message += " (the constraints hold but the point is not the nearest: not used)";
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+ProjectionDerivative projection_derivative(const ConstraintSystem& system, const ProjectionResult& projection,
+                                           const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                                           const Eigen::VectorXd& weights, double bound_gap) {
+  const int n = system.parameters();
+  ProjectionDerivative d;
+  d.jacobian = Eigen::MatrixXd::Zero(n, n);
+  const std::vector<int> free = free_entries(projection.p, lower, upper, bound_gap);
+  d.free = static_cast<int>(free.size());
+  if (free.empty()) return d;
+  const Eigen::VectorXd w = weights.size() == n ? weights : Eigen::VectorXd::Ones(n);
+  Eigen::MatrixXd H = Eigen::MatrixXd(w.asDiagonal());
+  if (system.size()) H += system.constraint_hessian(projection.p, projection.multipliers);
+  Eigen::MatrixXd Hf(free.size(), free.size());
+  for (size_t i = 0; i < free.size(); ++i)
+    for (size_t j = 0; j < free.size(); ++j) Hf(i, j) = H(free[i], free[j]);
+  Eigen::MatrixXd Z;
+  if (system.size()) {
+    const Eigen::MatrixXd J = columns(system.jacobian(projection.p), free);
+    // Null space of J from a full QR of Jᵀ with column pivoting (rank-revealing).
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J.transpose());
+    qr.setThreshold(1e-10);
+    d.rank = static_cast<int>(qr.rank());
+    const Eigen::MatrixXd Q = qr.householderQ();
+    Z = Q.rightCols(free.size() - d.rank);
+  } else {
+    Z = Eigen::MatrixXd::Identity(free.size(), free.size());
+  }
+  const Eigen::MatrixXd reduced = Z.transpose() * Hf * Z;
+  Eigen::VectorXd wf(free.size());
+  for (size_t i = 0; i < free.size(); ++i) wf[i] = w[free[i]];
+  const Eigen::MatrixXd Df = Z * reduced.ldlt().solve(Z.transpose() * wf.asDiagonal());
+  for (size_t i = 0; i < free.size(); ++i)
+    for (size_t j = 0; j < free.size(); ++j) d.jacobian(free[i], free[j]) = Df(i, j);
+  return d;
+}
+
+}  // namespace parafab::optimize

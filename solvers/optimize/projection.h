@@ -1,0 +1,56 @@
+// The parameter projection of thesis §6.5.1-6.5.2: p⊥ = argmin ½‖p − p̃‖²_W s.t. c_para(p) = 0
+// and bounds (Eq. 6.25-6.26), solved by Ipopt with exact first and second derivatives and warm
+// starts, and its derivative dp⊥/dp̃ by the implicit function theorem (Eq. 6.29).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+#include "optimize/shape_constraints.h"
+
+namespace parafab::optimize {
+
+struct ProjectionOptions {
+  double tolerance = 1e-12;             ///< Ipopt tol and constr_viol_tol (absolute, on c and the KKT error)
+  int max_iterations = 200;             ///< Ipopt max_iter
+  double feasible_violation = 1e-9;     ///< max |c_i| below which the result counts as a valid model
+  bool print = false;                   ///< Ipopt's own output (print_level 5) on stdout
+  /// w_i of the distance ½ Σ w_i (p_i − p̃_i)² (empty: all 1). Small weights on entries that are
+  /// not design variables let them follow the design (fillets following a moved plane).
+  Eigen::VectorXd weights;
+};
+
+struct ProjectionResult {
+  bool done = false;                     ///< a valid model: max |c_i| <= feasible_violation
+  std::string status;                    ///< "solved", "infeasible" (nearest model returned), "failed"
+  std::string message;                   ///< Ipopt's status in words
+  Eigen::VectorXd p;                     ///< p⊥ (or Ipopt's last iterate when not done)
+  Eigen::VectorXd multipliers;           ///< λ of c (Ipopt sign: L = ½‖p − p̃‖² + λᵀc)
+  double constraint_violation = 0;       ///< max |c_i(p)|
+  double distance = 0;                   ///< ‖p − p̃‖
+  int iterations = 0;
+  double seconds = 0;
+};
+
+/// Projects `target` (p̃) onto {c(p) = 0, lower <= p <= upper} starting from `start` (warm
+/// start: the previous p⊥, and `start_multipliers` if non-empty). Entries with lower == upper
+/// are fixed. Throws parafab::Error for mismatched sizes; non-convergence is a status.
+ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& target,
+                         const Eigen::VectorXd& start, const Eigen::VectorXd& lower,
+                         const Eigen::VectorXd& upper, const Eigen::VectorXd& start_multipliers = {},
+                         const ProjectionOptions& options = {});
+
+struct ProjectionDerivative {
+  Eigen::MatrixXd jacobian;  ///< dp⊥/dp̃ (n × n; symmetric when W = I)
+  int free = 0;              ///< entries not fixed or at a bound
+  int rank = 0;              ///< rank of the constraint Jacobian on the free entries
+};
+
+/// dp⊥/dp̃ = Z (Zᵀ H Z)⁻¹ Zᵀ W with H = W + Σ λ_i ∇²c_i (W = diag(weights), empty: I) and Z a null-space basis of ∂c/∂p on the
+/// entries that are free (strictly inside their bounds by `bound_gap`); rank-revealing, so
+/// dependent constraints (redundant tangencies) are fine.
+ProjectionDerivative projection_derivative(const ConstraintSystem& system, const ProjectionResult& projection,
+                                           const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                                           const Eigen::VectorXd& weights = {}, double bound_gap = 1e-9);
+
+}  // namespace parafab::optimize

@@ -1,0 +1,110 @@
+// The parameterization constraints c_para(p) = 0 of thesis §6.5.1 (Fig. 6.11) on plain vectors:
+// mid-level parameters of analytic faces (plane, cylinder, cone, sphere, torus) in one vector p,
+// the tangency relations between adjacent faces in a reduced independent form, unit axes, and
+// user constraints (linear ties and fixes, mirror symmetry). Every scalar constraint carries its
+// exact gradient and Hessian (jet.h), as the projection (Eq. 6.25-6.26, 6.29) needs.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "optimize/jet.h"
+
+namespace parafab::optimize {
+
+/// The primitive of a face and the layout of its block in p:
+///   plane    n.x n.y n.z d            (the plane n·X = d, n = σ_u × σ_v unit)
+///   cylinder c.x c.y c.z a.x a.y a.z r (axis point c, unit axis a, radius r)
+///   cone     c a r α                   (radius r at c, half-angle α, radius grows along a)
+///   sphere   c r
+///   torus    c a R r                   (centre c, axis a, major R, minor r)
+enum class PrimitiveKind { plane, cylinder, cone, sphere, torus };
+
+const char* to_string(PrimitiveKind kind);
+/// Throws parafab::Error for an unknown name.
+PrimitiveKind primitive_kind(const std::string& name);
+int block_size(PrimitiveKind kind);
+/// Parameter names inside a block: "normal x", "offset", "axis point x", "axis x", "radius", ...
+const std::vector<std::string>& block_parameter_names(PrimitiveKind kind);
+
+/// One face's parameters in p: entries offset .. offset + block_size(kind) − 1.
+struct ParameterBlock {
+  int face = -1;
+  PrimitiveKind kind = PrimitiveKind::plane;
+  int offset = 0;
+  int size() const { return block_size(kind); }
+};
+
+/// A scalar constraint c(p) = 0 of a few entries of p (vars: distinct indices into p).
+struct ScalarConstraint {
+  std::string name;
+  std::vector<int> vars;
+  std::function<Jet(const std::vector<Jet>&)> f;  ///< of the jets of p[vars[k]]
+};
+
+/// The vector c(p) with a fixed sparsity structure for its Jacobian and for the Hessian of the
+/// Lagrangian ½‖p − p̃‖² + λᵀc (identity on the diagonal plus Σ λ_i ∇²c_i, lower triangle).
+class ConstraintSystem {
+ public:
+  explicit ConstraintSystem(int parameters = 0) : n_(parameters) {}
+  int parameters() const { return n_; }
+  int size() const { return static_cast<int>(constraints_.size()); }
+  const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
+  /// Adds one scalar constraint; throws parafab::Error if a var is out of range or repeated.
+  void add(ScalarConstraint c);
+
+  /// c(p).
+  Eigen::VectorXd values(const Eigen::VectorXd& p) const;
+  /// Dense Jacobian ∂c/∂p (size() × parameters()).
+  Eigen::MatrixXd jacobian(const Eigen::VectorXd& p) const;
+  /// Jacobian structure: row, column of each non-zero (order of jacobian_values).
+  void jacobian_structure(std::vector<int>& rows, std::vector<int>& cols) const;
+  void jacobian_values(const Eigen::VectorXd& p, double* values) const;
+  /// Lower-triangular structure of the Lagrangian Hessian (diagonal first, every p index).
+  void hessian_structure(std::vector<int>& rows, std::vector<int>& cols) const;
+  /// objective_factor·I + Σ λ_i ∇²c_i on hessian_structure.
+  void hessian_values(const Eigen::VectorXd& p, double objective_factor, const Eigen::VectorXd& lambda,
+                      double* values) const;
+  /// Σ λ_i ∇²c_i, dense.
+  Eigen::MatrixXd constraint_hessian(const Eigen::VectorXd& p, const Eigen::VectorXd& lambda) const;
+
+ private:
+  void build_hessian_index() const;
+  int n_ = 0;
+  std::vector<ScalarConstraint> constraints_;
+  mutable bool hessian_index_built_ = false;
+  mutable std::vector<int> hessian_rows_, hessian_cols_;
+  mutable std::vector<std::vector<int>> hessian_slot_;  ///< per constraint: k*m + l -> slot (l <= k)
+};
+
+/// |a|² − 1 = 0 for the unit vector (normal or axis) of `block` (none for a sphere).
+void add_unit_axis(ConstraintSystem& system, const ParameterBlock& block, const std::string& label);
+
+/// The tangency relation `kind` (face model names: "plane-cylinder", "cylinder-cylinder", ...)
+/// between blocks a and b with side `sign`, in a reduced independent form: "parallel" becomes
+/// two components of a × b, those other than the largest component of a at p0 (fixed here).
+/// Returns the number of scalar equations added. Throws parafab::Error for a kind it does not
+/// know or blocks of the wrong primitives.
+int add_tangency(ConstraintSystem& system, const std::string& kind, const ParameterBlock& a,
+                 const ParameterBlock& b, int sign, const Eigen::VectorXd& p0, const std::string& label);
+
+/// Σ coefficients[k]·p[vars[k]] = rhs (ties, fixes).
+void add_linear(ConstraintSystem& system, const std::vector<int>& vars, const std::vector<double>& coefficients,
+                double rhs, const std::string& label);
+
+/// Face b is the mirror image of face a in the plane e·X = m (e unit): points reflect, axes
+/// reflect (sign chosen at p0 so that b's axis ≈ R a's), radii equal; for planes n_b = R n_a and
+/// d_b = d_a − 2m(n_a·e) up to the orientation sign at p0. Blocks must be of one primitive kind.
+/// Returns the number of equations added.
+int add_mirror(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b,
+               const Eigen::Vector3d& e, double m, const Eigen::VectorXd& p0, const std::string& label);
+
+/// The implicit function φ(X; block) of a primitive whose zero set is the face's surface and
+/// |∇_X φ| = 1 on it when its axis is unit (plane: n·X − d; cylinder: distance to the axis − r;
+/// cone: (ρ − r − h tan α) cos α; sphere: |X − c| − r; torus: √((ρ − R)² + h²) − r).
+/// Returns its value with the gradient over (block parameters, X) in that order.
+Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
+
+}  // namespace parafab::optimize

@@ -1,0 +1,255 @@
+// Shape parameters of STEP parts, their projection, write-back into the B-rep and exact mass
+// shape derivatives (thesis §6.2.3 Eq. 6.5, §6.5.1-6.5.2 Eq. 6.25-6.29), against independent
+// references: closed-form volume changes, OCCT mass properties (BRepGProp) and their central
+// finite differences, BRepCheck, and a STEP round trip.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "common/error.h"
+#include "occt_mass_properties.h"
+#include "occt_shape.h"
+#include "shape_derivatives.h"
+#include "shape_modify.h"
+#include "shape_optimization.h"
+#include "shape_parameters.h"
+
+namespace parafab::occ {
+namespace {
+
+std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name + ".step"; }
+
+// The face of `type` whose primitive satisfies `pred`; fails the test if not exactly one.
+int find_face(const FaceModel& m, SurfaceType type, const std::function<bool(const Primitive&)>& pred) {
+  int found = -1, count = 0;
+  for (const FaceInfo& f : m.faces)
+    if (f.primitive.type == type && pred(f.primitive)) found = f.index, ++count;
+  EXPECT_EQ(count, 1);
+  return found;
+}
+int cylinder_at(const FaceModel& m, double r, double x, double y) {
+  return find_face(m, SurfaceType::cylinder, [&](const Primitive& p) {
+    return std::abs(p.radius - r) < 1e-6 && std::abs(p.location.x() - x) < 1e-6 && std::abs(p.location.y() - y) < 1e-6;
+  });
+}
+int plane_at(const FaceModel& m, const Vec3& normal, double offset) {
+  return find_face(m, SurfaceType::plane, [&](const Primitive& p) {
+    return std::abs(std::abs(p.axis.dot(normal)) - 1) < 1e-9 && std::abs(p.location.dot(normal) - offset) < 1e-6;
+  });
+}
+
+int fillet_r5(const FaceModel& m) {
+  return find_face(m, SurfaceType::cylinder, [](const Primitive& p) { return std::abs(p.radius - 5) < 1e-6; });
+}
+
+struct PartSetup {
+  std::shared_ptr<const PartShape> part;
+  FaceModel model;
+  ShapeParameters sp;
+  optimize::ProjectionResult start;
+  explicit PartSetup(const std::string& name) {
+    part = read_part(sample(name));
+    model = build_face_model(*part);
+    sp = build_shape_parameters(model);
+    start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
+  }
+  // Projection weights as the optimizer sets them: 1 on the changed (design) entries, 1e-6 on
+  // the others so that tangent neighbours follow.
+  Eigen::VectorXd weights(const std::vector<int>& design) const {
+    const PartInfo info = part_info(*part);
+    return projection_weights(sp, design, 1e-6, (info.bbox_max - info.bbox_min).norm());
+  }
+  // p⊥ for the start with entries changed.
+  optimize::ProjectionResult projected(const std::vector<std::pair<int, double>>& changes) const {
+    Eigen::VectorXd t = start.p;
+    std::vector<int> design;
+    for (auto [i, v] : changes) t[i] = v, design.push_back(i);
+    optimize::ProjectionOptions o;
+    o.weights = weights(design);
+    return optimize::project(sp.constraints, t, start.p, sp.lower, sp.upper, {}, o);
+  }
+};
+
+TEST(ShapeParameters, SamplePartsSatisfyTheirConstraintsAndJacobiansAreExact) {
+  for (const std::string name : {"l_bracket", "wheel", "wrench", "housing"}) {
+    PartSetup s(name);
+    ASSERT_GT(s.sp.size(), 0) << name;
+    // The part as read satisfies c_para to the face model's detection tolerance.
+    EXPECT_LT(s.sp.constraints.values(s.sp.initial).cwiseAbs().maxCoeff(), 1e-6) << name;
+    ASSERT_TRUE(s.start.done) << name << ": " << s.start.message;
+    EXPECT_LT(s.start.distance, 1e-5) << name;
+    // Jacobian against central differences at the part's parameters.
+    const Eigen::MatrixXd J = s.sp.constraints.jacobian(s.sp.initial);
+    double worst = 0;
+    for (int i = 0; i < s.sp.size(); ++i) {
+      Eigen::VectorXd pp = s.sp.initial, pm = s.sp.initial;
+      pp[i] += 1e-6, pm[i] -= 1e-6;
+      const Eigen::VectorXd fd = (s.sp.constraints.values(pp) - s.sp.constraints.values(pm)) / 2e-6;
+      for (int r = 0; r < J.rows(); ++r) worst = std::max(worst, std::abs(J(r, i) - fd[r]) / std::max(1.0, std::abs(fd[r])));
+    }
+    EXPECT_LT(worst, 1e-7) << name;
+  }
+  PartSetup l("l_bracket");
+  const int hole = cylinder_at(l.model, 4, 40, 12);
+  EXPECT_EQ(l.sp.names[parameter_index(l.sp, hole, "radius")], "face " + std::to_string(hole) + " cylinder radius");
+  EXPECT_GT(l.sp.relation_equations, 0);
+  EXPECT_THROW(parameter_index(l.sp, hole, "offset"), Error);
+}
+
+TEST(ShapeParameters, ProjectionOfAPerturbedFilletPartRestoresTangency) {
+  PartSetup s("l_bracket");
+  const int top = plane_at(s.model, Vec3::UnitZ(), 8);  // the base top, tangent to the inner fillet
+  const int fillet = fillet_r5(s.model);
+  ASSERT_GE(fillet, 0);
+  const int d = parameter_index(s.sp, top, "offset");
+  const double sign = s.sp.initial[d] > 0 ? 1 : -1;  // n·X = d with n = ±z
+  // User constraint: keep the fillet radius (bounds lower = upper); then the fillet translates.
+  const int radius = parameter_index(s.sp, fillet, "radius");
+  s.sp.lower[radius] = s.sp.upper[radius] = 5;
+  const optimize::ProjectionResult r = s.projected({{d, s.sp.initial[d] + sign * 0.5}});
+  ASSERT_TRUE(r.done) << r.message;
+  // The face model's own relation formulas (not the reduced ones) at p⊥.
+  EXPECT_LT(tangency_residual_max(s.model, s.sp, r.p), 1e-10);
+  // The target offset is kept up to the follower weight (1e-6 · 0.5) and the fillet moved up.
+  EXPECT_NEAR(r.p[d], s.sp.initial[d] + sign * 0.5, 1e-6);
+  const auto* fb = s.sp.block(fillet);
+  EXPECT_NEAR(r.p[fb->offset + 2], 13.5, 1e-6);
+  EXPECT_NEAR(r.p[fb->offset + 6], 5, 1e-9);
+}
+
+struct VolumeCase {
+  std::string part;
+  std::vector<std::pair<int, double>> changes;  // (index in p, new value)
+  double delta_volume;                          // closed form
+};
+
+TEST(ShapeModify, ParameterChangesGiveValidPartsWithTheClosedFormVolume) {
+  std::vector<std::pair<PartSetup*, VolumeCase>> cases;
+  PartSetup l("l_bracket"), w("wheel"), r("wrench"), h("housing");
+  {
+    const int hole = cylinder_at(l.model, 4, 40, 12);
+    cases.push_back({&l, {"l_bracket hole r 4 -> 4.5", {{parameter_index(l.sp, hole, "radius"), 4.5}},
+                          -M_PI * (4.5 * 4.5 - 16) * 8}});
+    const int top = plane_at(l.model, Vec3::UnitZ(), 8);
+    const int d = parameter_index(l.sp, top, "offset");
+    const int radius = parameter_index(l.sp, fillet_r5(l.model), "radius");  // keep the fillet radius
+    l.sp.lower[radius] = l.sp.upper[radius] = 5;
+    const double v = l.sp.initial[d] + (l.sp.initial[d] > 0 ? 0.5 : -0.5);
+    cases.push_back({&l, {"l_bracket fillet-adjacent base top 8 -> 8.5", {{d, v}}, 0.5 * (52 * 40 - 2 * M_PI * 16)}});
+  }
+  {
+    const int hole = cylinder_at(w.model, 5, 0, 0);
+    cases.push_back({&w, {"wheel hub hole r 5 -> 5.5", {{parameter_index(w.sp, hole, "radius"), 5.5}},
+                          -M_PI * (5.5 * 5.5 - 25) * 10}});
+  }
+  {
+    const int hole = cylinder_at(r.model, 5, 0, 0);
+    cases.push_back({&r, {"wrench ring hole r 5 -> 5.5", {{parameter_index(r.sp, hole, "radius"), 5.5}},
+                          -M_PI * (5.5 * 5.5 - 25) * 6}});
+  }
+  {
+    const int fin = plane_at(h.model, Vec3::UnitX(), 10);  // first fin's +x side (x = 8..10)
+    const int d = parameter_index(h.sp, fin, "offset");
+    const double v = h.sp.initial[d] + (h.sp.initial[d] > 0 ? 0.5 : -0.5);
+    cases.push_back({&h, {"housing fin 2 -> 2.5 wide", {{d, v}}, 0.5 * 30 * 8}});
+  }
+  for (auto& [s, c] : cases) {
+    const optimize::ProjectionResult p = s->projected(c.changes);
+    ASSERT_TRUE(p.done) << c.part << ": " << p.message;
+    const ModifyResult m = modify_part(*s->part, s->model, s->sp, p.p);
+    ASSERT_TRUE(m.done) << c.part << ": " << m.message;
+    const double v0 = occt_mass_properties(*s->part).volume, v1 = occt_mass_properties(*m.part).volume;
+    EXPECT_NEAR(v1 - v0, c.delta_volume, 1e-7 * v0) << c.part;
+    // STEP round trip: read back (read_part validates: closed, manifold, BRepCheck).
+    const std::string path = ::testing::TempDir() + "/shape_modify_roundtrip.step";
+    write_step(*m.part, path);
+    const auto back = read_part(path);
+    EXPECT_EQ(back->face_count(), s->part->face_count()) << c.part;
+    EXPECT_NEAR(occt_mass_properties(*back).volume, v1, 1e-7 * v0) << c.part;
+    // The written part keeps its tangencies (its own face model finds the same relations).
+    const FaceModel after = build_face_model(*back);
+    EXPECT_EQ(after.relations.size(), s->model.relations.size()) << c.part;
+    std::remove(path.c_str());
+  }
+}
+
+TEST(ShapeDerivatives, BoundaryQuadratureMatchesOcctMoments) {
+  for (const std::string name : {"l_bracket", "wheel", "wrench", "housing"}) {
+    PartSetup s(name);
+    const MomentDerivatives md = moment_derivatives(*s.part, s.sp, s.sp.initial);
+    const Moments ref = occt_moments(*s.part);
+    for (int k = 0; k < 10; ++k)
+      EXPECT_NEAR(md.moments[k], ref[k], 1e-8 * std::abs(ref[0]) * (k == 0 ? 1 : k < 4 ? 100 : 1e4)) << name << " " << k;
+  }
+}
+
+// d moments / d p̃ (Hadamard, chained through dp⊥/dp̃) against central differences of OCCT's
+// mass properties of the written-back parts.
+TEST(ShapeDerivatives, GradientsMatchFiniteDifferencesOfOcctMassProperties) {
+  struct Case {
+    std::string part;
+    std::function<int(const PartSetup&)> index;
+  };
+  const std::vector<Case> cases = {
+      {"l_bracket", [](const PartSetup& s) { return parameter_index(s.sp, cylinder_at(s.model, 4, 40, 12), "radius"); }},
+      {"l_bracket", [](const PartSetup& s) { return parameter_index(s.sp, plane_at(s.model, Vec3::UnitZ(), 8), "offset"); }},
+      {"l_bracket", [](const PartSetup& s) { return parameter_index(s.sp, fillet_r5(s.model), "radius"); }},
+      {"wheel", [](const PartSetup& s) { return parameter_index(s.sp, cylinder_at(s.model, 50, 0, 0), "radius"); }},
+      {"wrench", [](const PartSetup& s) { return parameter_index(s.sp, cylinder_at(s.model, 5, 0, 0), "axis point x"); }},
+      {"housing", [](const PartSetup& s) { return parameter_index(s.sp, plane_at(s.model, Vec3::UnitX(), 10), "offset"); }},
+  };
+  for (const Case& c : cases) {
+    PartSetup s(c.part);
+    const int i = c.index(s);
+    const MomentDerivatives md = moment_derivatives(*s.part, s.sp, s.start.p);  // the part as read: p = p⊥ to 1e-6
+    const optimize::ProjectionResult base = s.projected({{i, s.start.p[i]}});
+    const optimize::ProjectionDerivative D =
+        optimize::projection_derivative(s.sp.constraints, base, s.sp.lower, s.sp.upper, s.weights({i}));
+    const Eigen::VectorXd exact = md.gradient * D.jacobian.col(i);
+    const double h = 1e-3;
+    Moments m[2];
+    for (int side = 0; side < 2; ++side) {
+      const optimize::ProjectionResult p = s.projected({{i, s.start.p[i] + (side ? -h : h)}});
+      ASSERT_TRUE(p.done) << c.part << " " << s.sp.names[i];
+      const ModifyResult mod = modify_part(*s.part, s.model, s.sp, p.p);
+      ASSERT_TRUE(mod.done) << c.part << " " << s.sp.names[i] << ": " << mod.message;
+      m[side] = occt_moments(*mod.part);
+    }
+    const Moments fd = (m[0] - m[1]) / (2 * h);
+    for (int k = 0; k < 10; ++k) {
+      // Scale: the largest |d moment| of the same degree (0, 1, 2).
+      const int lo = k == 0 ? 0 : k < 4 ? 1 : 4, n = k == 0 ? 1 : k < 4 ? 3 : 6;
+      const double scale = std::max(fd.segment(lo, n).cwiseAbs().maxCoeff(), 1e-6 * fd.cwiseAbs().maxCoeff());
+      EXPECT_LE(std::abs(exact[k] - fd[k]), 1e-4 * scale) << c.part << " " << s.sp.names[i] << " moment " << k
+                                                           << ": exact " << exact[k] << " FD " << fd[k];
+    }
+  }
+}
+
+TEST(ShapeOptimization, WheelCentreOfMassMovesTowardsTheAxisWithValidParts) {
+  const auto part = read_part(sample("wheel"));
+  const FaceModel model = build_face_model(*part);
+  ShapeOptimizationOptions o;
+  o.objective.type = "center_of_mass";
+  o.objective.axis = Vec3::UnitZ();
+  // Design: the offsets of the spoke side planes (normals with x or y components).
+  const ShapeParameters sp = build_shape_parameters(model);
+  for (const auto& b : sp.blocks)
+    if (b.kind == optimize::PrimitiveKind::plane && std::abs(sp.initial[b.offset + 2]) < 0.5)
+      o.design.push_back(b.offset + 3);
+  ASSERT_EQ(o.design.size(), 10u);
+  o.lbfgs.max_iterations = 4;
+  o.relative_bound = 0.05;
+  const ShapeOptimizationResult r = optimize_shape(*part, o);
+  ASSERT_TRUE(r.part) << r.message;
+  EXPECT_LT(r.final_objective, 0.5 * r.initial_objective) << r.message;
+  // Independent: OCCT's centre of mass of the returned part.
+  const auto props = occt_mass_properties(*r.part);
+  EXPECT_NEAR(std::hypot(props.center.x(), props.center.y()), std::sqrt(r.final_objective), 1e-6);
+  EXPECT_LT(r.tangency_residual_max, 1e-9);
+  for (size_t k = 1; k < r.iterations.size(); ++k) EXPECT_LT(r.iterations[k].objective, r.iterations[k - 1].objective);
+}
+
+}  // namespace
+}  // namespace parafab::occ

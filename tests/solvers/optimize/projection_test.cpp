@@ -1,0 +1,241 @@
+// Parameterization constraints, projection and L-BFGS (thesis §6.5.1-6.5.2, Eq. 6.25-6.29):
+// exact Jacobians and Hessians against central finite differences, the projection of a
+// perturbed fillet restoring tangency, dp⊥/dp̃ against finite differences of the projection.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <random>
+
+#include "optimize/lbfgs.h"
+#include "optimize/projection.h"
+#include "optimize/shape_constraints.h"
+
+using namespace parafab::optimize;
+
+namespace {
+
+// A block of random values near a valid primitive (unit-ish axes, positive radii).
+void fill_block(Eigen::VectorXd& p, const ParameterBlock& b, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int k = 0; k < b.size(); ++k) p[b.offset + k] = u(rng);
+  const int axis = b.kind == PrimitiveKind::plane ? 0 : b.kind == PrimitiveKind::sphere ? -1 : 3;
+  if (axis >= 0) p.segment<3>(b.offset + axis).normalize();
+  for (int k = b.kind == PrimitiveKind::sphere ? 3 : axis + 3; k < b.size(); ++k)
+    if (b.kind != PrimitiveKind::plane) p[b.offset + k] = 0.5 + std::abs(u(rng));
+  if (b.kind == PrimitiveKind::cone) p[b.offset + 7] = 0.3 + 0.3 * std::abs(u(rng));
+  if (b.kind == PrimitiveKind::torus) p[b.offset + 6] += 2;  // R > r
+}
+
+// max over entries of |exact − FD| / max(1, |FD|) for the Jacobian, and for the Hessian of λᵀc.
+void check_derivatives(const ConstraintSystem& s, const Eigen::VectorXd& p, double& jac_err, double& hess_err) {
+  const double h = 1e-5;
+  const Eigen::MatrixXd J = s.jacobian(p);
+  Eigen::VectorXd lambda = Eigen::VectorXd::LinSpaced(s.size(), 0.5, 1.5);
+  const Eigen::MatrixXd H = s.constraint_hessian(p, lambda);
+  jac_err = hess_err = 0;
+  for (int i = 0; i < p.size(); ++i) {
+    Eigen::VectorXd pp = p, pm = p;
+    pp[i] += h, pm[i] -= h;
+    const Eigen::VectorXd fd = (s.values(pp) - s.values(pm)) / (2 * h);
+    const Eigen::VectorXd gfd = (s.jacobian(pp).transpose() * lambda - s.jacobian(pm).transpose() * lambda) / (2 * h);
+    for (int r = 0; r < s.size(); ++r) jac_err = std::max(jac_err, std::abs(J(r, i) - fd[r]) / std::max(1.0, std::abs(fd[r])));
+    for (int r = 0; r < p.size(); ++r)
+      hess_err = std::max(hess_err, std::abs(H(r, i) - gfd[r]) / std::max(1.0, std::abs(gfd[r])));
+  }
+  // The sparse Hessian values (lower triangle) agree with the dense one.
+  std::vector<int> rows, cols;
+  s.hessian_structure(rows, cols);
+  std::vector<double> values(rows.size());
+  s.hessian_values(p, 0.0, lambda, values.data());
+  Eigen::MatrixXd Hs = Eigen::MatrixXd::Zero(p.size(), p.size());
+  for (size_t k = 0; k < rows.size(); ++k) Hs(rows[k], cols[k]) += values[k];
+  Eigen::MatrixXd Hl = H.triangularView<Eigen::Lower>();
+  EXPECT_LT((Hs - Hl).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+}  // namespace
+
+TEST(ShapeConstraints, TangencyJacobiansAndHessiansMatchCentralDifferences) {
+  using K = PrimitiveKind;
+  const std::vector<std::tuple<std::string, K, K>> kinds = {
+      {"plane-plane", K::plane, K::plane},          {"plane-cylinder", K::plane, K::cylinder},
+      {"plane-cone", K::plane, K::cone},            {"plane-sphere", K::plane, K::sphere},
+      {"plane-torus", K::plane, K::torus},          {"cylinder-cylinder", K::cylinder, K::cylinder},
+      {"cylinder-sphere", K::cylinder, K::sphere},  {"cylinder-torus", K::cylinder, K::torus},
+      {"cylinder-torus-pipe", K::cylinder, K::torus}, {"sphere-torus", K::sphere, K::torus}};
+  std::mt19937 rng(7);
+  for (const auto& [kind, ka, kb] : kinds) {
+    const ParameterBlock a{0, ka, 0}, b{1, kb, block_size(ka)};
+    Eigen::VectorXd p(a.size() + b.size());
+    fill_block(p, a, rng);
+    fill_block(p, b, rng);
+    ConstraintSystem s(p.size());
+    for (int sign : {1, -1}) add_tangency(s, kind, a, b, sign, p, kind);
+    add_unit_axis(s, a, "unit a");
+    add_unit_axis(s, b, "unit b");
+    double je, he;
+    check_derivatives(s, p, je, he);
+    EXPECT_LT(je, 1e-7) << kind;
+    EXPECT_LT(he, 1e-7) << kind;
+  }
+  // Mirror symmetry and linear ties too.
+  for (K k : {K::plane, K::cylinder, K::cone, K::sphere, K::torus}) {
+    const ParameterBlock a{0, k, 0}, b{1, k, block_size(k)};
+    Eigen::VectorXd p(2 * a.size());
+    fill_block(p, a, rng);
+    fill_block(p, b, rng);
+    ConstraintSystem s(p.size());
+    add_mirror(s, a, b, Eigen::Vector3d(0.3, -0.2, 0.9), 0.7, p, "mirror");
+    add_linear(s, {0, b.offset}, {1.0, -2.0}, 0.25, "tie");
+    double je, he;
+    check_derivatives(s, p, je, he);
+    EXPECT_LT(je, 1e-7) << to_string(k);
+    EXPECT_LT(he, 1e-7) << to_string(k);
+  }
+}
+
+TEST(ShapeConstraints, ImplicitFunctionGradientsMatchCentralDifferences) {
+  std::mt19937 rng(3);
+  for (PrimitiveKind k : {PrimitiveKind::plane, PrimitiveKind::cylinder, PrimitiveKind::cone, PrimitiveKind::sphere,
+                          PrimitiveKind::torus}) {
+    const ParameterBlock b{0, k, 0};
+    Eigen::VectorXd p(b.size());
+    fill_block(p, b, rng);
+    const Eigen::Vector3d X(0.4, -1.3, 0.8);
+    const Dual phi = implicit_function(k, p.data(), X);
+    const double h = 1e-6;
+    for (int i = 0; i < b.size() + 3; ++i) {
+      Eigen::VectorXd pp = p, pm = p;
+      Eigen::Vector3d Xp = X, Xm = X;
+      if (i < b.size()) pp[i] += h, pm[i] -= h;
+      else Xp[i - b.size()] += h, Xm[i - b.size()] -= h;
+      const double fd = (implicit_function(k, pp.data(), Xp).v - implicit_function(k, pm.data(), Xm).v) / (2 * h);
+      EXPECT_NEAR(phi.g[i], fd, 1e-8 * std::max(1.0, std::abs(fd))) << to_string(k) << " entry " << i;
+    }
+  }
+  // Closed forms: distance to a unit cylinder about z through the origin, radius 2.
+  const double cyl[] = {0, 0, 0, 0, 0, 1, 2};
+  EXPECT_NEAR(implicit_function(PrimitiveKind::cylinder, cyl, Eigen::Vector3d(3, 4, 7)).v, 3.0, 1e-15);
+}
+
+namespace {
+
+// Fig. 6.11: a fillet cylinder (radius 5, axis y) tangent to the planes z = 8 (normal +z) and
+// x = 8 (normal +x), both on the cylinder's −z/−x side... here: concave inner fillet of an L.
+struct Fillet {
+  ConstraintSystem system{15};
+  ParameterBlock p1{0, PrimitiveKind::plane, 0}, p2{1, PrimitiveKind::plane, 4}, c{2, PrimitiveKind::cylinder, 8};
+  Eigen::VectorXd p0{15}, lower{15}, upper{15};
+  Fillet() {
+    p0 << 0, 0, 1, 8,            // z = 8
+        1, 0, 0, 8,              // x = 8
+        13, 0, 13, 0, 1, 0, 5;   // axis (13, y, 13), radius 5
+    for (const auto& [plane, label] : {std::pair{p1, "a"}, std::pair{p2, "b"}}) {
+      const double side = (p0.segment<3>(plane.offset).dot(p0.segment<3>(8)) - p0[plane.offset + 3]) > 0 ? -1 : 1;
+      add_tangency(system, "plane-cylinder", plane, c, static_cast<int>(side), p0, label);
+    }
+    for (const auto& b : {p1, p2, c}) add_unit_axis(system, b, "unit");
+    lower = Eigen::VectorXd::Constant(15, -1e19);
+    upper = Eigen::VectorXd::Constant(15, 1e19);
+  }
+};
+
+}  // namespace
+
+TEST(Projection, PerturbedFilletRestoresTangencyAndIsTheNearestValidModel) {
+  Fillet f;
+  ASSERT_LT(f.system.values(f.p0).cwiseAbs().maxCoeff(), 1e-14);
+  Eigen::VectorXd target = f.p0;
+  target[3] += 0.7;          // plane z = 8.7
+  target[14] += 0.4;         // radius 5.4
+  target.segment<3>(4) += Eigen::Vector3d(0.02, 0.01, -0.03);  // tilt plane b
+  ASSERT_GT(f.system.values(target).cwiseAbs().maxCoeff(), 0.1);
+  const ProjectionResult r = project(f.system, target, f.p0, f.lower, f.upper);
+  ASSERT_TRUE(r.done) << r.message;
+  EXPECT_LT(r.constraint_violation, 1e-10);
+  // Independent optimality check (KKT): p⊥ − p̃ lies in the row space of ∂c/∂p.
+  const Eigen::MatrixXd J = f.system.jacobian(r.p);
+  const Eigen::VectorXd residual = r.p - target;
+  const Eigen::VectorXd in_range = J.transpose() * J.transpose().colPivHouseholderQr().solve(residual);
+  EXPECT_LT((residual - in_range).norm(), 1e-9);
+  // Geometry: the axis is parallel to both planes at the distance r from each.
+  const Eigen::Vector3d c = r.p.segment<3>(8), a = r.p.segment<3>(11).normalized();
+  for (int plane : {0, 4}) {
+    const Eigen::Vector3d n = r.p.segment<3>(plane);
+    EXPECT_NEAR(std::abs(n.dot(c) - r.p[plane + 3]) / n.norm(), r.p[14], 1e-10);
+    EXPECT_NEAR(n.normalized().dot(a), 0, 1e-10);
+  }
+  EXPECT_GT(r.p[14], 5.0);  // the radius moved towards its target 5.4
+  // Warm start from the answer with its multipliers: converges at once to the same point.
+  const ProjectionResult w = project(f.system, target, r.p, f.lower, f.upper, r.multipliers);
+  EXPECT_LT((w.p - r.p).norm(), 1e-9);
+  EXPECT_LE(w.iterations, 3);
+}
+
+TEST(Projection, ReportsInfeasibleConstraintsAndReturnsTheNearestModel) {
+  Fillet f;
+  // Contradiction: radius fixed at 5 and at 6 by two linear constraints.
+  add_linear(f.system, {14}, {1.0}, 5.0, "radius 5");
+  add_linear(f.system, {14}, {1.0}, 6.0, "radius 6");
+  const ProjectionResult r = project(f.system, f.p0, f.p0, f.lower, f.upper);
+  EXPECT_FALSE(r.done);
+  EXPECT_NE(r.status, "solved");
+  EXPECT_GT(r.constraint_violation, 0.4);
+  EXPECT_NE(r.message.find("not valid"), std::string::npos) << r.message;
+}
+
+TEST(Projection, DerivativeMatchesFiniteDifferencesOfTheProjection) {
+  Fillet f;
+  Eigen::VectorXd target = f.p0;
+  target[3] += 0.3;
+  target[14] -= 0.2;
+  target[9] += 0.1;  // move the axis point along y (a null direction)
+  // Fix plane b (lower = upper) to exercise the free-entry restriction.
+  for (int k = 4; k < 8; ++k) f.lower[k] = f.upper[k] = f.p0[k];
+  const ProjectionResult r = project(f.system, target, f.p0, f.lower, f.upper);
+  ASSERT_TRUE(r.done) << r.message;
+  const ProjectionDerivative d = projection_derivative(f.system, r, f.lower, f.upper);
+  EXPECT_EQ(d.free, 11);
+  const double h = 1e-5;
+  double worst = 0;
+  for (int i = 0; i < 15; ++i) {
+    Eigen::VectorXd tp = target, tm = target;
+    tp[i] += h, tm[i] -= h;
+    const ProjectionResult rp = project(f.system, tp, r.p, f.lower, f.upper);
+    const ProjectionResult rm = project(f.system, tm, r.p, f.lower, f.upper);
+    ASSERT_TRUE(rp.done && rm.done);
+    const Eigen::VectorXd fd = (rp.p - rm.p) / (2 * h);
+    worst = std::max(worst, (d.jacobian.col(i) - fd).lpNorm<Eigen::Infinity>());
+  }
+  EXPECT_LT(worst, 1e-6);
+}
+
+TEST(Lbfgs, RosenbrockAndAnActiveBound) {
+  auto rosen = [](const Eigen::VectorXd& x, double& f, Eigen::VectorXd& g) {
+    f = 100 * std::pow(x[1] - x[0] * x[0], 2) + std::pow(1 - x[0], 2);
+    g.resize(2);
+    g[0] = -400 * x[0] * (x[1] - x[0] * x[0]) - 2 * (1 - x[0]);
+    g[1] = 200 * (x[1] - x[0] * x[0]);
+    return true;
+  };
+  const Eigen::Vector2d big(1e9, 1e9);
+  LbfgsOptions o;
+  o.max_iterations = 200;
+  o.relative_improvement = 0;
+  o.gradient_tolerance = 1e-8;
+  LbfgsResult r = minimize_lbfgs(rosen, Eigen::Vector2d(-1.2, 1), -big, big, o);
+  EXPECT_TRUE(r.done) << r.message;
+  EXPECT_NEAR(r.x[0], 1, 1e-6);
+  EXPECT_NEAR(r.x[1], 1, 1e-6);
+  EXPECT_EQ(r.iterates.front().iteration, 0);
+  // With x0 <= 0.5 the constrained minimum of Rosenbrock is (0.5, 0.25).
+  r = minimize_lbfgs(rosen, Eigen::Vector2d(-1.2, 1), -big, Eigen::Vector2d(0.5, 1e9), o);
+  EXPECT_NEAR(r.x[0], 0.5, 1e-9);
+  EXPECT_NEAR(r.x[1], 0.25, 1e-6);
+  // Cancel after the second iterate.
+  r = minimize_lbfgs(rosen, Eigen::Vector2d(-1.2, 1), -big, big, o,
+                     [](const LbfgsIterate& it) { return it.iteration < 2; });
+  EXPECT_EQ(r.status, "cancelled");
+  EXPECT_EQ(r.iterates.size(), 3u);
+}

@@ -1,0 +1,222 @@
+// JSON layer of the shape optimization (thesis §6.5): job parsing, history output, chart.
+#include "optimize_json.h"
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "common/error.h"
+#include "face_lookup.h"
+#include "json_fields.h"
+#include "part_reader.h"
+#include "shape_modify.h"
+#include "shape_optimization.h"
+
+#ifndef PARAFAB_SCRIPTS_DIR
+#define PARAFAB_SCRIPTS_DIR ""
+#endif
+
+namespace parafab::entry {
+
+using nlohmann::json;
+using fields::number;
+using fields::vec3;
+
+namespace {
+
+int face_index(const occ::PartShape& part, const json& item, const std::string& path) {
+  if (item.contains("face")) {
+    if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
+    const int f = item["face"].get<int>();
+    occ::face_area(part, f);  // validates the index
+    return f;
+  }
+  if (item.contains("point")) {
+    const occ::PartInfo info = occ::part_info(part);
+    return occ::face_at_point(part, vec3(item["point"], path + ".point"), 1e-6 * (info.bbox_max - info.bbox_min).norm() + 1e-9);
+  }
+  PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
+}
+
+occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, const std::string& path) {
+  occ::ParameterRef r;
+  r.face = face_index(part, item, path);
+  const json& name = fields::require(item, "parameter", path);
+  if (!name.is_string()) PARAFAB_INPUT_ERROR(path << ".parameter must be a name such as \"radius\" or \"offset\"");
+  r.parameter = name.get<std::string>();
+  return r;
+}
+
+}  // namespace
+
+json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
+                        const OptimizeProgressFn& progress) {
+  if (!job.is_object()) PARAFAB_INPUT_ERROR("the optimization job must be a JSON object");
+  const auto part = occ::read_part(part_path);
+  occ::ShapeOptimizationOptions o;
+
+  // Objective.
+  const json& obj = fields::require(job, "objective", "job");
+  const json& type = fields::require(obj, "type", "objective");
+  if (!type.is_string()) PARAFAB_INPUT_ERROR("objective.type must be a string");
+  o.objective.type = type.get<std::string>();
+  if (o.objective.type == "compliance" || o.objective.type == "stress")
+    PARAFAB_INPUT_ERROR("objective.type '" << o.objective.type
+                                           << "' is not implemented yet: it needs shape derivatives of the elasticity "
+                                              "solve; available: mass, volume, center_of_mass, inertia_alignment, balance");
+  if (obj.contains("density")) o.objective.density = number(obj["density"], "objective.density");
+  if (obj.contains("axis")) {
+    const json& axis = obj["axis"];
+    if (axis.is_array()) {
+      o.objective.axis = vec3(axis, "objective.axis");
+    } else {
+      if (axis.contains("point")) o.objective.point = vec3(axis["point"], "objective.axis.point");
+      o.objective.axis = vec3(fields::require(axis, "direction", "objective.axis"), "objective.axis.direction");
+    }
+    if (o.objective.axis.norm() < 1e-12) PARAFAB_INPUT_ERROR("objective.axis direction is zero");
+  }
+  if (obj.contains("length_scale")) o.objective.length_scale = number(obj["length_scale"], "objective.length_scale");
+  else o.objective.length_scale = 0;
+  {  // the type is valid?
+    Eigen::Matrix<double, 10, 1> g;
+    occ::Moments m = occ::Moments::Ones();
+    occ::objective_from_moments(o.objective, m, &g);
+  }
+
+  // Fixed faces: supports and loads of the simulation job, and "fixed_faces".
+  for (const char* key : {"supports", "loads"}) {
+    const json list = job.value(key, json::array());
+    if (!list.is_array()) PARAFAB_INPUT_ERROR(key << " must be a list");
+    for (size_t i = 0; i < list.size(); ++i)
+      o.parameterization.fixed_faces.push_back(face_index(*part, list[i], std::string(key) + "[" + std::to_string(i) + "]"));
+  }
+  const json fixed = job.value("fixed_faces", json::array());
+  for (size_t i = 0; i < fixed.size(); ++i) {
+    if (!fixed[i].is_number_integer()) PARAFAB_INPUT_ERROR("fixed_faces[" << i << "] must be a face index");
+    o.parameterization.fixed_faces.push_back(fixed[i].get<int>());
+  }
+  const json ties = job.value("ties", json::array());
+  for (size_t i = 0; i < ties.size(); ++i) {
+    std::vector<occ::ParameterRef> tie;
+    for (size_t k = 0; k < ties[i].size(); ++k)
+      tie.push_back(parameter_ref(*part, ties[i][k], "ties[" + std::to_string(i) + "][" + std::to_string(k) + "]"));
+    o.parameterization.ties.push_back(tie);
+  }
+  const json mirrors = job.value("mirrors", json::array());
+  for (size_t i = 0; i < mirrors.size(); ++i) {
+    const std::string path = "mirrors[" + std::to_string(i) + "]";
+    const json& faces = fields::require(mirrors[i], "faces", path);
+    if (!faces.is_array() || faces.size() != 2 || !faces[0].is_number_integer() || !faces[1].is_number_integer())
+      PARAFAB_INPUT_ERROR(path << ".faces must be [face_a, face_b]");
+    occ::ShapeParameterOptions::Mirror m;
+    m.face_a = faces[0].get<int>();
+    m.face_b = faces[1].get<int>();
+    const json& plane = fields::require(mirrors[i], "plane", path);
+    m.normal = vec3(fields::require(plane, "normal", path + ".plane"), path + ".plane.normal");
+    m.offset = number(fields::require(plane, "offset", path + ".plane"), path + ".plane.offset");
+    o.parameterization.mirrors.push_back(m);
+  }
+
+  // Parameters: the face model decides the indices (built again inside optimize_shape; cheap).
+  const occ::FaceModel model = occ::build_face_model(*part);
+  const occ::ShapeParameters sp = occ::build_shape_parameters(model, o.parameterization);
+  const json& params = job.contains("parameters") ? job["parameters"] : json("auto");
+  if (params.is_string()) {
+    if (params != "auto") PARAFAB_INPUT_ERROR("parameters must be \"auto\" or a list of {\"face\", \"parameter\"}");
+  } else if (params.is_array()) {
+    for (size_t i = 0; i < params.size(); ++i) {
+      const occ::ParameterRef r = parameter_ref(*part, params[i], "parameters[" + std::to_string(i) + "]");
+      const int idx = occ::parameter_index(sp, r.face, r.parameter);
+      if (!(sp.lower[idx] < sp.upper[idx]))
+        PARAFAB_INPUT_ERROR("parameters[" << i << "]: face " << r.face
+                                          << " is fixed (a support, a load, fixed_faces, or tangent to a free-form face)");
+      o.design.push_back(idx);
+    }
+    if (o.design.empty()) PARAFAB_INPUT_ERROR("parameters is an empty list");
+  } else {
+    PARAFAB_INPUT_ERROR("parameters must be \"auto\" or a list of {\"face\", \"parameter\"}");
+  }
+
+  const json constraints = job.value("constraints", json::array());
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const std::string path = "constraints[" + std::to_string(i) + "]";
+    const json& t = fields::require(constraints[i], "type", path);
+    if (t != "volume") PARAFAB_INPUT_ERROR(path << ".type " << t.dump() << " is not supported (volume)");
+    if (constraints[i].contains("max_ratio")) o.volume_max_ratio = number(constraints[i]["max_ratio"], path + ".max_ratio");
+    if (constraints[i].contains("min_ratio")) o.volume_min_ratio = number(constraints[i]["min_ratio"], path + ".min_ratio");
+  }
+  if (job.contains("max_iterations")) {
+    if (!job["max_iterations"].is_number_integer() || job["max_iterations"].get<int>() < 0)
+      PARAFAB_INPUT_ERROR("max_iterations must be a non-negative integer");
+    o.lbfgs.max_iterations = job["max_iterations"].get<int>();
+  }
+  if (job.contains("relative_improvement"))
+    o.lbfgs.relative_improvement = number(job["relative_improvement"], "relative_improvement");
+  if (job.contains("first_step")) o.lbfgs.first_step = number(job["first_step"], "first_step");
+  if (job.contains("bound")) o.relative_bound = number(job["bound"], "bound");
+
+  occ::ShapeProgress report;
+  if (progress)
+    report = [&](const occ::ShapeIterate& it) {
+      return progress(json{{"iteration", it.iteration},
+                           {"objective", it.objective},
+                           {"constraint_violation", it.constraint_violation},
+                           {"seconds", it.seconds}});
+    };
+  const occ::ShapeOptimizationResult r = occ::optimize_shape(*part, o, report);
+  if (!r.part) PARAFAB_INPUT_ERROR("optimization of " << part_path << " could not start: " << r.message);
+
+  json h;
+  h["status"] = r.status;
+  h["message"] = r.message;
+  h["initial_objective"] = r.initial_objective;
+  h["final_objective"] = r.final_objective;
+  h["objective"] = o.objective.type;
+  h["initial_volume"] = r.initial_volume;
+  h["final_volume"] = r.final_volume;
+  h["tangency_residual_max"] = r.tangency_residual_max;
+  h["evaluations"] = r.evaluations;
+  h["invalid_models"] = r.invalid_models;
+  h["failed_projections"] = r.failed_projections;
+  h["seconds"] = r.seconds;
+  h["notes"] = r.notes;
+  h["iterations"] = json::array();
+  for (const auto& it : r.iterations) {
+    std::vector<double> values(it.design.data(), it.design.data() + it.design.size());
+    h["iterations"].push_back({{"iteration", it.iteration},
+                               {"objective", it.objective},
+                               {"constraint_violation", it.constraint_violation},
+                               {"tangency_residual", it.tangency_residual},
+                               {"parameters", values},
+                               {"seconds", it.seconds}});
+  }
+  h["parameters"] = json::array();
+  for (size_t k = 0; k < r.design_names.size(); ++k)
+    h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
+  if (!out_dir.empty()) {
+    std::filesystem::create_directories(out_dir);
+    const std::string step = out_dir + "/optimized.step";
+    PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
+                   "the output " << step << " would overwrite the input part");
+    occ::write_step(*r.part, step);
+    h["optimized_step"] = step;
+    const std::string history = out_dir + "/history.json";
+    {
+      std::ofstream f(history);
+      PARAFAB_VERIFY(f && (f << h.dump(2) << "\n"), "cannot write " << history);
+    }
+    // The chart: a small matplotlib script (optional: the history is complete without it).
+    const std::string script = std::string(PARAFAB_SCRIPTS_DIR) + "/plot_optimization.py";
+    const std::string png = out_dir + "/history.png";
+    if (std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
+      const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";
+      if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
+    }
+    if (!h.contains("chart")) h["chart"] = nullptr;
+    std::ofstream f(history);
+    f << h.dump(2) << "\n";
+  }
+  return h;
+}
+
+}  // namespace parafab::entry

@@ -1,0 +1,24 @@
+// The shape optimization job of `parafab optimize` / parafab.optimize (thesis §6.5): a part,
+// a JSON job (parameters, objective, constraints, max_iterations; supports/loads of the
+// simulation job fix their faces) and an output folder for optimized.step, history.json and
+// history.png. Format in README ("Shape optimization").
+#pragma once
+
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace parafab::entry {
+
+/// Called after every accepted iterate with {"iteration", "objective", "constraint_violation",
+/// "seconds"}; returning false cancels (the last valid model is written, status "cancelled").
+using OptimizeProgressFn = std::function<bool(const nlohmann::json& iterate)>;
+
+/// Runs the optimization and returns the history JSON (also written to out_dir/history.json
+/// with out_dir/optimized.step and, when matplotlib is there, out_dir/history.png). Throws
+/// parafab::Error naming the offending job field (an objective that is not implemented yet,
+/// e.g. "compliance", included). The part file is only read.
+nlohmann::json optimize_part_json(const std::string& part_path, const nlohmann::json& job,
+                                  const std::string& out_dir, const OptimizeProgressFn& progress = {});
+
+}  // namespace parafab::entry
