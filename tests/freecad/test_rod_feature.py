@@ -73,7 +73,8 @@ def _spec(bs, **extra):
               "poles": [[q.x * 1e-3, q.y * 1e-3, q.z * 1e-3] for q in bs.getPoles()]}
     if bs.isRational():
         spline["weights"] = list(bs.getWeights())
-    spec = {"curve": {"bspline": spline}, "max_radius": 0.005, "samples": 200}
+    # The Rod feature's default SectionFactor is 1 (the JSON default is 4, the stable one).
+    spec = {"curve": {"bspline": spline}, "max_radius": 0.005, "samples": 200, "section": {"factor": 1.0}}
     spec.update(extra)
     return spec
 
