@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "strips/plane_rod_discretization.h"
 #include "strips/strip_validation.h"
 
 namespace parafab {
@@ -19,13 +20,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-double interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
-  if (x <= xs.front()) return ys.front();
-  if (x >= xs.back()) return ys.back();
-  const size_t i = static_cast<size_t>(std::upper_bound(xs.begin(), xs.end(), x) - xs.begin());
-  const double t = (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
-  return ys[i - 1] + t * (ys[i] - ys[i - 1]);
-}
+using plane_rod::interpolate;
 
 double unwrap_near(double angle, double reference) {
   return angle + 2 * M_PI * std::round((reference - angle) / (2 * M_PI));
@@ -85,19 +80,8 @@ Jacobi assemble(const DiscreteRodState& s) {
     J.t[j] = Vec2(std::cos(s.angles[j]), std::sin(s.angles[j]));
     J.tp[j] = Vec2(-J.t[j].y(), J.t[j].x());
   }
-  const bool sfree[2] = {s.boundary.start.free_x, s.boundary.start.free_y};
-  const bool efree[2] = {s.boundary.end.free_x, s.boundary.end.free_y};
-  for (int dd = 0; dd < 2; ++dd) {
-    J.constrained[dd] = !sfree[dd] && !efree[dd];
-    J.ref_start[dd] = !sfree[dd] || efree[dd];
-    J.Q[dd].assign(N, 0.0);
-    double acc = 0;
-    if (J.ref_start[dd]) {
-      for (int j = N - 1; j >= 0; --j) acc += s.stiffness[j + 1] * J.w[j + 1], J.Q[dd][j] = acc;
-    } else {
-      for (int j = 0; j < N; ++j) acc += s.stiffness[j] * J.w[j], J.Q[dd][j] = -acc;
-    }
-  }
+  const plane_rod::EndReferences ends = plane_rod::end_references(s.boundary, s.stiffness, J.w, N);
+  for (int d = 0; d < 2; ++d) J.constrained[d] = ends.constrained[d], J.ref_start[d] = ends.ref_start[d], J.Q[d] = ends.Q[d];
   J.mu.resize(N);
   J.d.resize(N);
   J.e.resize(N);

@@ -7,18 +7,13 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "strips/plane_rod_discretization.h"
 
 namespace parafab {
 
 namespace {
 
-double interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
-  if (x <= xs.front()) return ys.front();
-  if (x >= xs.back()) return ys.back();
-  const size_t i = static_cast<size_t>(std::upper_bound(xs.begin(), xs.end(), x) - xs.begin());
-  const double t = (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
-  return ys[i - 1] + t * (ys[i] - ys[i - 1]);
-}
+using plane_rod::interpolate;
 
 struct Model {
   int N = 0;
@@ -113,19 +108,8 @@ PlaneRodReleaseResult release_plane_rod(const PlaneRodProblem& p, const PlaneRod
   m.delta = p.end_point - p.start_point;
   const double Kmax = *std::max_element(m.K.begin(), m.K.end());
   m.mu = o.penalty * Kmax / std::pow(p.length, 3);
-  const bool sfree[2] = {p.boundary.start.free_x, p.boundary.start.free_y};
-  const bool efree[2] = {p.boundary.end.free_x, p.boundary.end.free_y};
-  for (int d = 0; d < 2; ++d) {
-    m.constrained[d] = !sfree[d] && !efree[d];
-    m.ref_start[d] = !sfree[d] || efree[d];
-    m.Q[d].assign(N, 0.0);
-    double acc = 0;
-    if (m.ref_start[d]) {
-      for (int j = N - 1; j >= 0; --j) acc += m.K[j + 1] * m.w[j + 1], m.Q[d][j] = acc;
-    } else {
-      for (int j = 0; j < N; ++j) acc += m.K[j] * m.w[j], m.Q[d][j] = -acc;
-    }
-  }
+  const plane_rod::EndReferences ends = plane_rod::end_references(p.boundary, m.K, m.w, N);
+  for (int d = 0; d < 2; ++d) m.constrained[d] = ends.constrained[d], m.ref_start[d] = ends.ref_start[d], m.Q[d] = ends.Q[d];
   Eigen::VectorXd a = Eigen::Map<const Eigen::VectorXd>(p.initial_angles.data(), N);
   PlaneRodReleaseResult out;
   double E = m.energy(a);

@@ -8,18 +8,13 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "strips/plane_rod_discretization.h"
 
 namespace parafab {
 
 namespace {
 
-double interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
-  if (x <= xs.front()) return ys.front();
-  if (x >= xs.back()) return ys.back();
-  const size_t i = static_cast<size_t>(std::upper_bound(xs.begin(), xs.end(), x) - xs.begin());
-  const double t = (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
-  return ys[i - 1] + t * (ys[i] - ys[i - 1]);
-}
+using plane_rod::interpolate;
 
 struct Rod {
   int N = 0;
@@ -152,22 +147,13 @@ PlaneRodResult simulate_plane_rod(const PlaneRodProblem& p, const PlaneRodOption
       rod.kappa0[k] += interpolate(p.natural_curvature_s, p.natural_curvature_field, k * rod.h);
   rod.law = p.law;
   rod.delta = p.end_point - p.start_point;
-  const bool sfree[2] = {p.boundary.start.free_x, p.boundary.start.free_y};
-  const bool efree[2] = {p.boundary.end.free_x, p.boundary.end.free_y};
+  // Node positions referenced to the start or the end, and the load weights Q per edge.
+  const plane_rod::EndReferences ends = plane_rod::end_references(p.boundary, weight, rod.w, N);
   for (int d = 0; d < 2; ++d) {
-    rod.constrained[d] = !sfree[d] && !efree[d];
-    rod.ref_start[d] = !sfree[d] || efree[d];
+    rod.constrained[d] = ends.constrained[d];
+    rod.ref_start[d] = ends.ref_start[d];
+    rod.Q[d] = ends.Q[d];
     if (rod.constrained[d]) rod.cidx[d] = rod.nc++;
-    // Weight of the nodes whose position moves with edge j: after it (referenced to the
-    // start) or before it, with opposite sign (referenced to the end).
-    rod.Q[d].assign(N, 0.0);
-    if (rod.ref_start[d]) {
-      double acc = 0;
-      for (int j = N - 1; j >= 0; --j) acc += weight[j + 1] * rod.w[j + 1], rod.Q[d][j] = acc;
-    } else {
-      double acc = 0;
-      for (int j = 0; j < N; ++j) acc += weight[j] * rod.w[j], rod.Q[d][j] = -acc;
-    }
   }
   const double Wmax = *std::max_element(rod.W.begin(), rod.W.end());
   const double mscale = Wmax / p.length, pscale = p.length;
