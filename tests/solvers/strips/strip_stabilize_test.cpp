@@ -1,0 +1,164 @@
+// Stability recovery (thesis §4.5.3-4.5.4, Algorithms 4.1 and 4.2) on an unstable strip curve
+// with three inflections (a sine wave like Fig. 4.10): Algorithm 4.2 makes it stable, checked
+// independently by releasing the designed strip from a perturbed state (energy descent,
+// plane_rod_release); Algorithm 4.1 (K as the variable, simulator in the loop) stalls at the
+// bifurcation; without the R_max bound κ′ → 0 at an inflection.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "common/error.h"
+#include "strips/curve_fairing.h"
+#include "strips/plane_rod_release.h"
+#include "strips/strip_stabilize.h"
+
+namespace parafab {
+namespace {
+
+// y = 0.03 sin(x / 0.05) over 1.3 periods (three inflections on y = 0), a quintic with 16
+// poles made exactly collinear by EnforceConstraints: unstable (σ/l ≈ 0.916).
+BSplineCurve2 unstable_wave() {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 400; ++i) {
+    const double x = -0.05 + 0.415 * i / 399;
+    pts.emplace_back(x, 0.03 * std::sin(x / 0.05));
+  }
+  FairFitOptions fo;
+  fo.degree = 5;
+  fo.poles = 16;
+  fo.fairness = 1e-8;
+  BSplineCurve2 c = fit_fair_bspline(pts, fo).curve;
+  project_to_equilibrium(c);
+  return c;
+}
+
+// Release of the designed strip (the design's K, clamped ends) from its simulated equilibrium
+// perturbed by 0.01 rad: the deviation of the released state from the equilibrium / length.
+double released_deviation(const BSplineCurve2& curve) {
+  const int N = 200;
+  StripDesignOptions o;
+  o.tolerance = 1e-3;
+  const StripDesign d = design_strip(curve, o);
+  EXPECT_TRUE(d.feasible);
+  std::vector<Vec2> target;
+  PlaneRodProblem p = strip_rod_problem(curve, d, o, N, &target);
+  const PlaneRodResult eq = simulate_plane_rod(p, PlaneRodOptions{N});
+  EXPECT_TRUE(eq.converged) << eq.message;
+  for (int j = 0; j < N; ++j) {
+    const double s = (j + 0.5) / N;
+    p.initial_angles[j] = eq.edge_angles[j] + 0.01 * (std::sin(3 * M_PI * s) + 0.5 * std::sin(7 * M_PI * s + 1));
+  }
+  const PlaneRodReleaseResult r = release_plane_rod(p, PlaneRodReleaseOptions{N});
+  EXPECT_TRUE(r.converged) << r.message;
+  EXPECT_TRUE(r.monotone);
+  double m = 0;
+  for (int k = 0; k <= N; ++k) m = std::max(m, (r.nodes[k] - eq.nodes[k]).norm());
+  return m / d.length;
+}
+
+TEST(StripStabilize, Algorithm42MakesTheWaveStableAndTheReleasedStripReturns) {
+  const BSplineCurve2 c = unstable_wave();
+  const StripStabilizeResult r = stabilize_strip(c);
+  std::printf("[4.2] %s: sigma/l %.4f -> %s (margin state %.4f -> stable %d), R %.3f -> %.3f, max pole move/l %.3g, "
+              "deviation/l %.3g, %zu iterations (%d rejected), %.3f s\n",
+              r.status.c_str(), r.sigma_before / r.length, r.stable_after ? "stable" : "UNSTABLE",
+              r.sigma_margin_before / r.length, r.stable_margin_after, r.R_before, r.R_after, r.max_pole_move / r.length,
+              r.deviation_relative, r.history.size() - 1, r.rejected_steps, r.seconds);
+  EXPECT_FALSE(r.stable_before);
+  EXPECT_NEAR(r.sigma_before / r.length, 0.916, 0.002);
+  EXPECT_EQ(r.status, "stable") << r.message;
+  EXPECT_TRUE(r.done);
+  EXPECT_TRUE(r.stable_after);
+  EXPECT_TRUE(r.stable_margin_after);
+  EXPECT_TRUE(std::isnan(r.sigma_after));
+  EXPECT_EQ(r.inflections, 3);
+  EXPECT_LT(r.deviation_relative, 0.003);  // measured 0.0020
+  EXPECT_LT(r.R_after, 16.0);              // R_p ≤ 10 on the samples; the design's R measured 13.4
+  // σ (of the margin state, the objective) rises at every accepted step until the curve is
+  // stable (the last entry).
+  ASSERT_GE(r.history.size(), 3u);
+  for (size_t i = 1; i + 1 < r.history.size(); ++i) EXPECT_GT(r.history[i].sigma_margin, r.history[i - 1].sigma_margin) << i;
+  EXPECT_TRUE(std::isnan(r.history.back().sigma_margin));
+  // Independent check by the simulator: released from a perturbed state, the stabilized strip
+  // returns to its equilibrium; the input strip leaves it.
+  const double back = released_deviation(r.curve), away = released_deviation(c);
+  std::printf("[4.2] released: stabilized strip returns within %.2e of the length, input strip moves %.3f\n", back, away);
+  EXPECT_LT(back, 1e-4);
+  EXPECT_GT(away, 0.05);
+}
+
+TEST(StripStabilize, Algorithm41StallsAtTheBifurcation) {
+  const BSplineCurve2 c = unstable_wave();
+  StiffnessAscentOptions o;
+  o.lost_shape = 1;  // follow it as far as it goes
+  o.max_iterations = 150;
+  const StiffnessAscentResult a = stabilize_by_stiffness(c, o);
+  const double l = 0.4539;
+  double g0 = a.history.front().gradient_norm, g1 = 0;
+  for (const auto& h : a.history)
+    if (std::isfinite(h.gradient_norm)) g1 = h.gradient_norm;
+  std::printf("[4.1] %s (%s): sigma/l %.4f -> %.4f, equilibrium deviation/l %.3f, |dsigma/dK| %.3g -> %.3g, %zu iterations\n",
+              a.status.c_str(), a.message.c_str(), a.sigma_before / l, a.sigma / l, a.deviation, g0, g1, a.history.size());
+  // What the user gets: no stable design; the Newton solve from the previous equilibrium
+  // fails just before σ reaches l, δσ/δK grows, and the equilibrium has left the target.
+  EXPECT_EQ(a.status, "simulation_failed");
+  EXPECT_FALSE(a.stable);
+  EXPECT_GT(a.sigma / l, 0.97);
+  EXPECT_LT(a.sigma / l, 1.0);
+  EXPECT_GT(g1, 1.5 * g0);
+  EXPECT_GT(a.deviation, 0.05);
+  // With the default shape limit it stops earlier, for the lost shape.
+  const StiffnessAscentResult b = stabilize_by_stiffness(c);
+  EXPECT_EQ(b.status, "lost_shape");
+  EXPECT_FALSE(b.stable);
+}
+
+TEST(StripStabilize, WithoutTheRatioBoundKappaPrimeVanishesAtAnInflection) {
+  const BSplineCurve2 c = unstable_wave();
+  StripStabilizeOptions o;
+  o.R_max = INFINITY;
+  const StripStabilizeResult u = stabilize_strip(c, o);
+  const double dk0 = u.history.front().min_inflection_dkappa;
+  double dk_min = dk0, R_top = 0;
+  for (const auto& h : u.history) dk_min = std::min(dk_min, h.min_inflection_dkappa), R_top = std::max(R_top, h.R);
+  std::printf("[no bound] %s: min |kappa'| l^2 at an inflection %.3g -> %.3g, R up to %.0f, stable %d\n", u.status.c_str(),
+              dk0, dk_min, R_top, u.stable_after);
+  EXPECT_FALSE(u.done);
+  EXPECT_NE(u.status, "stable");
+  EXPECT_LT(dk_min, 0.015 * dk0);  // measured 0.0103
+  EXPECT_GT(R_top, 1000.0);
+  const StripStabilizeResult b = stabilize_strip(c);  // R_max = 10
+  std::printf("[bound 10] %s: min |kappa'| l^2 %.3g -> %.3g\n", b.status.c_str(), dk0, b.min_inflection_dkappa);
+  EXPECT_TRUE(b.done);
+  EXPECT_GT(b.min_inflection_dkappa, 0.1 * dk0);
+}
+
+TEST(StripStabilize, AlreadyStableCurvesAndBadInputAreReported) {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 200; ++i) {  // one period: two inflections, stable
+    const double x = -0.025 + 0.205 * i / 199;
+    pts.emplace_back(x, 0.03 * std::sin(x / 0.05));
+  }
+  FairFitOptions fo;
+  fo.degree = 5;
+  fo.poles = 12;
+  fo.fairness = 1e-8;
+  BSplineCurve2 c = fit_fair_bspline(pts, fo).curve;
+  project_to_equilibrium(c);
+  const StripStabilizeResult r = stabilize_strip(c);
+  EXPECT_EQ(r.status, "already");
+  EXPECT_TRUE(r.stable_before && r.done);
+  EXPECT_EQ(r.max_pole_move, 0.0);
+  StripStabilizeOptions bad;
+  bad.R_max = 0.5;
+  try {
+    stabilize_strip(c, bad);
+    FAIL() << "R_max < 1 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("R_max"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace parafab
