@@ -186,6 +186,7 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
   BSplineCurve2 current = curve;
   if (v0.stable_margin) {
     res.status = "already";
+    res.message = "already stable with the margin: the curve is unchanged";
   } else {
     int used = 0;
     for (int round = 0; round < o.rounds; ++round) {
@@ -241,7 +242,10 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
       res.status = "max_iterations";
       res.message = "stable on the loop's nodes, not on the final test";
     }
-    if (res.status == "target") res.status = "stable";
+    if (res.status == "target") {
+      res.status = "stable";
+      res.message = "stable: no conjugate point in (0, l] with the force scaled by 1 + margin";
+    }
     v = verdict(current, o.margin, o.verify_edges);
   }
   res.curve = current;

@@ -18,6 +18,7 @@
 #include "strip_json.h"
 #include "stability_json.h"
 #include "strip_improve_json.h"
+#include "strip_stabilize_json.h"
 #include "rod_json.h"
 
 namespace {
@@ -82,6 +83,13 @@ int main(int argc, char** argv) {
   improve->add_option("input", in_path, "Strip request JSON, optionally with \"improve\": {...} (see README)")->required();
   improve->add_option("--target-R", target_R, "Target stiffness ratio (overrides improve.target_R; default 3.5)");
   improve->add_option("-o,--output", out_path, "Write the result here instead of stdout");
+  double R_max = 0;
+  auto* stabilize = app.add_subcommand(
+      "strip-stabilize",
+      "Make an unstable strip curve stable by moving its control points (thesis §4.5.4, Algorithm 4.2; JSON)");
+  stabilize->add_option("input", in_path, "Strip request JSON, optionally with \"stabilize\": {...} (see README)")->required();
+  stabilize->add_option("--R-max", R_max, "Bound on the stiffness ratio R (overrides stabilize.R_max; default 10)");
+  stabilize->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
   rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
   rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
@@ -166,6 +174,7 @@ int main(int argc, char** argv) {
     if (*strip_stability)
       return emit(parafab::entry::strip_stability_json(read_json_file(in_path)), out_path);
     if (*improve) return emit(parafab::entry::improve_strip_json(read_json_file(in_path), target_R), out_path);
+    if (*stabilize) return emit(parafab::entry::stabilize_strip_json(read_json_file(in_path), R_max), out_path);
     if (*rod) return emit(parafab::entry::design_rod_json(read_json_file(in_path)), out_path);
     if (*inspect) return emit(parafab::entry::inspect_part_json(in_path, inspect_options), out_path);
     if (*simulate) {

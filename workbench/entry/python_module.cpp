@@ -14,6 +14,7 @@
 #include "strip_json.h"
 #include "stability_json.h"
 #include "strip_improve_json.h"
+#include "strip_stabilize_json.h"
 #include "rod_json.h"
 
 namespace py = pybind11;
@@ -81,6 +82,24 @@ PYBIND11_MODULE(parafab, m) {
       "default 3.5). Returns done, status, R_initial, R, bspline, original_bspline, max_pole_move, "
       "deviation, history and the strip designed for the new curve (design; with the request's "
       "gravity, LP Eq. 4.6 afterwards).");
+  m.def(
+      "stabilize_strip",
+      [](const py::dict& request, double R_max) {
+        const nlohmann::json in = to_json(request);
+        nlohmann::json out;
+        {
+          py::gil_scoped_release release;
+          out = parafab::entry::stabilize_strip_json(in, R_max);
+        }
+        return to_python(out);
+      },
+      py::arg("request"), py::arg("R_max") = 0.0,
+      "Stability recovery (thesis §4.5.4, Algorithm 4.2): move the control points of the request's "
+      "curve until its first conjugate point lies beyond the end (stable with request['stabilize']"
+      "['margin'], default 0.05), keeping R <= R_max (> 0 overrides request['stabilize']['R_max'], "
+      "default 10). Returns done, status, stable_before/after, sigma_before/after [m], R_before/after, "
+      "bspline, original_bspline, max_pole_move, deviation, history and the strip designed for the "
+      "new curve (design).");
   m.def(
       "design_strip",
       [](const py::dict& request) {
