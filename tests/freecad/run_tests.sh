@@ -28,7 +28,7 @@ trap 'rm -rf "$tmp_home"' EXIT
 
 echo "run_tests.sh: solver from $PARAFAB_MODULE_DIR, workbench from $PARAFAB_WB_DIR"
 status=0
-for module in test_strip_feature test_rod_feature test_analysis_feature test_strip_improve; do
+for module in test_strip_feature test_rod_feature test_analysis_feature test_strip_improve test_strip_stabilize; do
     HOME=$tmp_home PYTHONPATH="$here${PYTHONPATH:+:$PYTHONPATH}" \
         timeout "$timeout_s" freecadcmd -t "$module" || { status=$?; break; }
 done

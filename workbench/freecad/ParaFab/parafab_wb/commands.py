@@ -15,6 +15,9 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
 * ``ParaFab_ImproveFabricability`` -- "Improve fabricability": lower R of the selected
   strips to a target by moving their curves' control points, in one undo transaction, the
   original kept hidden (:mod:`parafab_wb.strip_improve`), and plot the curve before and after.
+* ``ParaFab_StabilizeStrip`` -- "Stabilize strip": move the control points of the selected
+  strips' curves until they are stable (thesis 4.5.4, Algorithm 4.2), in one undo
+  transaction, the original kept hidden (:mod:`parafab_wb.strip_stabilize`).
 * ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
   solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
 """
@@ -221,6 +224,40 @@ class ImproveFabricabilityCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_ImproveFabricability", ImproveFabricabilityCommand())
+
+
+class StabilizeStripCommand(object):
+    """Make the selected strips stable by moving their curves' poles (Algorithm 4.2)."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_StabilizeStrip.svg"),
+            "MenuText": "Stabilize strip",
+            "ToolTip": "Move the control points of each selected strip's curve until the strip is a "
+                       "stable equilibrium (no conjugate point up to its end, thesis 4.5.4), keeping "
+                       "the stiffness ratio R at most R_max. One undo step; the original curve is kept "
+                       "hidden (property OriginalCurve). Gravity is neglected",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        from PySide import QtGui
+        from . import strip_stabilize
+        R_max, ok = QtGui.QInputDialog.getDouble(
+            FreeCADGui.getMainWindow(), "Stabilize strip", "Bound on the stiffness ratio R:", 10.0, 1.0, 1000.0, 2)
+        if not ok:
+            return
+        for obj in selected_strips():
+            try:
+                result = strip_stabilize.stabilize_strip(obj, R_max)
+                FreeCAD.Console.PrintMessage(strip_stabilize.report(obj.Label, result))
+            except Exception as exc:
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+FreeCADGui.addCommand("ParaFab_StabilizeStrip", StabilizeStripCommand())
 
 
 class StripsFromSectionsCommand(object):

@@ -64,20 +64,20 @@ def _edge_from_result(spec, frame):
         spec, lambda p: frame.to_3d(p[0] * to_mm, p[1] * to_mm)).toShape()
 
 
-def improve_strip(strip, target_R=3.5, improve=None):
-    """Lower the strip's stiffness ratio to ``target_R`` by moving its curve's control points;
-    returns the solver result. The document change is one transaction; the strip recomputes."""
-    r_before = float(strip.R) if strip.Feasible else 0.0
-    result, frame = run_solver(strip, target_R, improve)
+def replace_curve(strip, bspline, frame, title, record=None, suffix="_improved"):
+    """Replace the strip's curve by the solver B-spline ``bspline`` (SI units, plane ``frame``)
+    in ONE transaction ``title``: the owner's shape in place (single-edge ``Part::Feature``,
+    original copied to a hidden "<Label> (original)") or a new holder ``<Name><suffix>`` the
+    strip is relinked to (any other owner, left untouched). ``record()`` runs first inside the
+    transaction (e.g. to set properties). The strip recomputes."""
     owner, sub = strip.Edge[0], strip.Edge[1][0]
     doc = strip.Document
-    new_edge = _edge_from_result(result["bspline"], frame)
+    new_edge = _edge_from_result(bspline, frame)
 
     def apply():
         _add_properties(strip)
-        # The strip's own R (its tolerance), else the improvement's estimate.
-        strip.RBeforeImprove = r_before or float(result["R_initial"] or 0.0)
-        strip.ImproveDeviation = float(result["deviation"]) / geometry.MM_TO_M
+        if record is not None:
+            record()
         in_place = owner.TypeId == "Part::Feature" and len(owner.Shape.Edges) == 1
         if in_place:
             original = doc.addObject("Part::Feature", owner.Name + "_original")
@@ -88,8 +88,8 @@ def improve_strip(strip, target_R=3.5, improve=None):
             owner.Shape = local
         else:
             original = owner
-            holder = doc.addObject("Part::Feature", owner.Name + "_improved")
-            holder.Label = owner.Label + " (improved)"
+            holder = doc.addObject("Part::Feature", owner.Name + suffix)
+            holder.Label = owner.Label + " (%s)" % suffix.lstrip("_")
             holder.Shape = new_edge
             strip.Edge = (holder, ["Edge1"])
         strip.OriginalCurve = original
@@ -98,13 +98,27 @@ def improve_strip(strip, target_R=3.5, improve=None):
             original.ViewObject.Visibility = False
         doc.recompute()
 
-    doc.openTransaction(TITLE)
+    doc.openTransaction(title)
     try:
         apply()
     except Exception:
         doc.abortTransaction()
         raise
     doc.commitTransaction()
+
+
+def improve_strip(strip, target_R=3.5, improve=None):
+    """Lower the strip's stiffness ratio to ``target_R`` by moving its curve's control points;
+    returns the solver result. The document change is one transaction; the strip recomputes."""
+    r_before = float(strip.R) if strip.Feasible else 0.0
+    result, frame = run_solver(strip, target_R, improve)
+
+    def record():
+        # The strip's own R (its tolerance), else the improvement's estimate.
+        strip.RBeforeImprove = r_before or float(result["R_initial"] or 0.0)
+        strip.ImproveDeviation = float(result["deviation"]) / geometry.MM_TO_M
+
+    replace_curve(strip, result["bspline"], frame, TITLE, record)
     return result
 
 
