@@ -304,7 +304,7 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
       ok = std::isfinite(ft) && ft < f - 1e-4 * std::abs(gF.dot(dq));
       if (!ok) res.last_rejection = "no sufficient decrease of F";
       if (ok && bounded) {
-        ok = Rp.valid && Rt.valid && Rt.value <= std::max(o.R_max, Rp.value) * (1 + 1e-3);
+        ok = Rp.valid && Rt.valid && Rt.value <= std::max(o.R_max * (1 + o.bound_tolerance), Rp.value * (1 + 1e-3));
         if (!ok) res.last_rejection = "R_p exceeds R_max after the step";
       }
     }

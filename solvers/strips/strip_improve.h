@@ -59,6 +59,9 @@ struct PoleDescentOptions {
   int memory = 8;               ///< L-BFGS pairs in the tangent space (0: steepest descent)
   double min_step = 1e-9;       ///< stop when the trial step falls below this · l
   double R_max = INFINITY;      ///< R_p ≤ R_max by ProjectStep; infinite: no bound
+  /// A step is rejected if R_p > max(R_max·(1 + this), R_p before·(1 + 10⁻³)) afterwards
+  /// (the linearized projection overshoots on the curved bound; §4.5.4: small, temporary).
+  double bound_tolerance = 1e-3;
   double p = 32;                ///< exponent of R_p (thesis: p > 20)
   int samples = 200;            ///< fixed-parameter samples (equally spaced in arc length at start)
   double max_seconds = 0;       ///< > 0: stop after this wall time

@@ -210,6 +210,7 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
       po.max_step = o.max_step;
       po.memory = o.memory;
       po.R_max = o.R_max;
+      po.bound_tolerance = o.bound_tolerance;
       po.p = o.p;
       po.samples = o.samples;
       po.constraints = o.constraints;
@@ -255,6 +256,10 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
   res.R_after = v.design.feasible ? v.design.R : NAN;
   res.done = v.design.feasible && v.stable_margin;
   if (res.status == "stable" && !res.done) res.status = "max_iterations";
+  if (res.status == "stationary" && !res.done)
+    res.message = "sigma cannot be pushed further with R_p <= R_max (a KKT point on the bound, sigma/l of the "
+                  "margin state " + std::to_string(res.history.empty() ? NAN : res.history.back().sigma_margin / l) +
+                  "): raise R_max or start from a curve closer to stability";
   res.max_pole_move = max_pole_move(current, curve);
   res.deviation = curve_deviation(input, current, o.deviation_samples);
   res.deviation_relative = res.deviation / l;

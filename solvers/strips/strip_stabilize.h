@@ -37,6 +37,7 @@ struct StripStabilizeOptions {
   double initial_step = 0.002;  ///< trial |Δq| as a fraction of the length
   double max_step = 0.01;       ///< cap on |Δq| (fraction of the length)
   int memory = 6;               ///< L-BFGS pairs (0: steepest ascent of σ)
+  double bound_tolerance = 1e-2;  ///< PoleDescentOptions::bound_tolerance
   double max_seconds = 0;       ///< > 0: wall-time limit
   int min_degree = 4;           ///< lower degrees (or more than max_poles poles) are refitted
   int max_poles = 40;

@@ -57,6 +57,40 @@ double released_deviation(const BSplineCurve2& curve) {
   return m / d.length;
 }
 
+// dσ/dq of the objective (adjoint partials chained with dK/dq, dα/dq) against central
+// differences of σ over single pole coordinates and a random direction.
+TEST(StripStabilize, ConjugatePointGradientMatchesFiniteDifferences) {
+  const BSplineCurve2 c = unstable_wave();
+  const std::vector<double> zu = inflection_parameters(c);
+  const Vec2 p = c.point(zu.front()), q = c.point(zu.back());
+  Vec2 b = Vec2(-(q - p).y(), (q - p).x()).normalized();
+  double a = -b.dot(p);
+  if ((a + b.dot(c.point(0.3))) / pole_jet(c, 0.3).kappa < 0) a = -a, b = -b;  // K > 0
+  std::vector<double> u(201);
+  for (int k = 0; k <= 200; ++k) u[k] = c.first_parameter() + (c.last_parameter() - c.first_parameter()) * k / 200;
+  const double l = 0.4539;
+  const CurveConjugatePoint cp = curve_conjugate_point(c, a, b, u, l, 0.05);
+  ASSERT_TRUE(cp.valid && !cp.stable) << cp.message;
+  auto sigma = [&](const Eigen::VectorXd& dq) {
+    BSplineCurve2 x = c;
+    set_poles_vector(x, poles_vector(c) + dq);
+    return curve_conjugate_point(x, a, b, u, l, 0.05, false).sigma;
+  };
+  const int n = static_cast<int>(cp.gradient.size());
+  Eigen::VectorXd dir = Eigen::VectorXd::Zero(n);
+  for (int i = 0; i < n; ++i) dir(i) = std::sin(1.7 * i + 0.3);
+  double worst = 0;
+  for (int i : {5, 12, 17, n / 2 + 1, -1}) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(n);
+    if (i < 0) e = dir / dir.norm(); else e(i) = 1;
+    const double h = 1e-6;
+    const double fd = (sigma(h * e) - sigma(-h * e)) / (2 * h), an = cp.gradient.dot(e);
+    worst = std::max(worst, std::abs(fd - an) / (std::abs(fd) + 1e-3));
+    EXPECT_NEAR(an, fd, 1e-5 * std::abs(fd) + 1e-7) << "coordinate " << i;
+  }
+  std::printf("[gradient] sigma/l %.4f, worst relative difference to central differences %.2e\n", cp.sigma / l, worst);
+}
+
 TEST(StripStabilize, Algorithm42MakesTheWaveStableAndTheReleasedStripReturns) {
   const BSplineCurve2 c = unstable_wave();
   const StripStabilizeResult r = stabilize_strip(c);
