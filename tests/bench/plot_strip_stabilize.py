@@ -25,7 +25,8 @@ ax1.set_title("Conjugate point pushed out of (0, l]")
 ax1.grid(True, alpha=0.3)
 ax1.legend(fontsize=6)
 idx = [c["index"] for c in curves]
-ax2.bar(idx, [c["seconds"] * 1e3 for c in curves], width=0.6, label="stabilize_strip (median)")
+ax2.bar(idx, [c["seconds"] * 1e3 for c in curves], width=0.6, label="stabilize_strip (median; green: stable, grey: stalled on R_max)",
+        color=["#2a9d4b" if c["done"] else "#999999" for c in curves])
 ax2.axhline(data["goal_seconds"] * 1e3, color="red", lw=0.8, ls="--", label="goal 250 ms")
 ax2.set_xlabel("curve")
 ax2.set_ylabel("time [ms]")
