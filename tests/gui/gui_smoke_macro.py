@@ -266,6 +266,7 @@ def run(check):
 
     # Plot strip profile: K(s) and w(s) in a tab of FreeCAD's Plot module.
     check("plot_command_registered", "ParaFab_PlotStripProfile" in FreeCADGui.listCommands())
+    check("stabilize_command_registered", "ParaFab_StabilizeStrip" in FreeCADGui.listCommands())
     FreeCADGui.Selection.clearSelection()
     FreeCADGui.Selection.addSelection(doc.Name, strip.Name)
     FreeCADGui.updateGui()
