@@ -20,6 +20,8 @@ Side curves interpolate a subsample of at most :data:`MAX_EDGE_POINTS`
 samples.  The only arithmetic here is unit scaling and placement.
 """
 
+import math
+
 import Part
 
 #: Metres (solver) -> millimetres (FreeCAD).
@@ -158,6 +160,57 @@ def bent_strip_solid(face, thickness):
     return solid
 
 
+def bent_strip_solid_from_samples(points, s, width, frame, thickness, scale=M_TO_MM):
+    """The bent strip built directly as a solid: the centre curve offset by
+    ``+-thickness/2`` along its in-plane normal, each side ``+-width/2`` along
+    the plane normal; four ruled faces and two planar end caps, sewn.
+
+    Used when OCCT's offset of the bent face fails, which happens when the
+    width varies steeply (stabilized designs, whose width peaks near the
+    inflections). Requires every curvature radius above ``thickness/2``.
+    """
+    if not (len(points) == len(s) == len(width)):
+        raise ValueError("The solver returned samples of different lengths")
+    n = len(points)
+    if n < 3:
+        raise ValueError("Need at least three samples to thicken the bent strip")
+    idx = subsample(n)
+    half = 0.5 * thickness
+    corners = [[], [], [], []]  # (+t, +w), (+t, -w), (-t, +w), (-t, -w)
+    params = []
+    for i in idx:
+        a, b = max(i - 1, 0), min(i + 1, n - 1)
+        tx = (points[b][0] - points[a][0]) * scale
+        ty = (points[b][1] - points[a][1]) * scale
+        norm = math.hypot(tx, ty)
+        if norm == 0.0:
+            raise ValueError("Cannot thicken the bent strip: repeated sample at s = %g m" % s[i])
+        nx, ny = -ty / norm, tx / norm
+        x, y = points[i][0] * scale, points[i][1] * scale
+        w = 0.5 * width[i] * scale
+        for k, (st, sw) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+            corners[k].append(frame.to_3d(x + st * half * nx, y + st * half * ny, sw * w))
+        params.append(s[i] * scale)
+    e = [interpolated_edge(c, params) for c in corners]
+    faces = [Part.makeRuledSurface(e[0], e[1]), Part.makeRuledSurface(e[2], e[3]),
+             Part.makeRuledSurface(e[0], e[2]), Part.makeRuledSurface(e[1], e[3])]
+    for j in (0, -1):
+        quad = [corners[0][j], corners[1][j], corners[3][j], corners[2][j], corners[0][j]]
+        faces.append(Part.Face(Part.makePolygon(quad)))
+    shell = Part.makeShell(faces)
+    shell.sewShape()
+    try:
+        solid = Part.makeSolid(Part.Shell(shell.Faces) if shell.ShapeType != "Shell" else shell)
+    except Exception as exc:
+        raise ValueError("Cannot thicken the bent strip by %g mm: %s" % (thickness, exc))
+    if solid.Volume < 0:
+        solid.reverse()
+    if not solid.isValid() or solid.Volume <= 0:
+        raise ValueError("Cannot thicken the bent strip by %g mm (a curvature radius below "
+                         "half the thickness?)" % thickness)
+    return solid
+
+
 def strip_shape(result, frame, scale=M_TO_MM, solid=True):
     """Compound ``[flat strip, bent strip]`` of a feasible result: solids of
     the result's ``thickness`` when ``solid`` (the default), else faces."""
@@ -168,5 +221,10 @@ def strip_shape(result, frame, scale=M_TO_MM, solid=True):
                            frame, scale)
     if solid:
         h = float(result["thickness"]) * scale
-        flat, bent = flat_strip_solid(flat, frame, h), bent_strip_solid(bent, h)
+        flat = flat_strip_solid(flat, frame, h)
+        try:
+            bent = bent_strip_solid(bent, h)
+        except ValueError:
+            bent = bent_strip_solid_from_samples(result["points"], result["s"],
+                                                 result["width"], frame, h, scale)
     return Part.makeCompound([flat, bent])
