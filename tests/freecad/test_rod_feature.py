@@ -73,8 +73,8 @@ def _spec(bs, **extra):
               "poles": [[q.x * 1e-3, q.y * 1e-3, q.z * 1e-3] for q in bs.getPoles()]}
     if bs.isRational():
         spline["weights"] = list(bs.getWeights())
-    # The Rod feature's default SectionFactor is 1 (the JSON default is 4, the stable one).
-    spec = {"curve": {"bspline": spline}, "max_radius": 0.005, "samples": 200, "section": {"factor": 1.0}}
+    # The Rod feature's default SectionFactor is 4, as in the JSON input.
+    spec = {"curve": {"bspline": spline}, "max_radius": 0.005, "samples": 200, "section": {"factor": 4.0}}
     spec.update(extra)
     return spec
 
@@ -139,9 +139,12 @@ class RodTestCase(unittest.TestCase):
                   "twist max %.3g rad/m" % (rod.Edge[0].Name, deformed.Volume / vol - 1, mesh / vol - 1,
                                            straight.Volume / vol - 1, rod.Length.Value, rod.TwistMax),
                   file=sys.stderr)
-            self.assertAlmostEqual(deformed.Volume / vol, 1.0, delta=0.01)
             if mesh_check:
                 self.assertAlmostEqual(mesh / vol, 1.0, delta=0.006)
+            else:
+                # OCC's GProp volume of the skinned, twisted tube loses up to 1.15e-2 (sculpture
+                # segment at SectionFactor 4, tessellated -4.5e-3): the mesh check is the tight one.
+                self.assertAlmostEqual(deformed.Volume / vol, 1.0, delta=0.01)
             self.assertAlmostEqual(straight.Volume / vol, 1.0, delta=0.01)
             # Clamped end frames: at the curve's ends, z axis = tangent.
             for placement, end in ((rod.StartFrame, expected["end_frames"][0]),
@@ -165,6 +168,24 @@ class TestRodFeature(RodTestCase):
         deformed, straight = rod.Shape.Solids
         self.assertLess(straight.BoundBox.YMax, deformed.BoundBox.YMin)
         self.assertAlmostEqual(straight.BoundBox.XLength, rod.Length.Value, delta=0.05 * rod.Length.Value)
+
+    def test_default_helix_rod_is_stable_and_factor_one_is_not(self):
+        """The default SectionFactor (4) gives a stable helix rod; factor 1 (most circular) an
+        unstable one. Independent check: the forward simulation (Validate) stays on the curve
+        for the stable rod and leaves it for the unstable one (README: 9.9e-6 and 0.49 L)."""
+        _, rod = self.rod_on("Helix", _helix().toShape(), Validate=True)
+        self.assertAlmostEqual(rod.SectionFactor, 4.0)
+        self.assert_feasible_rod(rod)
+        self.assertEqual(rod.Stability, "Stable")
+        self.assertEqual(rod.NegativeEigenvalues, 0)
+        self.assertGreater(rod.MinRelativeEigenvalue, 0.0)
+        self.assertLess(rod.Deviation, 1e-4)
+        rod.SectionFactor = 1.0
+        self.doc.recompute()
+        self.assert_feasible_rod(rod)
+        self.assertEqual(rod.Stability, "Unstable")
+        self.assertGreaterEqual(rod.NegativeEigenvalues, 1)
+        self.assertGreater(rod.Deviation, 0.1)
 
     def test_sculpture_segment_under_gravity_is_validated(self):
         bs = _sculpture_segment(1)

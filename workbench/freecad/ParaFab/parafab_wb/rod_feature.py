@@ -36,7 +36,7 @@ from . import rod_shapes
 #: Proxy type tag stored in documents.
 TYPE = "ParaFab::Rod"
 #: Version of the stored proxy state / property set.
-VERSION = 1
+VERSION = 2  # 2: Stability results, SectionFactor default 4
 
 _RO = feature_proxy.READ_ONLY | feature_proxy.OUTPUT
 
@@ -56,7 +56,7 @@ _PROPERTIES = (
      "Design under the rod's own weight (gravity 9.81 m/s^2 along global -Z)", False, 0),
     ("App::PropertyLength", "MaxRadius", "Rod", "Largest mean section radius sqrt(a b)", "5 mm", 0),
     ("App::PropertyFloat", "SectionFactor", "Rod",
-     "t/t*: 1 = the most circular ellipse; > 1 elongates it along the bending axis (more stable)", 1.0, 0),
+     "t/t*: 1 = the most circular ellipse; > 1 elongates it along the bending axis (more stable; 4 = the solver default, stable on the sample helix)", 4.0, 0),
     ("App::PropertyFloat", "WReg", "Solver", "Regularization weight w_reg of Eq. 5.19b (>= 0)", 0.0, 0),
     ("App::PropertyInteger", "Samples", "Solver", "Samples along the curve (equal arc length)", 200, 0),
     ("App::PropertyBool", "Validate", "Solver",
@@ -77,6 +77,13 @@ _PROPERTIES = (
     ("App::PropertyInteger", "LoadIterations", "Results", "Dead-load fixed-point iterations", 0, _RO),
     ("App::PropertyFloat", "Deviation", "Results",
      "Validate: max distance of the simulated rod from the curve / length (-1 when not simulated)", -1.0, _RO),
+    ("App::PropertyString", "Stability", "Results",
+     "Stable or Unstable: inertia of the discrete rod's energy Hessian at the designed state "
+     "(thesis section 4.5.1 on the rod of section 5.7.4); empty when not designed", "", _RO),
+    ("App::PropertyInteger", "NegativeEigenvalues", "Results",
+     "Number of negative eigenvalues of that Hessian (0 when stable)", 0, _RO),
+    ("App::PropertyFloat", "MinRelativeEigenvalue", "Results",
+     "Smallest eigenvalue of that Hessian over its largest (near 0: close to buckling)", 0.0, _RO),
 )
 
 
@@ -147,6 +154,9 @@ class RodFeature(feature_proxy.FeatureProxy):
         obj.BetaEnd = 0.0
         obj.LoadIterations = 0
         obj.Deviation = -1.0
+        obj.Stability = ""
+        obj.NegativeEigenvalues = 0
+        obj.MinRelativeEigenvalue = 0.0
         try:
             self._design(obj)
         except Exception as exc:
@@ -176,6 +186,11 @@ class RodFeature(feature_proxy.FeatureProxy):
         obj.EndFrame = rod_shapes.end_placement(result["end_frames"][1])
         if result.get("simulation"):
             obj.Deviation = float(result["simulation"]["deviation"])
+        stability = result.get("stability")
+        if stability:
+            obj.Stability = "Stable" if stability["stable"] else "Unstable"
+            obj.NegativeEigenvalues = int(stability["negative"])
+            obj.MinRelativeEigenvalue = float(stability["min_relative"])
         obj.Shape = rod_shapes.rod_shape(result)
         obj.Feasible = True
         obj.Reason = ""
