@@ -148,3 +148,31 @@ doc.recompute()
 Import.export([left, right], os.path.join(out_dir, "two_blocks.step"))
 FreeCAD.closeDocument(doc.Name)
 print("two_blocks: left_block (box) and right_block (cylinder r=8)")
+
+
+# A scanned-like sheet (thesis §4.8.2: strips from sections of a measured surface): the
+# B-spline surface interpolating z = 30 sin(pi x / 100) on a 21 x 13 grid over
+# [0, 100] x [0, 60] mm, each grid point lifted by a deterministic "scan noise" of at most
+# 0.15 mm. Its sections y = const are noisy arcs: the quartic interpolation of their points
+# has spurious inflections, the fair fit of the sections job removes them.
+def noisy_sheet():
+    import math
+    rows = []
+    for i in range(21):
+        x = 5.0 * i
+        row = []
+        for j in range(13):
+            y = 5.0 * j
+            noise = 0.15 * math.sin(12.9898 * i + 78.233 * j + 0.5 * i * j)
+            row.append(V(x, y, 30.0 * math.sin(math.pi * x / 100.0) + noise))
+        rows.append(row)
+    surf = Part.BSplineSurface()
+    surf.interpolate(rows)
+    return surf.toShape()
+
+
+sheet = noisy_sheet()
+if not sheet.isValid():
+    raise RuntimeError("noisy_sheet: invalid face")
+sheet.exportStep(os.path.join(out_dir, "noisy_sheet.step"))
+print("noisy_sheet: one B-spline face, %.1f mm^2" % sheet.Area)

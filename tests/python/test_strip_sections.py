@@ -6,6 +6,7 @@ circle is an equilibrium of a constant-stiffness strip, so R = 1 and the line's 
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -36,6 +37,48 @@ class StripSections(unittest.TestCase):
             self.assertTrue(s["feasible"], s.get("reason"))
             self.assertAlmostEqual(s["R"], 1.0, delta=1e-4)
             self.assertAlmostEqual(s["length"], 15e-3 * math.pi, delta=1e-5 * 15e-3 * math.pi)
+            self.assertIsNone(c["fair"])  # exact arcs: the interpolation is designed, no fairing
+
+    def test_noisy_sections_are_faired_only_when_interpolation_fails(self):
+        """samples/parts/noisy_sheet.step: the B-spline surface through z = 30 sin(pi x / 100)
+        mm on a 5 mm grid with up to 0.15 mm of noise (make_parts.py). Sections y = const are
+        noisy arcs: their quartic interpolation has 6-12 spurious inflections and no strip
+        ("fair": false); the default ("auto") fits a fair B-spline (§4.8.2) and designs all
+        four. Independent references: the noise-free sine and its arc length (scipy quad)."""
+        from scipy.integrate import quad
+        sheet = os.path.join(REPO, "samples", "parts", "noisy_sheet.step")
+        length = 1e-3 * quad(lambda x: math.sqrt(1 + (0.3 * math.pi * math.cos(math.pi * x / 100)) ** 2), 0, 100)[0]
+        job = {"planes": {"normal": [0, 1, 0], "offsets": [7.5, 22.5, 37.5, 52.5]}, "strip": STRIP}
+        plain = parafab.strip_sections(sheet, dict(job, fair=False))
+        self.assertEqual((plain["designed"], plain["infeasible"]), (0, 4))
+        for c in plain["curves"]:
+            self.assertIn("inflections are not collinear", c["strip"]["reason"])
+            self.assertIsNone(c["fair"])
+        r = parafab.strip_sections(sheet, job)
+        self.assertEqual((r["designed"], r["infeasible"], r["failed"]), (4, 0, 0))
+        sine = lambda x: 30 * math.sin(math.pi * x / 100)  # noqa: E731
+        for c in r["curves"]:
+            s, f = c["strip"], c["fair"]
+            self.assertTrue(s["feasible"])
+            self.assertIn("interpolated curve is infeasible", f["why"])
+            self.assertLessEqual(f["inflections"], 1)
+            o, u, v = c["frame"]["origin"], c["frame"]["u"], c["frame"]["v"]
+            strip_dev = max(abs(X[2] - sine(X[0])) for X in
+                            ([o[k] + 1e3 * (p[0] * u[k] + p[1] * v[k]) for k in range(3)] for p in s["points"]))
+            section_dev = max(abs(P[2] - sine(P[0])) for P in c["points"])
+            self.assertLess(strip_dev, 0.35)         # mm, measured 0.13-0.32
+            self.assertLess(strip_dev, section_dev)  # closer to the noise-free sine than the section (0.36-1.41)
+            self.assertAlmostEqual(s["length"] / length, 1.0, delta=2.5e-3)  # measured 1.4e-4 - 2.1e-3
+        for c, c_plain in zip(r["curves"], plain["curves"]):
+            before = int(re.search(r"the (\d+) inflections", c_plain["strip"]["reason"]).group(1))
+            self.assertGreaterEqual(before, 6)  # measured 6, 12, 8, 7
+            self.assertLessEqual(c["fair"]["inflections"], 1)
+        with self.assertRaises(parafab.Error) as cm:
+            parafab.strip_sections(sheet, dict(job, fair={"poles": 3}))
+        self.assertIn("fair.poles", str(cm.exception))
+        with self.assertRaises(parafab.Error) as cm:
+            parafab.strip_sections(sheet, dict(job, fair="yes"))
+        self.assertIn("fair must be", str(cm.exception))
 
     def test_closed_curves_missing_planes_and_bad_jobs(self):
         r = parafab.strip_sections(CYLINDER, {"planes": {"normal": [0, 0, 1], "offsets": [20, 100]}, "strip": STRIP})

@@ -4,6 +4,7 @@
 #include "json_fields.h"
 #include "part_reader.h"
 #include "plane_sections.h"
+#include "strip_improve_json.h"
 #include "strip_json.h"
 
 namespace parafab::entry {
@@ -66,6 +67,17 @@ json strip_sections_json(const std::string& part_path, const json& job) {
   if (!strip.is_object()) PARAFAB_INPUT_ERROR("strip must be a strip request without \"curve\" (see README)");
   if (strip.contains("curve")) PARAFAB_INPUT_ERROR("strip.curve is set by the sections; remove it");
 
+  // §4.8.2 fairing of the section points ("fair"): "auto" (default) designs from the quartic
+  // interpolation of the points and, when that design is infeasible (noisy points give spurious
+  // inflections), again from a fair B-spline fit with spurious inflections removed; true always
+  // fits; an object always fits with those options (strip-improve's improve.fair); false never.
+  const json fair = job.value("fair", json("auto"));
+  if (!(fair.is_boolean() || fair.is_object() || fair == json("auto")))
+    PARAFAB_INPUT_ERROR("fair must be \"auto\", true, false or {\"poles\", \"fairness\", "
+                        "\"min_separation\", \"end_separation\"}, got " << fair.dump());
+  if (fair.is_object()) check_fair_options(fair, "fair");
+  const bool fair_auto = fair.is_string();
+  const bool fair_always = fair.is_object() || (fair.is_boolean() && fair.get<bool>());
   const occ::PlaneSectionResult sections = occ::plane_sections(*shape, o);
   if (!sections.done) PARAFAB_INPUT_ERROR("cannot take sections of " << part_path << ": " << sections.message);
   json curves = json::array();
@@ -74,15 +86,51 @@ json strip_sections_json(const std::string& part_path, const json& job) {
     json pts = json::array(), pts2 = json::array();
     for (const auto& X : c.points) pts.push_back(vec(X));
     for (const auto& x : c.points2d) pts2.push_back({x.x() * scale, x.y() * scale});
-    json design;
+    json design, fair_report = nullptr;
     if (c.closed) {
       design = error_json("closed section curve: a strip needs two ends; split it (job \"split\")", "closed_curve");
       ++failed;
     } else {
       json request = strip;
-      request["curve"] = {{"points", pts2}, {"degree", 4}};
+      auto fair_design = [&](const std::string& why) {
+        std::vector<Vec2> P;
+        for (const auto& x : c.points2d) P.emplace_back(x.x() * scale, x.y() * scale);
+        auto [curve, report] = fair_points_json(P, fair.is_object() ? fair : json(), "fair");
+        report["why"] = why;
+        request["curve"] = {{"bspline", bspline_json(curve)}};
+        fair_report = std::move(report);
+        return design_strip_json(request);
+      };
       try {
-        design = design_strip_json(request);
+        if (fair_always) {
+          design = fair_design("requested");
+        } else {
+          request["curve"] = {{"points", pts2}, {"degree", 4}};
+          if (!fair_auto) {
+            design = design_strip_json(request);
+          } else {
+            std::string why;
+            try {
+              design = design_strip_json(request);
+              if (!design.value("feasible", false)) {
+                const json& r = design.contains("reason") ? design["reason"] : json();
+                why = "the interpolated curve is infeasible: " + (r.is_string() ? r.get<std::string>() : "no reason");
+              }
+            } catch (const parafab::Error& e) {
+              design = error_json(e.what(), "invalid_input");
+              why = std::string("the interpolated curve was refused: ") + e.what();
+            }
+            if (!why.empty()) {
+              json plain = std::move(design);
+              design = fair_design(why);
+              if (!design.value("feasible", false)) {  // neither works: report the plain design
+                fair_report["kept"] = "interpolation";
+                design = std::move(plain);
+                if (design.contains("error")) throw Error(design["error"]["message"].get<std::string>());
+              }
+            }
+          }
+        }
         if (design.value("feasible", false)) ++designed;
         else ++infeasible;
       } catch (const parafab::Error& e) {
@@ -93,7 +141,7 @@ json strip_sections_json(const std::string& part_path, const json& job) {
     curves.push_back({{"plane", c.plane}, {"offset", c.offset}, {"piece", c.piece}, {"closed", c.closed},
                       {"length", c.length * scale},
                       {"frame", {{"origin", vec(c.origin)}, {"u", vec(c.u_axis)}, {"v", vec(c.v_axis)}}},
-                      {"points", pts}, {"strip", design}});
+                      {"points", pts}, {"fair", fair_report}, {"strip", design}});
   }
   return {{"part", part_path},
           {"offsets", sections.offsets},

@@ -1,5 +1,6 @@
 #include "strip_improve_json.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
@@ -17,11 +18,6 @@ using fields::require;
 namespace {
 json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json vec(const Vec2& v) { return json::array({v.x(), v.y()}); }
-json bspline_json(const BSplineCurve2& c) {
-  json poles = json::array();
-  for (const auto& p : c.poles()) poles.push_back(vec(p));
-  return {{"degree", c.degree()}, {"knots", c.knots()}, {"poles", poles}};
-}
 int integer(const json& v, const std::string& path, int lo, int hi) {
   if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi)
     PARAFAB_INPUT_ERROR(path << " must be an integer " << lo << ".." << hi << ", got " << v.dump());
@@ -50,6 +46,40 @@ std::vector<Vec2> points(const json& v) {
   return out;
 }
 }  // namespace
+
+json bspline_json(const BSplineCurve2& c) {
+  json poles = json::array();
+  for (const auto& p : c.poles()) poles.push_back(vec(p));
+  return {{"degree", c.degree()}, {"knots", c.knots()}, {"poles", poles}};
+}
+
+namespace {
+SpuriousInflectionOptions fair_options(const json& fair, const std::string& path, size_t point_count) {
+  SpuriousInflectionOptions so;
+  so.fit.poles = std::clamp(static_cast<int>(point_count) / 4, 8, 24);
+  if (!fair.is_null()) {
+    only(fair, path, {"poles", "fairness", "min_separation", "end_separation"});
+    if (fair.contains("poles")) so.fit.poles = integer(fair["poles"], path + ".poles", 6, 1000);
+    if (fair.contains("fairness")) so.fit.fairness = number(fair["fairness"], path + ".fairness");
+    if (fair.contains("min_separation")) so.min_separation = number(fair["min_separation"], path + ".min_separation");
+    if (fair.contains("end_separation")) so.end_separation = number(fair["end_separation"], path + ".end_separation");
+  }
+  return so;
+}
+}  // namespace
+
+void check_fair_options(const json& fair, const std::string& path) { fair_options(fair, path, 0); }
+
+std::pair<BSplineCurve2, json> fair_points_json(const std::vector<Vec2>& P, const json& fair,
+                                                const std::string& path) {
+  const SpuriousInflectionOptions so = fair_options(fair, path, P.size());
+  SpuriousInflectionResult fr = fair_section_curve(P, so);
+  json report = {{"poles", so.fit.poles}, {"fairness", so.fit.fairness}, {"min_separation", so.min_separation},
+                 {"inflections_before", fr.inflections_before}, {"inflections", fr.inflections},
+                 {"inflection_s", fr.inflection_s}, {"rounds", fr.rounds}, {"done", fr.done},
+                 {"max_error", fr.max_error}, {"message", fr.message}};
+  return {std::move(fr.curve), std::move(report)};
+}
 
 json improve_strip_json(const json& request, double target_R) {
   if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
@@ -84,23 +114,9 @@ json improve_strip_json(const json& request, double target_R) {
   json fair_out = nullptr;
   BSplineCurve2 curve = [&]() -> BSplineCurve2 {
     if (curve_j.is_object() && curve_j.contains("points") && !curve_j.contains("bspline")) {
-      SpuriousInflectionOptions so;
-      const std::vector<Vec2> P = points(curve_j["points"]);
-      so.fit.poles = std::clamp(static_cast<int>(P.size()) / 4, 8, 24);
-      if (imp.contains("fair")) {
-        const json& f = imp["fair"];
-        only(f, "improve.fair", {"poles", "fairness", "min_separation", "end_separation"});
-        if (f.contains("poles")) so.fit.poles = integer(f["poles"], "improve.fair.poles", 6, 1000);
-        if (f.contains("fairness")) so.fit.fairness = number(f["fairness"], "improve.fair.fairness");
-        if (f.contains("min_separation")) so.min_separation = number(f["min_separation"], "improve.fair.min_separation");
-        if (f.contains("end_separation")) so.end_separation = number(f["end_separation"], "improve.fair.end_separation");
-      }
-      const SpuriousInflectionResult fr = fair_section_curve(P, so);
-      fair_out = {{"poles", so.fit.poles}, {"fairness", so.fit.fairness}, {"min_separation", so.min_separation},
-                  {"inflections_before", fr.inflections_before}, {"inflections", fr.inflections},
-                  {"inflection_s", fr.inflection_s}, {"rounds", fr.rounds}, {"done", fr.done},
-                  {"max_error", fr.max_error}, {"message", fr.message}};
-      return fr.curve;
+      auto [fitted, report] = fair_points_json(points(curve_j["points"]), imp.value("fair", json()), "improve.fair");
+      fair_out = std::move(report);
+      return std::move(fitted);
     }
     return parse_strip_curve(request);
   }();
