@@ -46,4 +46,33 @@ RodStability rod_stability(const DiscreteRodModel& m, const RodStabilityOptions&
   return out;
 }
 
+RodStability rod_stability_at_equilibrium(const DiscreteRodModel& m, const RodEquilibriumStabilityOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PARAFAB_VERIFY(o.max_distance > 0, "rod_stability_at_equilibrium: max_distance must be > 0, got " << o.max_distance);
+  const DiscreteRodResult r = simulate_discrete_rod(m, o.simulation);
+  double length = 0;
+  for (size_t i = 1; i < m.nodes.size(); ++i) length += (m.nodes[i] - m.nodes[i - 1]).norm();
+  const double distance = max_node_distance(r.nodes, m.nodes) / length;
+  RodStability out;
+  if (r.ok() && distance <= o.max_distance) {
+    DiscreteRodModel at = m;
+    at.nodes = r.nodes;
+    at.material_normal = r.material_normal;
+    out = rod_stability(at, o.hessian);
+  } else {
+    out.stable = false;
+    if (distance > o.max_distance)
+      out.message = "the discrete rod leaves the target: " +
+                    std::string(r.ok() ? "its equilibrium lies " : "the simulation, not converged, is ") +
+                    std::to_string(distance) + " of the length away (an unstable design)";
+    else
+      out.message = "the forward simulation from the target did not converge (" + r.message + ")";
+  }
+  out.method = "hessian_at_equilibrium";
+  out.equilibrium_distance = distance;
+  out.equilibrium_converged = r.ok();
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
 }  // namespace parafab

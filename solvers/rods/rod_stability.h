@@ -17,6 +17,14 @@ struct RodStabilityOptions {
   double zero_tolerance = 1e-12;
 };
 
+struct RodEquilibriumStabilityOptions {
+  RodStabilityOptions hessian;
+  DiscreteRodOptions simulation;
+  /// The discrete equilibrium counts as the design's when no node is farther than this ·
+  /// length from the target; otherwise the rod leaves the target and the verdict is unstable.
+  double max_distance = 1e-3;
+};
+
 struct RodStability {
   bool stable = false;         ///< no negative and no zero eigenvalue
   int negative = 0, zero = 0, positive = 0;
@@ -25,12 +33,24 @@ struct RodStability {
   /// min eigenvalue / max diagonal entry of the free Hessian (dimensionless indicator)
   double min_relative = NAN;
   double seconds = 0;
-  std::string method = "hessian";
+  std::string method = "hessian";  ///< "hessian" (at the target) or "hessian_at_equilibrium"
+  /// hessian_at_equilibrium: max node distance of the discrete equilibrium from the target / length
+  double equilibrium_distance = NAN;
+  bool equilibrium_converged = false;
   std::string message;
 };
 
 /// The Hessian at the model's state (its `nodes` and `material_normal`, e.g. the design's
 /// target). Throws parafab::Error for an invalid model.
 RodStability rod_stability(const DiscreteRodModel& model, const RodStabilityOptions& options = {});
+
+/// The verdict at the discrete equilibrium rather than at the target: Newton's method of
+/// simulate_discrete_rod (energy-decreasing, with Hessian shifts) started at the target finds
+/// the discrete rod's equilibrium; stable when it converges within `max_distance` · length of
+/// the target and the Hessian there has no negative or zero eigenvalue. Near a bifurcation the
+/// target's own Hessian can be barely positive while the rod leaves (helix at t = 1.5 t*), which
+/// this catches. Costs one forward simulation.
+RodStability rod_stability_at_equilibrium(const DiscreteRodModel& model,
+                                          const RodEquilibriumStabilityOptions& options = {});
 
 }  // namespace parafab

@@ -188,17 +188,27 @@ class HelixThroughJson(unittest.TestCase):
             st, sim = r["stability"], r["simulation"]
             print("\n[rod stability] factor %s: stable %s, %d negative, deviation/L %.2e"
                   % (r["section"]["factor"], st["stable"], st["negative"], sim["deviation"]), file=sys.stderr)
-            self.assertEqual(st["method"], "hessian")
+            self.assertEqual(st["method"], "hessian_at_equilibrium")
             self.assertEqual(st["zero"], 0)
+            at_target = parafab.design_rod(dict(req, stability_at="target"))["stability"]
+            self.assertEqual(at_target["method"], "hessian")
             if factor is None:
                 self.assertEqual(r["section"]["factor"], 4.0)
                 self.assertTrue(st["stable"])
+                self.assertTrue(at_target["stable"])
                 self.assertEqual(st["negative"], 0)
+                self.assertLess(st["equilibrium_distance"], 1e-4)
                 self.assertLess(sim["deviation"], 1e-4)
             else:
                 self.assertFalse(st["stable"])
-                self.assertGreater(st["negative"], 0)
+                self.assertFalse(at_target["stable"])
+                self.assertGreater(at_target["negative"], 0)
+                self.assertGreater(st["equilibrium_distance"], 0.01)  # the rod leaves the target
+                self.assertIn("leaves the target", st["message"])
                 self.assertGreater(sim["deviation"], 0.01)
+        with self.assertRaises(parafab.Error) as cm:
+            parafab.design_rod({"curve": {"points": helix_points()}, "stability_at": "middle"})
+        self.assertIn("stability_at", str(cm.exception))
         r = parafab.design_rod({"curve": {"points": helix_points()}, "stability": False})
         self.assertIsNone(r["stability"])
 

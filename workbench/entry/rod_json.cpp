@@ -166,6 +166,12 @@ json design_rod_json(const json& request) {
   // Stability (on by default): inertia of the discrete rod's Hessian at the design.
   const bool stability = optional_bool(request, "stability", "", true);
   const int stability_edges = optional_int(request, "stability_edges", "", 100, 8, 2000);
+  // Where the Hessian is taken: at the discrete rod's equilibrium found from the target
+  // (default; one forward simulation) or at the target itself (faster, blind near bifurcations).
+  const json at_j = request.value("stability_at", json("equilibrium"));
+  if (!(at_j == json("equilibrium") || at_j == json("target")))
+    PARAFAB_INPUT_ERROR("stability_at must be \"equilibrium\" or \"target\", got " << at_j.dump());
+  const bool stability_at_equilibrium = at_j == json("equilibrium");
 
   const BSplineCurve3 bspline = parse_curve(request);
   const SpaceCurve curve = bspline.space_curve();
@@ -262,8 +268,9 @@ json design_rod_json(const json& request) {
   }
   if (stability && d.ok()) {
     const DiscreteRodModel m = discrete_rod_model(d, curve, stability_edges, o.material, o.loads, true);
-    const RodStability st = rod_stability(m);
+    const RodStability st = stability_at_equilibrium ? rod_stability_at_equilibrium(m) : rod_stability(m);
     out["stability"] = {{"stable", st.stable},          {"method", st.method},
+                        {"equilibrium_distance", num(st.equilibrium_distance)},
                         {"negative", st.negative},      {"zero", st.zero},
                         {"free_dofs", st.free_dofs},    {"min_eigenvalue", num(st.min_eigenvalue)},
                         {"min_relative", num(st.min_relative)}, {"edges", stability_edges},

@@ -78,12 +78,16 @@ _PROPERTIES = (
     ("App::PropertyFloat", "Deviation", "Results",
      "Validate: max distance of the simulated rod from the curve / length (-1 when not simulated)", -1.0, _RO),
     ("App::PropertyString", "Stability", "Results",
-     "Stable or Unstable: inertia of the discrete rod's energy Hessian at the designed state "
-     "(thesis section 4.5.1 on the rod of section 5.7.4); empty when not designed", "", _RO),
+     "Stable or Unstable: inertia of the discrete rod's energy Hessian at its equilibrium near the "
+     "design (thesis section 4.5.1 on the rod of section 5.7.4); empty when not designed", "", _RO),
     ("App::PropertyInteger", "NegativeEigenvalues", "Results",
      "Number of negative eigenvalues of that Hessian (0 when stable)", 0, _RO),
     ("App::PropertyFloat", "MinRelativeEigenvalue", "Results",
-     "Smallest eigenvalue of that Hessian over its largest (near 0: close to buckling)", 0.0, _RO),
+     "Smallest eigenvalue of that Hessian over its largest diagonal entry (near 0: close to buckling; "
+     "0 when the rod leaves the target)", 0.0, _RO),
+    ("App::PropertyFloat", "EquilibriumDistance", "Results",
+     "Distance of the discrete rod's equilibrium, found from the target, to the target / length "
+     "(large: the rod leaves, unstable; -1 when not computed)", -1.0, _RO),
 )
 
 
@@ -157,6 +161,7 @@ class RodFeature(feature_proxy.FeatureProxy):
         obj.Stability = ""
         obj.NegativeEigenvalues = 0
         obj.MinRelativeEigenvalue = 0.0
+        obj.EquilibriumDistance = -1.0
         try:
             self._design(obj)
         except Exception as exc:
@@ -190,7 +195,11 @@ class RodFeature(feature_proxy.FeatureProxy):
         if stability:
             obj.Stability = "Stable" if stability["stable"] else "Unstable"
             obj.NegativeEigenvalues = int(stability["negative"])
-            obj.MinRelativeEigenvalue = float(stability["min_relative"])
+            # null when the rod leaves the target (no equilibrium near it to take the Hessian at)
+            mr = stability.get("min_relative")
+            obj.MinRelativeEigenvalue = float(mr) if mr is not None else 0.0
+            ed = stability.get("equilibrium_distance")
+            obj.EquilibriumDistance = float(ed) if ed is not None else -1.0
         obj.Shape = rod_shapes.rod_shape(result)
         obj.Feasible = True
         obj.Reason = ""
