@@ -12,6 +12,7 @@
 
 #include "common/error.h"
 #include "occt_shape.h"
+#include "face_lookup.h"
 #include "occt_mass_properties.h"
 #include "part_reader.h"
 
@@ -33,6 +34,14 @@ bool volume_matches(const GridModel& m, const PartShape& part, std::string& mess
   return false;
 }
 
+// The loads on `part`: total forces spread over the load face's area on this part.
+std::vector<xfem::TractionCondition> tractions_on(const PartShape& part, const ComplianceSetup& setup) {
+  std::vector<xfem::TractionCondition> t = setup.tractions;
+  for (size_t i = 0; i < t.size() && i < setup.forces.size(); ++i)
+    if (setup.forces[i].norm() > 0) t[i].traction = setup.forces[i] / face_area(part, t[i].face);
+  return t;
+}
+
 ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& model, const ComplianceSetup& setup) {
   ComplianceState s;
   s.part = std::move(part);
@@ -42,7 +51,8 @@ ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& mode
   }
   if (!volume_matches(model, *s.part, s.message)) return s;
   auto m = std::make_shared<GridModel>(std::move(model));
-  s.solution = xfem::solve_linear(m->elements, m->adjacent, setup.material, setup.dirichlet, setup.tractions, setup.solver);
+  s.tractions = tractions_on(*s.part, setup);
+  s.solution = xfem::solve_linear(m->elements, m->adjacent, setup.material, setup.dirichlet, s.tractions, setup.solver);
   s.model = std::move(m);
   if (!s.solution.solved) {
     s.message = "the linear XFEM solve failed: " + s.solution.message;
@@ -162,6 +172,7 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
   std::set<Cell> cells;
   const std::shared_ptr<const PartShape> parts[2] = {plus, minus};
   bool have[2] = {false, false};
+  std::vector<xfem::TractionCondition> side_tractions[2];
   for (int side = 0; side < 2; ++side) {
     if (!parts[side]) continue;
     RecutReport r;
@@ -172,6 +183,7 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
       continue;
     }
     have[side] = true;
+    side_tractions[side] = tractions_on(*parts[side], setup);
     const std::set<Cell> c = changed_cells(*at.model, models[side], r);
     cells.insert(c.begin(), c.end());
   }
@@ -179,6 +191,17 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
     d.message = "the perturbed models could not be cut: " + d.message;
     return d;
   }
+  // A load given as a total force has another traction on each side when its face's area
+  // changes: then every cell with a patch on that face changes its load, re-cut or not.
+  std::set<int> load_faces;
+  for (size_t i = 0; i < at.tractions.size(); ++i)
+    for (int side = 0; side < 2; ++side)
+      if (have[side] && side_tractions[side][i].traction != at.tractions[i].traction) load_faces.insert(at.tractions[i].face);
+  if (!load_faces.empty())
+    for (const xfem::GridElement& el : at.model->elements)
+      if (el.subvolume)
+        for (const xfem::CutPatch& p : el.subvolume->patches)
+          if (load_faces.count(p.source_face)) cells.insert(el.cell);
   const auto by_at = elements_by_cell(*at.model);
   std::map<Cell, std::vector<int>> by[2];
   for (int side = 0; side < 2; ++side)
@@ -228,7 +251,8 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
   tbb::parallel_for(size_t(0), items.size(), [&](size_t i) {
     const Item& it = items[i];
     const xfem::GridElement& el = it.side < 0 ? at.model->elements[it.element] : models[it.side].elements[it.element];
-    const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, setup.tractions, setup.solver);
+    const auto& tractions = it.side < 0 ? at.tractions : side_tractions[it.side];
+    const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
     const std::vector<int>& nodes = at.solution.node[it.base];
     Eigen::VectorXd ue(es.f.size());
     for (size_t a = 0; a < nodes.size(); ++a)

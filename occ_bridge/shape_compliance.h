@@ -22,7 +22,11 @@ struct PartShape;
 struct ComplianceSetup {
   xfem::ElasticMaterial material;
   std::vector<xfem::DirichletCondition> dirichlet;   ///< supports
-  std::vector<xfem::TractionCondition> tractions;    ///< loads (traction per area, kept fixed)
+  std::vector<xfem::TractionCondition> tractions;    ///< loads (traction per area)
+  /// Per load: a total force (then that load's traction is force / area of its face on every
+  /// model, as `parafab simulate` spreads a force) or zero (the traction above, kept fixed). With
+  /// a kept traction, a load face that shrinks lowers the total load and the compliance.
+  std::vector<xfem::Vec3> forces;
   xfem::LinearXfemOptions solver;
   GridModelOptions grid;  ///< grid.block_cells > 0 (the re-cut works block by block)
 };
@@ -33,8 +37,8 @@ struct ComplianceState {
   std::string message;
   std::shared_ptr<const PartShape> part;
   std::shared_ptr<const GridModel> model;
+  std::vector<xfem::TractionCondition> tractions;  ///< the loads on this part (forces spread over its faces)
   xfem::LinearXfemResult solution;
-  xfem::LinearSystem system;  ///< f (and K) of the solve; C = fᵀu
   double compliance = 0;
   bool recut_full = false;    ///< the re-cut fell back to a whole cut (same grid planes)
 };

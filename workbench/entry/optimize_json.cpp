@@ -49,8 +49,9 @@ occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, co
 
 // The elasticity job of the compliance objective, in the fields of the simulation job
 // (README "Simulation"): material {E, nu, density}, grid {cells, cell_size, block_cells,
-// method}, supports, loads (traction or force: a force becomes the traction force/area of the
-// load face at the start, kept fixed), gravity, nitsche_beta, element. Linear material only.
+// method}, supports, loads (a traction per area stays fixed; a total force stays fixed and is
+// spread over the load face of every model, as `parafab simulate` does), gravity, nitsche_beta,
+// element. Linear material only.
 std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShape& part, const json& job) {
   auto s = std::make_shared<occ::ComplianceSetup>();
   const json& m = fields::require(job, "material", "job (objective compliance)");
@@ -95,9 +96,17 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
     xfem::TractionCondition t;
     t.face = face_index(part, loads[i], path);
     if (loads[i].contains("traction")) t.traction = vec3(loads[i]["traction"], path + ".traction");
-    else if (loads[i].contains("force")) t.traction = vec3(loads[i]["force"], path + ".force") / occ::face_area(part, t.face);
-    else PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
+    xfem::Vec3 force = xfem::Vec3::Zero();
+    if (loads[i].contains("traction")) {
+      t.traction = vec3(loads[i]["traction"], path + ".traction");
+    } else if (loads[i].contains("force")) {  // the total force stays: spread over the face of every model
+      force = vec3(loads[i]["force"], path + ".force");
+      t.traction = force / occ::face_area(part, t.face);
+    } else {
+      PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
+    }
     s->tractions.push_back(t);
+    s->forces.push_back(force);
   }
   if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
   if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
