@@ -62,6 +62,7 @@ class Optimize(unittest.TestCase):
         self.assertEqual(sha(self.part), before)  # the original is never touched
         for key in ("initial_objective", "final_objective", "iterations", "parameters", "tangency_residual_max"):
             self.assertIn(key, h)
+        self.assertEqual(h["gradient"], "exact")  # mass properties: Hadamard boundary integrals
         self.assertLess(h["final_objective"], 0.5 * h["initial_objective"])
         self.assertGreaterEqual(len(h["iterations"]), 2)
         for it in h["iterations"]:
