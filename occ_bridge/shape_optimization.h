@@ -3,7 +3,8 @@
 // (Eq. 6.25-6.26, Ipopt), writes the valid model back into the B-rep (shape_modify.h), and
 // evaluates a mass-property objective with exact Hadamard shape derivatives
 // (shape_derivatives.h) chained through dp⊥/dp̃ (Eq. 6.29); L-BFGS with bounds drives it.
-// Objectives that need the elasticity solve (compliance, stress) are not implemented yet.
+// Compliance (§6.5.3) runs the linear XFEM solve on a grid fixed for the whole run, with a
+// semi-analytic gradient (shape_compliance.h); the stress objective is not implemented yet.
 #pragma once
 
 #include <Eigen/Core>
@@ -15,6 +16,7 @@
 #include "face_model.h"
 #include "optimize/lbfgs.h"
 #include "optimize/projection.h"
+#include "shape_compliance.h"
 #include "shape_derivatives.h"
 #include "shape_parameters.h"
 
@@ -26,6 +28,8 @@ struct PartShape;
 ///  "mass": ρV;  "volume": V;  "center_of_mass": |c⊥|², c⊥ the centre's offset from the axis;
 ///  "inertia_alignment": |I a − (aᵀ I a) a|² / (tr I)², I the inertia about the centre (the axis
 ///  a a principal axis); "balance": center_of_mass / L² + inertia_alignment (L: bbox diagonal).
+///  "compliance": fᵀu of the linear XFEM solve (ShapeOptimizationOptions::compliance; not a
+///  function of the moments: objective_from_moments rejects it).
 struct ObjectiveSpec {
   std::string type = "mass";
   double density = 1;
@@ -50,6 +54,15 @@ struct ShapeOptimizationOptions {
   /// Projection weight of the entries that are not design variables (design entries: 1), so
   /// that tangent neighbours follow a design change instead of pulling it back.
   double follower_weight = 1e-4;
+  /// The elasticity job of objective "compliance" (required for it, ignored otherwise). The grid
+  /// is cut once from the first evaluated model and every later model is re-cut on it (fixed
+  /// grid planes: the objective is continuous along line searches except where a cell changes
+  /// its number of subvolumes, or a small-cell aggregation / incompatible-mode threshold is
+  /// crossed; those discrete switches are frozen at the current model in the gradient).
+  std::shared_ptr<const ComplianceSetup> compliance;
+  /// Step of the semi-analytic compliance gradient: this × L (part diagonal) for lengths, this
+  /// for directions (normal/axis components, half-angles); each side projected like an iterate.
+  double compliance_step = 1e-4;
   optimize::LbfgsOptions lbfgs;
   optimize::ProjectionOptions projection;
   BoundaryQuadratureOptions quadrature;
@@ -77,6 +90,12 @@ struct ShapeOptimizationResult {
   double tangency_residual_max = 0;    ///< face model relations on the final part
   std::shared_ptr<const PartShape> part;  ///< the final valid model
   int evaluations = 0, invalid_models = 0, failed_projections = 0;
+  /// "exact" (Hadamard boundary integrals, mass-property objectives) or "semi-analytic"
+  /// (compliance: central differences of the changed cut cells' element matrices, contracted
+  /// with u; exact volume-penalty part).
+  std::string gradient = "exact";
+  int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
+  int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
   std::vector<std::string> notes;      ///< parameterization notes and first invalid-model message
   double seconds = 0;
 };

@@ -1,8 +1,8 @@
 """`parafab optimize` (CLI) and parafab.optimize (Python), issue 12: the wheel's centre of mass
 moved towards its axis on its own CAD parameters; outputs written (STEP read back, history,
 chart); the centre reported checked against OCCT's mass properties of the written STEP (via
-parafab.integrate); the input file untouched; cancel from the progress callback; objectives
-that need the elasticity solve give a clear not-implemented error (exit 2)."""
+parafab.integrate); the input file untouched; cancel from the progress callback; the stress objective gives a clear not-implemented error
+(exit 2), compliance without its elasticity job a clear error (tests/python/test_optimize_compliance.py)."""
 import hashlib
 import json
 import math
@@ -62,6 +62,7 @@ class Optimize(unittest.TestCase):
         self.assertEqual(sha(self.part), before)  # the original is never touched
         for key in ("initial_objective", "final_objective", "iterations", "parameters", "tangency_residual_max"):
             self.assertIn(key, h)
+        self.assertEqual(h["gradient"], "exact")  # mass properties: Hadamard boundary integrals
         self.assertLess(h["final_objective"], 0.5 * h["initial_objective"])
         self.assertGreaterEqual(len(h["iterations"]), 2)
         for it in h["iterations"]:
@@ -95,11 +96,15 @@ class Optimize(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(self.dir, "py", "optimized.step")))
 
     def test_not_implemented_objective_is_a_clear_error(self):
-        code, err = run(self.part, dict(JOB, objective={"type": "compliance"}), os.path.join(self.dir, "x"))
+        code, err = run(self.part, dict(JOB, objective={"type": "stress"}), os.path.join(self.dir, "x"))
         self.assertEqual(code, 2)
         text = json.dumps(err)
-        self.assertIn("compliance", text)
+        self.assertIn("stress", text)
         self.assertIn("not implemented yet", text)
+        # Compliance exists but needs the elasticity job.
+        code, err = run(self.part, dict(JOB, objective={"type": "compliance"}), os.path.join(self.dir, "z"))
+        self.assertEqual(code, 2)
+        self.assertIn("material", json.dumps(err))
         code, err = run(self.part, dict(JOB, parameters=[{"face": 0, "parameter": "nonsense"}]),
                         os.path.join(self.dir, "y"))
         self.assertEqual(code, 2)

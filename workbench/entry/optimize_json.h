@@ -1,6 +1,7 @@
 // The shape optimization job of `parafab optimize` / parafab.optimize (thesis §6.5): a part,
 // a JSON job (parameters, objective, constraints, max_iterations; supports/loads of the
-// simulation job fix their faces) and an output folder for optimized.step, history.json and
+// simulation job fix their faces; objective "compliance" also reads material, grid, supports,
+// loads and gravity like `parafab simulate`) and an output folder for optimized.step, history.json and
 // history.png. Format in README ("Shape optimization").
 #pragma once
 
@@ -17,7 +18,7 @@ using OptimizeProgressFn = std::function<bool(const nlohmann::json& iterate)>;
 /// Runs the optimization and returns the history JSON (also written to out_dir/history.json
 /// with out_dir/optimized.step and, when matplotlib is there, out_dir/history.png). Throws
 /// parafab::Error naming the offending job field (an objective that is not implemented yet,
-/// e.g. "compliance", included). The part file is only read.
+/// "stress", included). The part file is only read.
 nlohmann::json optimize_part_json(const std::string& part_path, const nlohmann::json& job,
                                   const std::string& out_dir, const OptimizeProgressFn& progress = {});
 

@@ -1,0 +1,269 @@
+// Compliance C = fᵀu and its semi-analytic shape derivative (thesis §6.5.3; the exact rule
+// derivatives of Eq. 6.30-6.31 are not implemented: dK and df are central differences of the
+// changed cut cells' element matrices, see shape_compliance.h).
+#include "shape_compliance.h"
+
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "common/error.h"
+#include "occt_shape.h"
+#include "face_lookup.h"
+#include "occt_mass_properties.h"
+#include "part_reader.h"
+
+namespace parafab::occ {
+
+namespace {
+
+// The rules of every element together must integrate the part's volume (OCCT's): a cut that
+// lost a piece (seen with the Boolean splitter on some perturbed bracket models, whole or
+// re-cut) is refused instead of giving a wrong compliance or difference.
+bool volume_matches(const GridModel& m, const PartShape& part, std::string& message) {
+  double v = 0;
+  for (const auto& e : m.elements)
+    for (double w : e.rule.weights) v += w;
+  const double ref = occt_mass_properties(part).volume;
+  if (std::abs(v - ref) <= 1e-6 * std::abs(ref)) return true;
+  message = "the grid cut's rules integrate a volume of " + std::to_string(v) + ", OCCT " + std::to_string(ref) +
+            " (a cell piece was lost)";
+  return false;
+}
+
+// The loads on `part`: total forces spread over the load face's area on this part.
+std::vector<xfem::TractionCondition> tractions_on(const PartShape& part, const ComplianceSetup& setup) {
+  std::vector<xfem::TractionCondition> t = setup.tractions;
+  for (size_t i = 0; i < t.size() && i < setup.forces.size(); ++i)
+    if (setup.forces[i].norm() > 0) t[i].traction = setup.forces[i] / face_area(part, t[i].face);
+  return t;
+}
+
+ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& model, const ComplianceSetup& setup) {
+  ComplianceState s;
+  s.part = std::move(part);
+  if (!model.done) {
+    s.message = "the grid cut failed: " + model.message;
+    return s;
+  }
+  if (!volume_matches(model, *s.part, s.message)) return s;
+  auto m = std::make_shared<GridModel>(std::move(model));
+  s.tractions = tractions_on(*s.part, setup);
+  s.solution = xfem::solve_linear(m->elements, m->adjacent, setup.material, setup.dirichlet, s.tractions, setup.solver);
+  s.model = std::move(m);
+  if (!s.solution.solved) {
+    s.message = "the linear XFEM solve failed: " + s.solution.message;
+    return s;
+  }
+  // energy = ½uᵀKu − fᵀu and Ku = f at the solution (also with aggregation: u = T u_r), so
+  // C = fᵀu = −2·energy.
+  s.compliance = -2 * s.solution.energy;
+  s.done = true;
+  s.message = "ok";
+  return s;
+}
+
+using Cell = std::array<int, 3>;
+
+std::map<Cell, std::vector<int>> elements_by_cell(const GridModel& m) {
+  std::map<Cell, std::vector<int>> by;
+  for (size_t e = 0; e < m.elements.size(); ++e) by[m.elements[e].cell].push_back(static_cast<int>(e));
+  return by;
+}
+
+// Rule centroid (box centre for an empty rule) and volume of an element.
+std::pair<xfem::Vec3, double> centroid(const xfem::GridElement& el) {
+  double w = 0;
+  xfem::Vec3 c = xfem::Vec3::Zero();
+  for (size_t i = 0; i < el.rule.points.size(); ++i) w += el.rule.weights[i], c += el.rule.weights[i] * el.rule.points[i];
+  if (std::abs(w) < 1e-300) return {0.5 * (el.box.min + el.box.max), 0.0};
+  return {c / w, w};
+}
+
+// The cells whose elements a re-cut (report r) may have changed: cells of new subvolumes and
+// of old subvolumes not kept; every cell with a cut element when the cut was redone whole.
+std::set<Cell> changed_cells(const GridModel& at, const GridModel& m, const RecutReport& r) {
+  std::set<Cell> cells;
+  const size_t at_first = at.elements.size() - at.cut->subvolumes.size();
+  const size_t m_first = m.elements.size() - m.cut->subvolumes.size();
+  if (r.full) {
+    for (size_t e = at_first; e < at.elements.size(); ++e) cells.insert(at.elements[e].cell);
+    for (size_t e = m_first; e < m.elements.size(); ++e) cells.insert(m.elements[e].cell);
+    return cells;
+  }
+  std::vector<char> kept(at.cut->subvolumes.size(), 0);
+  for (size_t s = 0; s < m.cut->subvolumes.size(); ++s) {
+    const int k = s < r.kept_from.size() ? r.kept_from[s] : -1;
+    if (k < 0) cells.insert(m.elements[m_first + s].cell);
+    else kept[k] = 1;
+  }
+  for (size_t s = 0; s < kept.size(); ++s)
+    if (!kept[s]) cells.insert(at.elements[at_first + s].cell);
+  return cells;
+}
+
+// For every element of `base` (in order), the element of `other` in the same cell with the
+// nearest centroid (greedy, each used once); empty if the counts differ.
+std::vector<int> match(const GridModel& at, const std::vector<int>& base, const GridModel& m, const std::vector<int>& other) {
+  if (base.size() != other.size()) return {};
+  std::vector<int> out;
+  std::vector<char> used(other.size(), 0);
+  for (int b : base) {
+    const xfem::Vec3 cb = centroid(at.elements[b]).first;
+    int best = -1;
+    double bd = 1e300;
+    for (size_t j = 0; j < other.size(); ++j) {
+      if (used[j]) continue;
+      const double d = (centroid(m.elements[other[j]]).first - cb).norm();
+      if (d < bd) bd = d, best = static_cast<int>(j);
+    }
+    used[best] = 1;
+    out.push_back(other[best]);
+  }
+  return out;
+}
+
+}  // namespace
+
+ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const ComplianceSetup& setup) {
+  PARAFAB_VERIFY(setup.grid.grid.block_cells > 0, "compliance: grid.block_cells must be > 0 (the re-cut works by blocks)");
+  PARAFAB_VERIFY(!setup.dirichlet.empty(), "compliance: the job needs supports");
+  // The grid of the whole run gets a margin of at least a quarter cell on every side, so that
+  // a part that grows a little stays inside it (leaving it forces a whole re-cut).
+  GridModelOptions go = setup.grid;
+  if (!go.grid.anchored) {
+    const PartInfo info = part_info(*part);
+    const xfem::Vec3 ext = info.bbox_max - info.bbox_min, mid = 0.5 * (info.bbox_max + info.bbox_min);
+    const double h = go.grid.cell_size > 0 ? go.grid.cell_size : ext.maxCoeff() / std::max(1, go.grid.cells_longest);
+    go.grid.cell_size = h;
+    go.grid.anchored = true;
+    for (int a = 0; a < 3; ++a) go.grid.origin[a] = mid[a] - 0.5 * h * std::ceil(ext[a] / h + 0.5);
+  }
+  GridModel m = build_grid_model(*part, go);
+  return solve_on(std::move(part), std::move(m), setup);
+}
+
+ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
+                              const ComplianceSetup& setup) {
+  PARAFAB_VERIFY(base.done && base.model, "compliance_at: the base state is not solved");
+  RecutReport r;
+  GridModel m = rebuild_grid_model(*part, *base.model, *base.part, setup.grid, &r);
+  ComplianceState s = solve_on(std::move(part), std::move(m), setup);
+  s.recut_full = r.full;
+  return s;
+}
+
+ComplianceDerivative compliance_derivative(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
+                                           std::shared_ptr<const PartShape> minus, double h,
+                                           const ComplianceSetup& setup) {
+  ComplianceDerivative d;
+  PARAFAB_VERIFY(at.done && at.model, "compliance_derivative: the state is not solved");
+  PARAFAB_VERIFY(h > 0, "compliance_derivative: step must be positive, got " << h);
+  if (!plus && !minus) {
+    d.message = "neither perturbed model exists";
+    return d;
+  }
+  // Both perturbed models on the grid of `at` (grid planes and, through the kept blocks, the
+  // fitting frames of every untouched cell fixed).
+  GridModel models[2];
+  std::set<Cell> cells;
+  const std::shared_ptr<const PartShape> parts[2] = {plus, minus};
+  bool have[2] = {false, false};
+  std::vector<xfem::TractionCondition> side_tractions[2];
+  for (int side = 0; side < 2; ++side) {
+    if (!parts[side]) continue;
+    RecutReport r;
+    models[side] = rebuild_grid_model(*parts[side], *at.model, *at.part, setup.grid, &r);
+    std::string why;
+    if (!models[side].done || !volume_matches(models[side], *parts[side], why)) {
+      d.message += (side ? "minus side: " : "plus side: ") + (models[side].done ? why : models[side].message) + "; ";
+      continue;
+    }
+    have[side] = true;
+    side_tractions[side] = tractions_on(*parts[side], setup);
+    const std::set<Cell> c = changed_cells(*at.model, models[side], r);
+    cells.insert(c.begin(), c.end());
+  }
+  if (!have[0] && !have[1]) {
+    d.message = "the perturbed models could not be cut: " + d.message;
+    return d;
+  }
+  // A load given as a total force has another traction on each side when its face's area
+  // changes: then every cell with a patch on that face changes its load, re-cut or not.
+  std::set<int> load_faces;
+  for (size_t i = 0; i < at.tractions.size(); ++i)
+    for (int side = 0; side < 2; ++side)
+      if (have[side] && side_tractions[side][i].traction != at.tractions[i].traction) load_faces.insert(at.tractions[i].face);
+  if (!load_faces.empty())
+    for (const xfem::GridElement& el : at.model->elements)
+      if (el.subvolume)
+        for (const xfem::CutPatch& p : el.subvolume->patches)
+          if (load_faces.count(p.source_face)) cells.insert(el.cell);
+  const auto by_at = elements_by_cell(*at.model);
+  std::map<Cell, std::vector<int>> by[2];
+  for (int side = 0; side < 2; ++side)
+    if (have[side]) by[side] = elements_by_cell(models[side]);
+  const std::vector<int> none;
+  auto list = [&](const std::map<Cell, std::vector<int>>& m, const Cell& c) -> const std::vector<int>& {
+    const auto it = m.find(c);
+    return it == m.end() ? none : it->second;
+  };
+  // Work items: (side, element of the perturbed model, element of `at` whose DOFs it uses, weight).
+  struct Item {
+    int side, element, base;
+    double weight;  ///< ±1/(2h) (central) or ±1/h (one-sided); side −1: the element of `at`
+  };
+  std::vector<Item> items;
+  for (const Cell& c : cells) {
+    const std::vector<int>& B = list(by_at, c);
+    std::vector<int> matched[2];
+    bool ok[2] = {false, false};
+    for (int side = 0; side < 2; ++side)
+      if (have[side]) {
+        const std::vector<int>& P = list(by[side], c);
+        ok[side] = P.size() == B.size();
+        if (ok[side]) matched[side] = match(*at.model, B, models[side], P);
+      }
+    if ((have[0] && !ok[0]) || (have[1] && !ok[1])) {
+      ++d.topology_switches;
+    }
+    if (B.empty()) continue;
+    ++d.cells_changed;
+    for (size_t i = 0; i < B.size(); ++i) {
+      if (ok[0] && ok[1]) {
+        items.push_back({0, matched[0][i], B[i], 1 / (2 * h)});
+        items.push_back({1, matched[1][i], B[i], -1 / (2 * h)});
+      } else if (ok[0]) {
+        items.push_back({0, matched[0][i], B[i], 1 / h});
+        items.push_back({-1, B[i], B[i], -1 / h});
+      } else if (ok[1]) {
+        items.push_back({-1, B[i], B[i], 1 / h});
+        items.push_back({1, matched[1][i], B[i], -1 / h});
+      }
+    }
+  }
+  // Each term: w·(2uₑ·fₑ − uₑᵀKₑuₑ) with uₑ the solution at the element's DOF nodes in `at`.
+  const Eigen::VectorXd& u = at.solution.u;
+  std::vector<double> terms(items.size(), 0.0);
+  tbb::parallel_for(size_t(0), items.size(), [&](size_t i) {
+    const Item& it = items[i];
+    const xfem::GridElement& el = it.side < 0 ? at.model->elements[it.element] : models[it.side].elements[it.element];
+    const auto& tractions = it.side < 0 ? at.tractions : side_tractions[it.side];
+    const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
+    const std::vector<int>& nodes = at.solution.node[it.base];
+    Eigen::VectorXd ue(es.f.size());
+    for (size_t a = 0; a < nodes.size(); ++a)
+      for (int c = 0; c < 3; ++c) ue[3 * a + c] = u[3 * nodes[a] + c];
+    terms[i] = it.weight * (2 * ue.dot(es.f) - ue.dot(es.K * ue));
+  });
+  for (double t : terms) d.derivative += t;  // in item order: deterministic
+  d.done = true;
+  d.one_sided = !(have[0] && have[1]);
+  d.message = d.message.empty() ? "ok" : d.message + "one-sided difference";
+  return d;
+}
+
+}  // namespace parafab::occ

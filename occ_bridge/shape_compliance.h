@@ -1,0 +1,76 @@
+// Compliance objective of shape optimization (thesis §6.5.3): C = fᵀu of the linear XFEM solve
+// (§6.4) on a grid that stays fixed during the optimization, and its derivative with respect
+// to a design direction. The derivative is SEMI-ANALYTIC, not the exact rule derivative of
+// Eq. 6.30-6.31: compliance is self-adjoint (dC = 2uᵀdf − uᵀdK u, the kept factorization is the
+// adjoint), and dK, df are central differences of the element matrices of only the cells that
+// the perturbed model's re-cut changes (recut_by_grid with the grid fixed), contracted with u.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "grid_model.h"
+#include "xfem/linear_xfem.h"
+
+namespace parafab::occ {
+
+struct PartShape;
+
+/// The elasticity job of the compliance objective: faces by index (the write-back keeps
+/// topology and face order, so indices stay valid on every modified part).
+struct ComplianceSetup {
+  xfem::ElasticMaterial material;
+  std::vector<xfem::DirichletCondition> dirichlet;   ///< supports
+  std::vector<xfem::TractionCondition> tractions;    ///< loads (traction per area)
+  /// Per load: a total force (then that load's traction is force / area of its face on every
+  /// model, as `parafab simulate` spreads a force) or zero (the traction above, kept fixed). With
+  /// a kept traction, a load face that shrinks lowers the total load and the compliance.
+  std::vector<xfem::Vec3> forces;
+  xfem::LinearXfemOptions solver;
+  GridModelOptions grid;  ///< grid.block_cells > 0 (the re-cut works block by block)
+};
+
+/// One evaluated model: the part, its grid model and the solution (with the kept factorization).
+struct ComplianceState {
+  bool done = false;
+  std::string message;
+  std::shared_ptr<const PartShape> part;
+  std::shared_ptr<const GridModel> model;
+  std::vector<xfem::TractionCondition> tractions;  ///< the loads on this part (forces spread over its faces)
+  xfem::LinearXfemResult solution;
+  double compliance = 0;
+  bool recut_full = false;    ///< the re-cut fell back to a whole cut (same grid planes)
+};
+
+/// The start: cuts `part` on a new grid (the grid of the whole optimization) and solves.
+ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const ComplianceSetup& setup);
+
+/// A modified part on the grid of `base` (re-cut from the base part: the objective depends on
+/// the part only, whatever the previous iterate was).
+ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
+                              const ComplianceSetup& setup);
+
+struct ComplianceDerivative {
+  bool done = false;
+  std::string message;
+  double derivative = 0;   ///< dC/ds along the perturbation (s: the step parameter)
+  int cells_changed = 0;   ///< cells whose elements were differenced
+  /// Cells where the perturbed models have another number of elements than `at` (a subvolume
+  /// appears, vanishes or a cell switches between cut and uncut): a discrete change of the
+  /// model. One-sided difference where one side matches; skipped where neither does.
+  int topology_switches = 0;
+  /// One perturbed model could not be used (projection, write-back or a cut whose rules miss
+  /// OCCT's volume): a one-sided difference (message says which side).
+  bool one_sided = false;
+};
+
+/// dC/ds at `at` from the models `plus` (s = +h) and `minus` (s = −h) of a perturbation:
+/// Σ_changed elements [2 uₑ·(fₑ⁺ − fₑ⁻) − uₑᵀ(Kₑ⁺ − Kₑ⁻)uₑ] / 2h, with aggregation and DOF
+/// numbering frozen at `at`. Each perturbed model is re-cut from `at` so that only the cells
+/// the perturbation touches are new. Either part may be null (then one-sided).
+ComplianceDerivative compliance_derivative(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
+                                           std::shared_ptr<const PartShape> minus, double h,
+                                           const ComplianceSetup& setup);
+
+}  // namespace parafab::occ
