@@ -332,6 +332,26 @@ TEST(FaceCut, SphereFallsBackToTheSplitterWithTheReason) {
   EXPECT_NE(g.fallback_reason.find("face route: face 0"), std::string::npos) << g.fallback_reason;
 }
 
+// The safety net in the simulation path: a part the face route cannot cut (the notched
+// sphere) is cut by the splitter, the grid model says so, and its rules hold OCCT's volume.
+TEST(FaceCut, GridModelFallsBackToTheSplitterAndSaysWhy) {
+  const auto part = posed("sphere", 17, 0.013);
+  GridModelOptions o;
+  o.grid.cells_longest = 6;
+  o.grid.method = CutMethod::FaceCut;
+  const GridModel m = build_grid_model(*part, o);
+  ASSERT_TRUE(m.done) << m.message;
+  EXPECT_EQ(m.cut->method, CutMethod::Splitter);
+  EXPECT_NE(m.cut->fallback_reason.find("face route"), std::string::npos) << m.cut->fallback_reason;
+  double v = 0;
+  for (const auto& e : m.elements)
+    for (double w : e.rule.weights) v += w;
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(part->shape, props, 1e-13);
+  std::printf("sphere by the splitter: volume error %.1e\n", std::abs(v / props.Mass() - 1));
+  EXPECT_NEAR(v, props.Mass(), 1e-9 * props.Mass());
+}
+
 // The simulation path: a grid model on the face route has the splitter model's elements and
 // adjacency, and its rules hold OCCT's volume.
 TEST(FaceCut, GridModelOnTheFaceRouteMatchesTheSplitterModel) {
