@@ -89,7 +89,40 @@ std::vector<xfem::BoundaryLoop> face_loops(const TopoDS_Face& face_in, const Gri
       const bool rev = e.Orientation() == TopAbs_REVERSED;
       const double ta = rev ? l : f, tb = rev ? f : l;
       if (loop.points.empty()) loop.points.push_back(eval2(pc, ta));
-      segments += append_pcurve(pc, ta, tb, o, tol, loop.points);
+      // The splitter's pcurves of plane ∩ surface edges are B-spline approximations of the
+      // exact 3D section curve (a conic for planes against cylinders, cones and spheres); their
+      // (u, v) are off by up to the edge tolerance, which moved subvolume moments by ~2e-9 of
+      // the cell volume. So the (u, v) of a point is its pcurve value refined by Gauss–Newton
+      // onto the 3D curve's point (same parameter: SameParameter edges).
+      double c0, c1;
+      Handle(Geom_Curve) c3 = BRep_Tool::Curve(e, c0, c1);
+      if (o.project_pcurves && !c3.IsNull() && BRep_Tool::SameParameter(e) && !BRep_Tool::Degenerated(e) &&
+          std::abs(c0 - f) < 1e-12 * (1 + std::abs(f)) && std::abs(c1 - l) < 1e-12 * (1 + std::abs(l))) {
+        const Handle(Geom_Surface) S = BRep_Tool::Surface(face);
+        auto at = [&](double t) {
+          const Vec2 uv0 = eval2(pc, t);
+          Vec2 uv = uv0;
+          const gp_Pnt P = c3->Value(t);
+          for (int it = 0; it < 4; ++it) {
+            gp_Pnt X;
+            gp_Vec du, dv;
+            S->D1(uv.x(), uv.y(), X, du, dv);
+            const gp_Vec r(X, P);
+            const double a = du.Dot(du), b = du.Dot(dv), c = dv.Dot(dv), det = a * c - b * b;
+            if (!(det > 1e-30 * (a * c + 1e-300))) break;
+            const double ru = du.Dot(r), rv = dv.Dot(r);
+            const Vec2 d((c * ru - b * rv) / det, (a * rv - b * ru) / det);
+            uv += d;
+            if (d.norm() < 1e-15 * (1 + uv.norm())) break;
+          }
+          // Near a pole or apex (u ill-conditioned) keep the pcurve's value.
+          return (uv - uv0).norm() <= 1e-6 * (u1 - u0 + v1 - v0) ? uv : uv0;
+        };
+        const bool straight = pc->DynamicType() == STANDARD_TYPE(Geom2d_Line);
+        segments += append_curve<Vec2>(at, ta, tb, straight, o, tol, loop.points);
+      } else {
+        segments += append_pcurve(pc, ta, tb, o, tol, loop.points);
+      }
     }
     if (loop.points.size() >= 3) {
       loop.points.back() = loop.points.front();  // close exactly (pcurve ends agree to tolerance)

@@ -47,6 +47,9 @@ struct GridOptions {
   int segment_order = 2;
   double segment_tolerance = 1e-8;
   int max_segments_per_edge = 4096;
+  /// Splitter route: the (u, v) of boundary points are the pcurve's refined onto the edge's 3D
+  /// curve (the splitter's pcurves approximate exact section curves to the edge tolerance).
+  bool project_pcurves = true;
   bool parallel = false;    ///< let OCCT's splitter use threads
   /// Two-level cutting: the part is first split into blocks of `block_cells`³ cells by every
   /// block_cells-th plane, then every block piece by its own planes; subvolumes meeting across
