@@ -729,6 +729,7 @@ class FaceCutter {
           end_crossing.push_back(static_cast<int>(crossings.size()));
           crossings.push_back({p.curve->at(ts[i]), ids[i]});
           crossings.back().tangent = tan;
+
           t = ts[i], n = ids[i];
         }
         subs.push_back({p.curve, t, p.t1, n, p.n1});
@@ -799,18 +800,9 @@ class FaceCutter {
       for (size_t i = 0; i < crossings.size(); ++i)
         if (crossings[i].component == static_cast<int>(j)) on.push_back(static_cast<int>(i));
       std::sort(on.begin(), on.end(), [&](int a, int b) { return crossings[a].s < crossings[b].s; });
-      if (on.size() % 2 != 0) {
-        std::ostringstream os;
-        os << "face " << index_ << ": odd number of crossings (" << on.size() << ") on a level curve of plane " << axis << "/" << k;
-        for (int i : on) os << " (" << crossings[i].uv.x() << ", " << crossings[i].uv.y() << ")";
-        if (comps[j]->type == LevelCurve::Traced)
-          os << "; traced " << comps[j]->traced->p.size() << " points from (" << comps[j]->traced->p.front().transpose() << ") to ("
-             << comps[j]->traced->p.back().transpose() << ")" << (comps[j]->closed() ? " closed" : "");
-        os << "; all crossings:";
-        for (const auto& c : crossings) os << " [" << c.uv.transpose() << " comp " << c.component << " s " << c.s << (c.enters ? " in" : " out") << "]";
-        os << "; components " << comps.size();
-        throw FaceFailure{os.str()};
-      }
+      if (on.size() % 2 != 0)
+        throw FaceFailure{"face " + std::to_string(index_) + ": odd number of crossings (" + std::to_string(on.size()) +
+                          ") on a level curve of plane " + std::to_string(axis) + "/" + std::to_string(k)};
       if (!on.empty() && comps[j]->closed() && !crossings[on[0]].enters) {  // start the pairs at an entry
         crossings[on[0]].s += comps[j]->period();
         std::rotate(on.begin(), on.begin() + 1, on.end());
@@ -836,10 +828,15 @@ class FaceCutter {
       for (size_t e = 0; e < runs[sd].size(); ++e)
         if (!starting.emplace(runs[sd][e].from, static_cast<int>(e)).second)
         {
-          std::ostringstream os;
-          os << "face " << index_ << ": two boundary pieces leave one crossing (plane " << axis << "/" << k << ", side " << sd << ")";
-          for (const auto& c : crossings) os << " [" << c.uv.transpose() << " comp " << c.component << " s " << c.s << (c.enters ? " in" : " out") << "]";
-          throw FaceFailure{os.str()};
+          // Two crossings at one point: the plane passes through a point where two earlier
+          // planes meet on the face, i.e. a grid vertex lies on the surface.
+          std::string why = "two boundary pieces leave one crossing";
+          for (size_t i = 0; i < crossings.size(); ++i)
+            for (size_t j = i + 1; j < crossings.size(); ++j)
+              if ((crossings[i].uv - crossings[j].uv).norm() <= 1e-9 * uv_scale_)
+                why = "grid plane " + std::to_string(axis) + "/" + std::to_string(k) +
+                      " passes through a point where two other grid planes meet the face (a grid vertex on the surface)";
+          throw FaceFailure{"face " + std::to_string(index_) + ": " + why};
         }
       std::vector<bool> used(runs[sd].size(), false);
       for (size_t e0 = 0; e0 < runs[sd].size(); ++e0) {
@@ -1401,8 +1398,9 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
         smp.kind = CutSample::OnEdge;
         smp.edge = e;
         smp.edge_param = ts[i];
-        for (int j = 0; j < 2; ++j)
-          if (!pcs[j].IsNull()) smp.on.push_back({ff[j], eval2(pcs[j], ts[i])});
+        for (int j = 0; j < 2; ++j)  // pcurve (u, v) refined onto the 3D point (pcurves approximate)
+          if (!pcs[j].IsNull())
+            smp.on.push_back({ff[j], refine_uv(surfaces[ff[j]], eval2(pcs[j], ts[i]), c3.Value(ts[i]), 1e-6 * (1 + eval2(pcs[j], ts[i]).norm()))});
         const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
         if (node >= 0 && (node & (3LL << 60)) == kVertexNode) smp.kind = CutSample::Vertex, smp.edge = static_cast<int>(node);
         else if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {

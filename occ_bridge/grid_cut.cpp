@@ -99,25 +99,7 @@ std::vector<xfem::BoundaryLoop> face_loops(const TopoDS_Face& face_in, const Gri
       if (o.project_pcurves && !c3.IsNull() && BRep_Tool::SameParameter(e) && !BRep_Tool::Degenerated(e) &&
           std::abs(c0 - f) < 1e-12 * (1 + std::abs(f)) && std::abs(c1 - l) < 1e-12 * (1 + std::abs(l))) {
         const Handle(Geom_Surface) S = BRep_Tool::Surface(face);
-        auto at = [&](double t) {
-          const Vec2 uv0 = eval2(pc, t);
-          Vec2 uv = uv0;
-          const gp_Pnt P = c3->Value(t);
-          for (int it = 0; it < 4; ++it) {
-            gp_Pnt X;
-            gp_Vec du, dv;
-            S->D1(uv.x(), uv.y(), X, du, dv);
-            const gp_Vec r(X, P);
-            const double a = du.Dot(du), b = du.Dot(dv), c = dv.Dot(dv), det = a * c - b * b;
-            if (!(det > 1e-30 * (a * c + 1e-300))) break;
-            const double ru = du.Dot(r), rv = dv.Dot(r);
-            const Vec2 d((c * ru - b * rv) / det, (a * rv - b * ru) / det);
-            uv += d;
-            if (d.norm() < 1e-15 * (1 + uv.norm())) break;
-          }
-          // Near a pole or apex (u ill-conditioned) keep the pcurve's value.
-          return (uv - uv0).norm() <= 1e-6 * (u1 - u0 + v1 - v0) ? uv : uv0;
-        };
+        auto at = [&](double t) { return detail::refine_uv(S, eval2(pc, t), c3->Value(t), 1e-6 * (u1 - u0 + v1 - v0)); };
         const bool straight = pc->DynamicType() == STANDARD_TYPE(Geom2d_Line);
         segments += append_curve<Vec2>(at, ta, tb, straight, o, tol, loop.points);
       } else {

@@ -284,8 +284,8 @@ TEST(FaceCut, CurvedPartsMatchTheSplitter) {
     for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
 }
 
-// Tori (the half torus; the housing's boss fillet) and, built here, a cone frustum, a sphere
-// with a flat cut and a B-spline face: the traced level curves of the generic path.
+// Tori (the half torus; the housing's boss fillet) and, built here, a cone frustum, a notched
+// sphere and a B-spline cylinder: the traced level curves of the generic path.
 TEST(FaceCut, ToriMatchTheSplitter) {
   for (const Case c : {Case{"half_torus", 6}, Case{"housing", 8}})
     for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kToric);
@@ -294,8 +294,12 @@ TEST(FaceCut, ToriMatchTheSplitter) {
 // Cones: turned 17°, the splitter misses two slivers of 1.8e-5
 // and 8.4e-6 of a cell that OCCT's per-cell Boolean confirms; then neighbouring subvolumes
 // and connections differ, so that pose is checked in ConeSliversTheSplitterMisses.
-TEST(FaceCut, ConesAndBSplinesMatchTheSplitter) {
+TEST(FaceCut, ConesAndSpheresMatchTheSplitter) {
   for (double deg : {0.0, 31.0}) expect_face_route_matches(Case{"cone", 6}, deg, deg == 0 ? 0 : 0.013, kCone);
+  for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(Case{"sphere", 7}, deg, deg == 0 ? 0 : 0.013, kToric);
+}
+
+TEST(FaceCut, BSplinesMatchTheSplitter) {
   for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(Case{"bspline_cylinder", 6}, deg, deg == 0 ? 0 : 0.013, kBSpline);
 }
 
@@ -322,8 +326,9 @@ TEST(FaceCut, ConeSliversTheSplitterMisses) {
   EXPECT_EQ(face.cut_cells.size(), ref.cut_cells.size() + 2);
 }
 
-// A full sphere with a notch: the face route does not handle it yet (two crossings of a plane
-// with a cell's boundary coincide); the cut falls back to the splitter and says why.
+// The notched sphere on 6 cells: the grid is centred on the sphere and R = 3h, so grid vertices
+// at (±2, ±2, ±1)h from the centre lie on the sphere (2² + 2² + 1² = 3²). The face route
+// refuses (three planes meeting on the surface) and the part is cut by the splitter, with the reason.
 TEST(FaceCut, SphereFallsBackToTheSplitterWithTheReason) {
   const auto part = posed("sphere", 17, 0.013);
   GridOptions o;
@@ -332,11 +337,11 @@ TEST(FaceCut, SphereFallsBackToTheSplitterWithTheReason) {
   const GridCut g = cut_by_grid(*part, o);
   ASSERT_TRUE(g.done) << g.message;
   EXPECT_EQ(g.method, CutMethod::Splitter);
-  EXPECT_NE(g.fallback_reason.find("face route: face 0"), std::string::npos) << g.fallback_reason;
+  EXPECT_NE(g.fallback_reason.find("a grid vertex on the surface"), std::string::npos) << g.fallback_reason;
 }
 
 // The safety net in the simulation path: a part the face route cannot cut (the notched
-// sphere) is cut by the splitter, the grid model says so, and its rules hold OCCT's volume.
+// sphere with grid vertices on it, above) is cut by the splitter, the grid model says so, and its rules hold OCCT's volume.
 TEST(FaceCut, GridModelFallsBackToTheSplitterAndSaysWhy) {
   const auto part = posed("sphere", 17, 0.013);
   GridModelOptions o;
