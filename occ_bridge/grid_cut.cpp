@@ -493,7 +493,26 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     GridCut f = g;
     f.block_cells = 0;  // no blocks: re-cutting a face-route cut cuts it again whole
     f.method = CutMethod::FaceCut;
-    if (detail::cut_by_faces(part, o, f)) {
+    // With `nurbs`, the face route cuts the NURBS-converted faces (the generic traced path), so
+    // its patches are pieces of the face model's NURBS as on the splitter route.
+    std::shared_ptr<const PartShape> converted;
+    bool ok = true;
+    if (o.nurbs) {
+      try {
+        BRepBuilderAPI_NurbsConvert convert(part.shape, true);
+        converted = make_part(convert.Shape(), "NURBS");
+        for (int i = 0; i < part.face_count() && ok; ++i)
+          ok = converted->face_count() == part.face_count() && convert.ModifiedShape(part.face(i)).IsSame(converted->face(i));
+        if (!ok) f.message = "face route: the NURBS conversion renumbered the faces";
+      } catch (const Standard_Failure& e) {
+        ok = false;
+        f.message = std::string("face route: conversion of the faces to NURBS failed: ") + e.GetMessageString();
+      } catch (const std::exception& e) {
+        ok = false;
+        f.message = std::string("face route: the NURBS-converted part is invalid: ") + e.what();
+      }
+    }
+    if (ok && detail::cut_by_faces(converted ? *converted : part, o, f)) {
       f.split_seconds = seconds_since(t0);
       f.done = true;
       return f;
