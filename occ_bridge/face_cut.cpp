@@ -1,6 +1,7 @@
 // Cut by face (thesis §6.3, Fig. 6.12): every B-rep face is split in its own (u, v) by the
 // grid planes crossing its box, with the plane ∩ surface curves in closed form (planes: lines,
-// cylinders: v(u) graphs or u(v) branches), its trimming loops split where the edges cross the
+// cylinders: v(u) graphs or u(v) branches) or, on any other surface, traced in (u, v) (Newton
+// onto X_a = q; closed islands from the interior extrema of X_a), its trimming loops split where the edges cross the
 // planes (roots on the edges' 3D curves, so both faces of an edge agree). The cells' grid faces
 // are built from the same curves and the cell-face squares; subvolumes are the connected
 // components of a cell's patches (shared boundary points). Cells no face reaches are classified

@@ -3,7 +3,8 @@
 // trimmed B-rep face pieces and planar regions on the cell's faces, all as plain data
 // (xfem::Subvolume) for the quadrature. Two routes: OCCT's Boolean splitter on the whole solid
 // (reference), or the face route (§6.3, Fig. 6.12): every face's trimming loops are split in
-// its (u, v) by the closed-form curves where the grid planes meet its surface, the cells' grid
+// its (u, v) by the curves where the grid planes meet its surface (closed forms for planes
+// and cylinders, traced level curves for any other surface), the cells' grid
 // faces are built from those curves, and every intersection point keeps its class and its
 // (u, v) on each surface it lies on (for the shape derivatives of §6.5.3).
 #pragma once
@@ -18,9 +19,9 @@ namespace parafab::occ {
 
 struct PartShape;  // occ_bridge/occt_shape.h
 
-/// How the part is cut. FaceCut: per face, closed-form plane ∩ surface curves in (u, v)
-/// (planes and cylinders; other faces fall back to Splitter with the reason in
-/// GridCut::fallback_reason). Splitter: OCCT's Boolean splitter on the solid (the reference).
+/// How the part is cut. FaceCut: per face, plane ∩ surface curves in (u, v) (closed forms for
+/// planes and cylinders, traced for any other surface); if it fails, Splitter with the reason
+/// in GridCut::fallback_reason. Splitter: OCCT's Boolean splitter on the solid (the reference).
 enum class CutMethod { Splitter, FaceCut };
 
 struct GridOptions {

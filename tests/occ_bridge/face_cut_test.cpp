@@ -357,7 +357,7 @@ TEST(FaceCut, GridModelFallsBackToTheSplitterAndSaysWhy) {
   GProp_GProps props;
   BRepGProp::VolumeProperties(part->shape, props, 1e-13);
   std::printf("sphere by the splitter: volume error %.1e\n", std::abs(v / props.Mass() - 1));
-  EXPECT_NEAR(v, props.Mass(), 1e-9 * props.Mass());
+  EXPECT_NEAR(v, props.Mass(), 1e-12 * props.Mass());  // measured 3.1e-13
 }
 
 // The simulation path: a grid model on the face route has the splitter model's elements and
