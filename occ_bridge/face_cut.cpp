@@ -140,6 +140,17 @@ struct TracedLevel {
     project(uv, scale);
     return uv;
   }
+  // Distance from uv to the traced polyline (a cheap bound: the curve lies within a chord's
+  // sagitta, < 1 % of the step, of it).
+  double polyline_distance(const Vec2& uv) const {
+    double best = 1e300;
+    for (size_t i = 0; i + 1 < p.size(); ++i) {
+      const Vec2 d = p[i + 1] - p[i];
+      const double r = std::clamp((uv - p[i]).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (p[i] + r * d - uv).norm());
+    }
+    return best;
+  }
   // The parameter of the point of the curve nearest to uv.
   double param(const Vec2& uv, double scale) const {
     double best = 1e300, sb = 0;
@@ -189,6 +200,10 @@ class LevelCurve : public UvCurve {
   bool straight() const override { return type == Line || (type == Branch && d == 0); }
   bool closed() const { return type == Traced && traced->closed; }
   double period() const { return traced->length(); }
+  /// False if uv is certainly not on the curve (far from a traced curve's polyline).
+  bool may_hold(const Vec2& uv) const {
+    return type != Traced || traced->polyline_distance(uv) <= 0.05 * scale / 48 + 1e-6 * (1 + uv.norm());
+  }
   double param(const Vec2& uv) const {
     switch (type) {
       case Line: return (uv - p0).dot(dir);
@@ -616,6 +631,7 @@ class FaceCutter {
       for (const Vec2& uv : through) {
         bool found = false;
         for (const auto& c : known) {
+          if (!c->may_hold(uv)) continue;
           const double dist = (c->at(c->param(uv)) - uv).norm();
           if (dist <= 1e-6 * (1 + uv.norm())) {
             found = true;
@@ -759,7 +775,8 @@ class FaceCutter {
     if (type_ != GeomAbs_Plane && type_ != GeomAbs_Cylinder)
       for (const auto& isl : islands(axis, k)) {
         bool crossed = false;
-        for (const Crossing& c : crossings) crossed |= (isl->at(isl->param(c.uv)) - c.uv).norm() <= 1e-6 * (1 + c.uv.norm());
+        for (const Crossing& c : crossings)
+          crossed |= isl->may_hold(c.uv) && (isl->at(isl->param(c.uv)) - c.uv).norm() <= 1e-6 * (1 + c.uv.norm());
         if (crossed) continue;
         const Vec2 x = isl->at(0);
         int w = 0;
@@ -784,6 +801,7 @@ class FaceCutter {
       Crossing& c = crossings[i];
       double best = 1e300;
       for (size_t j = 0; j < comps.size(); ++j) {
+        if (!comps[j]->may_hold(c.uv)) continue;
         const double s = comps[j]->param(c.uv);
         const double dist = (comps[j]->at(s) - c.uv).norm();
         if (dist < best) best = dist, c.component = static_cast<int>(j), c.s = s;
