@@ -1,6 +1,7 @@
 // Cut by face (thesis §6.3, Fig. 6.12): every B-rep face is split in its own (u, v) by the
 // grid planes crossing its box, with the plane ∩ surface curves in closed form (planes: lines,
-// cylinders: v(u) graphs or u(v) branches), its trimming loops split where the edges cross the
+// cylinders: v(u) graphs or u(v) branches) or, on any other surface, traced in (u, v) (Newton
+// onto X_a = q; closed islands from the interior extrema of X_a), its trimming loops split where the edges cross the
 // planes (roots on the edges' 3D curves, so both faces of an edge agree). The cells' grid faces
 // are built from the same curves and the cell-face squares; subvolumes are the connected
 // components of a cell's patches (shared boundary points). Cells no face reaches are classified
@@ -81,16 +82,108 @@ class PCurve : public UvCurve {
   bool straight_ = false;
 };
 
-// Where grid plane X_axis = q meets a face's surface, in the face's (u, v), in closed form.
+// A component of {X_axis = q} on a surface of any type, traced in (u, v) (predictor along the
+// level tangent, Newton corrector onto the level set): points, unit tangents and chord-length
+// parameter. Evaluation between points is a cubic Hermite in (u, v) projected back onto the
+// level set, so every point handed out lies on the plane to round-off.
+struct TracedLevel {
+  Handle(Geom_Surface) surface;
+  int axis = 0;
+  double q = 0;
+  std::vector<Vec2> p, t;
+  std::vector<double> s;
+  bool closed = false;
+  double length() const { return s.back(); }
+
+  // f − q and its (u, v) gradient.
+  double value(const Vec2& uv, Vec2* grad = nullptr) const {
+    gp_Pnt X;
+    gp_Vec du, dv;
+    surface->D1(uv.x(), uv.y(), X, du, dv);
+    if (grad) *grad = Vec2(du.Coord(axis + 1), dv.Coord(axis + 1));
+    return X.Coord(axis + 1) - q;
+  }
+  // Newton steps along the gradient onto f = q. False if it does not converge.
+  bool project(Vec2& uv, double scale) const {
+    for (int it = 0; it < 12; ++it) {
+      Vec2 g;
+      const double f = value(uv, &g);
+      const double g2 = g.squaredNorm();
+      if (!(g2 > 0)) return false;
+      const Vec2 d = -f * g / g2;
+      uv += d;
+      if (d.norm() <= 1e-15 * scale) return true;
+    }
+    Vec2 g;
+    return std::abs(value(uv, &g)) <= 1e-12 * (1 + std::abs(q)) && g.squaredNorm() > 0;
+  }
+  Vec2 tangent(const Vec2& uv) const {
+    Vec2 g;
+    value(uv, &g);
+    return Vec2(-g.y(), g.x()).normalized();
+  }
+  double wrap(double x) const {
+    if (!closed) return x;
+    const double L = length();
+    x = std::fmod(x, L);
+    return x < 0 ? x + L : x;
+  }
+  Vec2 at(double x, double scale) const {
+    x = wrap(x);
+    const int n = static_cast<int>(p.size());
+    int i = static_cast<int>(std::upper_bound(s.begin(), s.end(), x) - s.begin()) - 1;
+    i = std::clamp(i, 0, n - 2);
+    const double h = s[i + 1] - s[i], r = (x - s[i]) / h;
+    const double h00 = (1 + 2 * r) * (1 - r) * (1 - r), h10 = r * (1 - r) * (1 - r), h01 = r * r * (3 - 2 * r),
+                 h11 = r * r * (r - 1);
+    Vec2 uv = h00 * p[i] + h10 * h * t[i] + h01 * p[i + 1] + h11 * h * t[i + 1];
+    project(uv, scale);
+    return uv;
+  }
+  // Distance from uv to the traced polyline (a cheap bound: the curve lies within a chord's
+  // sagitta, < 1 % of the step, of it).
+  double polyline_distance(const Vec2& uv) const {
+    double best = 1e300;
+    for (size_t i = 0; i + 1 < p.size(); ++i) {
+      const Vec2 d = p[i + 1] - p[i];
+      const double r = std::clamp((uv - p[i]).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (p[i] + r * d - uv).norm());
+    }
+    return best;
+  }
+  // The parameter of the point of the curve nearest to uv.
+  double param(const Vec2& uv, double scale) const {
+    double best = 1e300, sb = 0;
+    for (size_t i = 0; i + 1 < p.size(); ++i) {
+      const Vec2 d = p[i + 1] - p[i];
+      const double r = std::clamp((uv - p[i]).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      const double dist = (p[i] + r * d - uv).norm();
+      if (dist < best) best = dist, sb = s[i] + r * (s[i + 1] - s[i]);
+    }
+    for (int it = 0; it < 8; ++it) {  // Newton on the foot point
+      const double e = 1e-6 * length();
+      const Vec2 c = at(sb, scale), tg = (at(sb + e, scale) - at(sb - e, scale)) / (2 * e);
+      const double ds = (uv - c).dot(tg) / std::max(tg.squaredNorm(), 1e-300);
+      sb += ds;
+      if (std::abs(ds) <= 1e-15 * (1 + length())) break;
+    }
+    return closed ? wrap(sb) : sb;
+  }
+};
+
+// Where grid plane X_axis = q meets a face's surface, in the face's (u, v).
 //   Line (plane face): uv = p0 + s·dir.
 //   Graph (cylinder, axis not ⟂ e_axis): uv = (s, (c − A cos(s − φ)) / d).
 //   Branch (cylinder, axis ⟂ or nearly ⟂ e_axis): uv = (φ + sgn·acos((c − s·d)/A) + off, s).
+//   Traced (any other surface: cones, spheres, tori, B-splines, ...): TracedLevel.
 class LevelCurve : public UvCurve {
  public:
-  enum Type { Line, Graph, Branch } type = Line;
+  enum Type { Line, Graph, Branch, Traced } type = Line;
   Vec2 p0{0, 0}, dir{1, 0};
   double c = 0, A = 0, phi = 0, d = 0, sgn = 1, off = 0;
   int face = -1, axis = -1, plane = -1;  // plane: index k (1..cells−1), coordinate planes[axis][k−1]
+  std::shared_ptr<const TracedLevel> traced;
+  double scale = 1;  ///< the face's (u, v) extent (Traced)
 
   Vec2 at(double s) const override {
     switch (type) {
@@ -100,15 +193,23 @@ class LevelCurve : public UvCurve {
         const double x = std::clamp((c - s * d) / A, -1.0, 1.0);
         return Vec2(phi + sgn * std::acos(x) + off, s);
       }
+      case Traced: return traced->at(s, scale);
     }
     return p0;
   }
   bool straight() const override { return type == Line || (type == Branch && d == 0); }
+  bool closed() const { return type == Traced && traced->closed; }
+  double period() const { return traced->length(); }
+  /// False if uv is certainly not on the curve (far from a traced curve's polyline).
+  bool may_hold(const Vec2& uv) const {
+    return type != Traced || traced->polyline_distance(uv) <= 0.05 * scale / 48 + 1e-6 * (1 + uv.norm());
+  }
   double param(const Vec2& uv) const {
     switch (type) {
       case Line: return (uv - p0).dot(dir);
       case Graph: return uv.x();
       case Branch: return uv.y();
+      case Traced: return traced->param(uv, scale);
     }
     return 0;
   }
@@ -240,16 +341,13 @@ class FaceCutter {
     type_ = ad.GetType();
     if (type_ == GeomAbs_Plane) pln_ = ad.Plane();
     else if (type_ == GeomAbs_Cylinder) cyl_ = ad.Cylinder();
-    else {
-      static const char* names[] = {"plane", "cylinder", "cone", "sphere", "torus", "Bezier", "B-spline",
-                                    "revolution", "extrusion", "offset", "other"};
-      throw FaceFailure{"face " + std::to_string(face) + " is a " + names[std::min<int>(type_, 10)] +
-                        " (the face route cuts planes and cylinders)"};
-    }
+    BRepTools::UVBounds(face_, uv0_[0], uv1_[0], uv0_[1], uv1_[1]);
+    uv_scale_ = std::max(uv1_[0] - uv0_[0], uv1_[1] - uv0_[1]);
   }
 
   std::vector<FacePatch> cut() {
     Region whole = loops();
+    for (const Loop& l : whole) face_polys_.push_back(polyline(l));
     Bnd_Box bb;
     BRepBndLib::Add(face_, bb, false);
     double lo[3], hi[3];
@@ -299,7 +397,6 @@ class FaceCutter {
       Loop loop;
       for (BRepTools_WireExplorer ex(TopoDS::Wire(wires.Current()), face_); ex.More(); ex.Next()) {
         const TopoDS_Edge& e = ex.Current();
-        if (BRep_Tool::Degenerated(e)) throw FaceFailure{"face " + std::to_string(index_) + " has a degenerated edge"};
         double f, l;
         Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(e, face_, f, l);
         if (pc.IsNull()) throw FaceFailure{"an edge of face " + std::to_string(index_) + " has no pcurve"};
@@ -325,6 +422,8 @@ class FaceCutter {
     auto it = edge_roots_.find(key);
     if (it != edge_roots_.end()) return it->second;
     const TopoDS_Edge& e = edges_.at(edge);
+    if (BRep_Tool::Degenerated(e))  // a pole or apex: a vertex, which no grid plane passes through
+      return edge_roots_.emplace(key, std::vector<double>{}).first->second;
     BRepAdaptor_Curve c(TopoDS::Edge(e.Oriented(TopAbs_FORWARD)));
     double f, l;
     BRep_Tool::Range(e, f, l);
@@ -344,8 +443,182 @@ class FaceCutter {
     return Vec2(du.Coord(axis + 1), dv.Coord(axis + 1));
   }
 
-  // The components of {X_axis = q} on the surface, in (u, v).
-  std::vector<std::shared_ptr<LevelCurve>> level_curves(int axis, int k) const {
+  // Traces the component of {X_axis = q} through `seed` (projected onto it) across the face's
+  // (u, v) box and a margin, or around until it closes. Null if the tracing fails.
+  std::shared_ptr<TracedLevel> trace(int axis, double q, Vec2 seed) const {
+    auto L = std::make_shared<TracedLevel>();
+    L->surface = surface_, L->axis = axis, L->q = q;
+    const double scale = uv_scale_;
+    if (!L->project(seed, scale)) return nullptr;
+    const double margin = 1e-3 * scale;
+    auto outside = [&](const Vec2& x) {
+      return x.x() < uv0_[0] - margin || x.x() > uv1_[0] + margin || x.y() < uv0_[1] - margin || x.y() > uv1_[1] + margin;
+    };
+    const double h_max = scale / 48, h_min = 1e-10 * scale;
+    // One direction (sgn ±1) from the seed: points until the curve leaves the box or closes.
+    auto march = [&](double sgn, std::vector<Vec2>& pts, bool& closed) {
+      pts = {seed};
+      closed = false;
+      Vec2 x = seed, tx = L->tangent(seed);
+      double h = h_max / 4;
+      for (int step = 0; step < 200000; ++step) {
+        Vec2 y = x + sgn * h * tx;
+        const bool ok = L->project(y, scale);
+        const Vec2 ty = ok ? L->tangent(y) : Vec2(0, 0);
+        const double cosang = tx.dot(ty);
+        if (!ok || cosang < std::cos(0.08) || (y - x).norm() > 1.5 * h) {
+          h *= 0.5;
+          if (h < h_min) return false;
+          continue;
+        }
+        // Closed: the step passes over the seed (which lies on the curve).
+        if (pts.size() > 3) {
+          const Vec2 d = y - x;
+          const double r = (seed - x).dot(d) / d.squaredNorm();
+          if (r > 0 && r <= 1 && (x + r * d - seed).norm() < 0.05 * d.norm()) {
+            pts.push_back(seed);
+            closed = true;
+            return true;
+          }
+        }
+        pts.push_back(y);
+        x = y, tx = ty;
+        if (outside(y)) return true;
+        if (cosang > std::cos(0.03)) h = std::min(1.5 * h, h_max);
+      }
+      return false;
+    };
+    std::vector<Vec2> fwd, bwd;
+    bool closed = false, closed_b = false;
+    if (!march(1, fwd, closed)) return nullptr;
+    std::vector<Vec2> pts;
+    if (closed) pts = std::move(fwd);
+    else {
+      if (!march(-1, bwd, closed_b) || closed_b) return nullptr;
+      pts.assign(bwd.rbegin(), bwd.rend());
+      pts.insert(pts.end(), fwd.begin() + 1, fwd.end());
+    }
+    L->closed = closed;
+    L->p = pts;
+    L->s.push_back(0);
+    for (size_t i = 0; i < pts.size(); ++i) {
+      L->t.push_back(L->tangent(pts[i]));
+      if (i > 0) L->s.push_back(L->s.back() + (pts[i] - pts[i - 1]).norm());
+    }
+    return L;
+  }
+
+  // Interior local extrema of X_axis on the face (grid samples inside the face, refined by
+  // Newton on the gradient): where closed level curves (islands) can lie.
+  struct Extremum {
+    Vec2 uv;
+    double f;
+    bool max;
+  };
+  const std::vector<Extremum>& extrema(int axis) {
+    auto it = extrema_.find(axis);
+    if (it != extrema_.end()) return it->second;
+    std::vector<Extremum> out;
+    const int N = 40;
+    std::vector<double> f((N + 1) * (N + 1));
+    auto uv_at = [&](int i, int j) {
+      return Vec2(uv0_[0] + (uv1_[0] - uv0_[0]) * i / N, uv0_[1] + (uv1_[1] - uv0_[1]) * j / N);
+    };
+    for (int i = 0; i <= N; ++i)
+      for (int j = 0; j <= N; ++j) {
+        const Vec2 uv = uv_at(i, j);
+        f[i * (N + 1) + j] = surface_->Value(uv.x(), uv.y()).Coord(axis + 1);
+      }
+    for (int i = 1; i < N; ++i)
+      for (int j = 1; j < N; ++j) {
+        const double c = f[i * (N + 1) + j];
+        bool is_max = true, is_min = true;
+        for (int di = -1; di <= 1; ++di)
+          for (int dj = -1; dj <= 1; ++dj) {
+            if (!di && !dj) continue;
+            const double o = f[(i + di) * (N + 1) + j + dj];
+            is_max &= c > o, is_min &= c < o;
+          }
+        if (!is_max && !is_min) continue;
+        Vec2 uv = uv_at(i, j);
+        for (int iter = 0; iter < 30; ++iter) {  // Newton on ∇f = 0
+          gp_Pnt X;
+          gp_Vec du, dv, duu, dvv, duv;
+          surface_->D2(uv.x(), uv.y(), X, du, dv, duu, dvv, duv);
+          const Vec2 g(du.Coord(axis + 1), dv.Coord(axis + 1));
+          const double a = duu.Coord(axis + 1), b = duv.Coord(axis + 1), c2 = dvv.Coord(axis + 1), det = a * c2 - b * b;
+          const Vec2 d = -Vec2(c2 * g.x() - b * g.y(), a * g.y() - b * g.x()) / det;
+          if (!d.allFinite()) break;
+          uv += d;
+          if (d.norm() < 1e-14 * uv_scale_) break;
+        }
+        int w = 0;
+        for (const auto& poly : face_polys_) w += winding(poly, uv);
+        if (w == 0) continue;  // outside the face (or on its boundary)
+        bool dup = false;
+        for (const Extremum& e : out) dup |= (e.uv - uv).norm() < 1e-9 * uv_scale_;
+        if (!dup) out.push_back({uv, surface_->Value(uv.x(), uv.y()).Coord(axis + 1), is_max});
+      }
+    return extrema_.emplace(axis, std::move(out)).first->second;
+  }
+
+  // Closed components of {X_axis = q} inside the face that its boundary does not cross: one
+  // around each interior extremum beyond q, seeded by walking up or down the gradient to q.
+  const std::vector<std::shared_ptr<LevelCurve>>& islands(int axis, int k) {
+    auto found = islands_.find({axis, k});
+    if (found != islands_.end()) return found->second;
+    std::vector<std::shared_ptr<LevelCurve>> out;
+    const double q = plane_coord(axis, k);
+    // The face boundary's crossings with the plane (an island touches none).
+    std::vector<Vec2> boundary;
+    for (const auto& poly : face_polys_)
+      for (size_t i = 0; i < poly.size(); ++i) {
+        const Vec2 &a = poly[i], &b = poly[(i + 1) % poly.size()];
+        const double fa = level_value(a, axis, q), fb = level_value(b, axis, q);
+        if ((fa < 0) != (fb < 0)) boundary.push_back(a + fa / (fa - fb) * (b - a));
+      }
+    for (const Extremum& e : extrema(axis)) {
+      if (e.max ? e.f <= q : e.f >= q) continue;
+      // Walk from the extremum towards q along the gradient.
+      Vec2 x = e.uv;
+      const double h = uv_scale_ / 400;
+      double fx = e.f - q;
+      bool hit = false;
+      Vec2 y;
+      for (int step = 0; step < 2000; ++step) {
+        Vec2 g = level_gradient(x, axis);
+        if (g.norm() == 0) g = Vec2(1, 0);
+        y = x + (e.max ? -h : h) * g.normalized();
+        const double fy = level_value(y, axis, q);
+        if ((fy < 0) != (fx < 0)) {
+          hit = true;
+          break;
+        }
+        x = y, fx = fy;
+        if (y.x() < uv0_[0] || y.x() > uv1_[0] || y.y() < uv0_[1] || y.y() > uv1_[1]) break;
+      }
+      if (!hit) continue;
+      bool known = false;
+      for (const auto& c : out) known |= (c->at(c->param(y)) - y).norm() <= 1e-6 * (1 + y.norm());
+      if (known) continue;
+      auto tr = trace(axis, q, y);
+      if (!tr || !tr->closed) continue;
+      auto c = std::make_shared<LevelCurve>();
+      c->face = index_, c->axis = axis, c->plane = k;
+      c->type = LevelCurve::Traced;
+      c->traced = std::move(tr);
+      c->scale = uv_scale_;
+      bool touches = false;  // approximate boundary crossings: within a polyline chord's sagitta
+      for (const Vec2& b : boundary) touches |= (c->at(c->param(b)) - b).norm() <= 1e-3 * uv_scale_;
+      if (touches) continue;
+      out.push_back(c);
+    }
+    return islands_.emplace(std::make_pair(axis, k), std::move(out)).first->second;
+  }
+
+  // The components of {X_axis = q} on the surface, in (u, v); traced ones (surfaces other than
+  // planes and cylinders) through the given points on them, kept per plane for the face.
+  std::vector<std::shared_ptr<LevelCurve>> level_curves(int axis, int k, const std::vector<Vec2>& through = {}) {
     const double q = plane_coord(axis, k);
     std::vector<std::shared_ptr<LevelCurve>> out;
     auto make = [&]() {
@@ -353,6 +626,31 @@ class FaceCutter {
       c->face = index_, c->axis = axis, c->plane = k;
       return c;
     };
+    if (type_ != GeomAbs_Plane && type_ != GeomAbs_Cylinder) {
+      auto& known = traced_[{axis, k}];
+      for (const Vec2& uv : through) {
+        bool found = false;
+        for (const auto& c : known) {
+          if (!c->may_hold(uv)) continue;
+          const double dist = (c->at(c->param(uv)) - uv).norm();
+          if (dist <= 1e-6 * (1 + uv.norm())) {
+            found = true;
+            break;
+          }
+        }
+        if (found) continue;
+        auto tr = trace(axis, q, uv);
+        if (!tr)
+          throw FaceFailure{"face " + std::to_string(index_) + ": tracing plane " + std::to_string(axis) + "/" +
+                            std::to_string(k) + " on its surface failed (singular or tangent)"};
+        auto c = make();
+        c->type = LevelCurve::Traced;
+        c->traced = std::move(tr);
+        c->scale = uv_scale_;
+        known.push_back(c);
+      }
+      return known;
+    }
     if (type_ == GeomAbs_Plane) {
       const gp_Ax3 ax = pln_.Position();
       const Vec2 grad(ax.XDirection().Coord(axis + 1), ax.YDirection().Coord(axis + 1));
@@ -448,6 +746,7 @@ class FaceCutter {
           end_crossing.push_back(static_cast<int>(crossings.size()));
           crossings.push_back({p.curve->at(ts[i]), ids[i]});
           crossings.back().tangent = tan;
+
           t = ts[i], n = ids[i];
         }
         subs.push_back({p.curve, t, p.t1, n, p.n1});
@@ -472,16 +771,37 @@ class FaceCutter {
         }
       }
     }
+    // Closed level curves inside the region that its boundary does not cross (islands).
+    if (type_ != GeomAbs_Plane && type_ != GeomAbs_Cylinder)
+      for (const auto& isl : islands(axis, k)) {
+        bool crossed = false;
+        for (const Crossing& c : crossings)
+          crossed |= isl->may_hold(c.uv) && (isl->at(isl->param(c.uv)) - c.uv).norm() <= 1e-6 * (1 + c.uv.norm());
+        if (crossed) continue;
+        const Vec2 x = isl->at(0);
+        int w = 0;
+        for (const Loop& l : region) w += winding(polyline(l), x);
+        if (w == 0) continue;
+        auto [it, fresh] = island_nodes_.try_emplace(isl.get(), 0);
+        if (fresh) it->second = kFaceNode + (static_cast<NodeId>(index_) << 32) + next_node_++;
+        const double L = isl->period();
+        // Forward (s increasing) has f < q on its left.
+        side[0].push_back({Piece{isl, 0, L, it->second, it->second}});
+        side[1].push_back({Piece{isl, L, 0, it->second, it->second}});
+      }
     if (crossings.empty()) {
       return {std::move(side[0]), std::move(side[1])};
     }
     // Level intervals between consecutive crossings along each component.
-    const auto comps = level_curves(axis, k);
+    std::vector<Vec2> through;
+    for (const Crossing& c : crossings) through.push_back(c.uv);
+    const auto comps = level_curves(axis, k, through);
     if (comps.empty()) throw FaceFailure{"face " + std::to_string(index_) + ": crossings without a level curve"};
     for (size_t i = 0; i < crossings.size(); ++i) {
       Crossing& c = crossings[i];
       double best = 1e300;
       for (size_t j = 0; j < comps.size(); ++j) {
+        if (!comps[j]->may_hold(c.uv)) continue;
         const double s = comps[j]->param(c.uv);
         const double dist = (comps[j]->at(s) - c.uv).norm();
         if (dist < best) best = dist, c.component = static_cast<int>(j), c.s = s;
@@ -499,7 +819,13 @@ class FaceCutter {
       for (size_t i = 0; i < crossings.size(); ++i)
         if (crossings[i].component == static_cast<int>(j)) on.push_back(static_cast<int>(i));
       std::sort(on.begin(), on.end(), [&](int a, int b) { return crossings[a].s < crossings[b].s; });
-      if (on.size() % 2 != 0) throw FaceFailure{"face " + std::to_string(index_) + ": odd number of crossings on a level curve"};
+      if (on.size() % 2 != 0)
+        throw FaceFailure{"face " + std::to_string(index_) + ": odd number of crossings (" + std::to_string(on.size()) +
+                          ") on a level curve of plane " + std::to_string(axis) + "/" + std::to_string(k)};
+      if (!on.empty() && comps[j]->closed() && !crossings[on[0]].enters) {  // start the pairs at an entry
+        crossings[on[0]].s += comps[j]->period();
+        std::rotate(on.begin(), on.begin() + 1, on.end());
+      }
       for (size_t m = 0; m < on.size(); m += 2) {
         const Crossing& c0 = crossings[on[m]];
         const Crossing& c1 = crossings[on[m + 1]];
@@ -520,7 +846,17 @@ class FaceCutter {
       std::map<int, int> starting;
       for (size_t e = 0; e < runs[sd].size(); ++e)
         if (!starting.emplace(runs[sd][e].from, static_cast<int>(e)).second)
-          throw FaceFailure{"face " + std::to_string(index_) + ": two boundary pieces leave one crossing"};
+        {
+          // Two crossings at one point: the plane passes through a point where two earlier
+          // planes meet on the face, i.e. a grid vertex lies on the surface.
+          std::string why = "two boundary pieces leave one crossing";
+          for (size_t i = 0; i < crossings.size(); ++i)
+            for (size_t j = i + 1; j < crossings.size(); ++j)
+              if ((crossings[i].uv - crossings[j].uv).norm() <= 1e-9 * uv_scale_)
+                why = "grid plane " + std::to_string(axis) + "/" + std::to_string(k) +
+                      " passes through a point where two other grid planes meet the face (a grid vertex on the surface)";
+          throw FaceFailure{"face " + std::to_string(index_) + ": " + why};
+        }
       std::vector<bool> used(runs[sd].size(), false);
       for (size_t e0 = 0; e0 < runs[sd].size(); ++e0) {
         if (used[e0]) continue;
@@ -552,6 +888,11 @@ class FaceCutter {
   std::map<std::array<int, 3>, std::vector<double>> edge_roots_;
   NodeId next_node_ = 0;
   std::map<std::tuple<const UvCurve*, int, int, double>, NodeId> face_nodes_;
+  double uv0_[2] = {0, 0}, uv1_[2] = {0, 0}, uv_scale_ = 1;
+  std::map<std::pair<int, int>, std::vector<std::shared_ptr<LevelCurve>>> traced_, islands_;
+  std::map<int, std::vector<Extremum>> extrema_;
+  std::vector<std::vector<Vec2>> face_polys_;
+  std::map<const LevelCurve*, NodeId> island_nodes_;
 };
 
 // Union–find over patch indices.
@@ -1076,8 +1417,9 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
         smp.kind = CutSample::OnEdge;
         smp.edge = e;
         smp.edge_param = ts[i];
-        for (int j = 0; j < 2; ++j)
-          if (!pcs[j].IsNull()) smp.on.push_back({ff[j], eval2(pcs[j], ts[i])});
+        for (int j = 0; j < 2; ++j)  // pcurve (u, v) refined onto the 3D point (pcurves approximate)
+          if (!pcs[j].IsNull())
+            smp.on.push_back({ff[j], refine_uv(surfaces[ff[j]], eval2(pcs[j], ts[i]), c3.Value(ts[i]), 1e-6 * (1 + eval2(pcs[j], ts[i]).norm()))});
         const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
         if (node >= 0 && (node & (3LL << 60)) == kVertexNode) smp.kind = CutSample::Vertex, smp.edge = static_cast<int>(node);
         else if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {

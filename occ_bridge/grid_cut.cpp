@@ -89,7 +89,22 @@ std::vector<xfem::BoundaryLoop> face_loops(const TopoDS_Face& face_in, const Gri
       const bool rev = e.Orientation() == TopAbs_REVERSED;
       const double ta = rev ? l : f, tb = rev ? f : l;
       if (loop.points.empty()) loop.points.push_back(eval2(pc, ta));
-      segments += append_pcurve(pc, ta, tb, o, tol, loop.points);
+      // The splitter's pcurves of plane ∩ surface edges are B-spline approximations of the
+      // exact 3D section curve (a conic for planes against cylinders, cones and spheres); their
+      // (u, v) are off by up to the edge tolerance, which moved subvolume moments by ~2e-9 of
+      // the cell volume. So the (u, v) of a point is its pcurve value refined by Gauss–Newton
+      // onto the 3D curve's point (same parameter: SameParameter edges).
+      double c0, c1;
+      Handle(Geom_Curve) c3 = BRep_Tool::Curve(e, c0, c1);
+      if (o.project_pcurves && !c3.IsNull() && BRep_Tool::SameParameter(e) && !BRep_Tool::Degenerated(e) &&
+          std::abs(c0 - f) < 1e-12 * (1 + std::abs(f)) && std::abs(c1 - l) < 1e-12 * (1 + std::abs(l))) {
+        const Handle(Geom_Surface) S = BRep_Tool::Surface(face);
+        auto at = [&](double t) { return detail::refine_uv(S, eval2(pc, t), c3->Value(t), 1e-6 * (u1 - u0 + v1 - v0)); };
+        const bool straight = pc->DynamicType() == STANDARD_TYPE(Geom2d_Line);
+        segments += append_curve<Vec2>(at, ta, tb, straight, o, tol, loop.points);
+      } else {
+        segments += append_pcurve(pc, ta, tb, o, tol, loop.points);
+      }
     }
     if (loop.points.size() >= 3) {
       loop.points.back() = loop.points.front();  // close exactly (pcurve ends agree to tolerance)
@@ -478,7 +493,26 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     GridCut f = g;
     f.block_cells = 0;  // no blocks: re-cutting a face-route cut cuts it again whole
     f.method = CutMethod::FaceCut;
-    if (detail::cut_by_faces(part, o, f)) {
+    // With `nurbs`, the face route cuts the NURBS-converted faces (the generic traced path), so
+    // its patches are pieces of the face model's NURBS as on the splitter route.
+    std::shared_ptr<const PartShape> converted;
+    bool ok = true;
+    if (o.nurbs) {
+      try {
+        BRepBuilderAPI_NurbsConvert convert(part.shape, true);
+        converted = make_part(convert.Shape(), "NURBS");
+        for (int i = 0; i < part.face_count() && ok; ++i)
+          ok = converted->face_count() == part.face_count() && convert.ModifiedShape(part.face(i)).IsSame(converted->face(i));
+        if (!ok) f.message = "face route: the NURBS conversion renumbered the faces";
+      } catch (const Standard_Failure& e) {
+        ok = false;
+        f.message = std::string("face route: conversion of the faces to NURBS failed: ") + e.GetMessageString();
+      } catch (const std::exception& e) {
+        ok = false;
+        f.message = std::string("face route: the NURBS-converted part is invalid: ") + e.what();
+      }
+    }
+    if (ok && detail::cut_by_faces(converted ? *converted : part, o, f)) {
       f.split_seconds = seconds_since(t0);
       f.done = true;
       return f;

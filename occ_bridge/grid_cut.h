@@ -3,7 +3,8 @@
 // trimmed B-rep face pieces and planar regions on the cell's faces, all as plain data
 // (xfem::Subvolume) for the quadrature. Two routes: OCCT's Boolean splitter on the whole solid
 // (reference), or the face route (§6.3, Fig. 6.12): every face's trimming loops are split in
-// its (u, v) by the closed-form curves where the grid planes meet its surface, the cells' grid
+// its (u, v) by the curves where the grid planes meet its surface (closed forms for planes
+// and cylinders, traced level curves for any other surface), the cells' grid
 // faces are built from those curves, and every intersection point keeps its class and its
 // (u, v) on each surface it lies on (for the shape derivatives of §6.5.3).
 #pragma once
@@ -18,9 +19,9 @@ namespace parafab::occ {
 
 struct PartShape;  // occ_bridge/occt_shape.h
 
-/// How the part is cut. FaceCut: per face, closed-form plane ∩ surface curves in (u, v)
-/// (planes and cylinders; other faces fall back to Splitter with the reason in
-/// GridCut::fallback_reason). Splitter: OCCT's Boolean splitter on the solid (the reference).
+/// How the part is cut. FaceCut: per face, plane ∩ surface curves in (u, v) (closed forms for
+/// planes and cylinders, traced for any other surface); if it fails, Splitter with the reason
+/// in GridCut::fallback_reason. Splitter: OCCT's Boolean splitter on the solid (the reference).
 enum class CutMethod { Splitter, FaceCut };
 
 struct GridOptions {
@@ -47,6 +48,9 @@ struct GridOptions {
   int segment_order = 2;
   double segment_tolerance = 1e-8;
   int max_segments_per_edge = 4096;
+  /// Splitter route: the (u, v) of boundary points are the pcurve's refined onto the edge's 3D
+  /// curve (the splitter's pcurves approximate exact section curves to the edge tolerance).
+  bool project_pcurves = true;
   bool parallel = false;    ///< let OCCT's splitter use threads
   /// Two-level cutting: the part is first split into blocks of `block_cells`³ cells by every
   /// block_cells-th plane, then every block piece by its own planes; subvolumes meeting across

@@ -93,6 +93,26 @@ int append_curve(const Eval& at, double t0, double t1, bool straight, const Grid
   return n;
 }
 
+/// The (u, v) of 3D point P on surface S, by Gauss–Newton from `uv0` (e.g. a pcurve's value,
+/// which approximates the exact section curve only to the edge tolerance). Keeps `uv0` if the
+/// step grows beyond `max_move` (near a pole or apex, where u is ill-conditioned).
+inline Vec2 refine_uv(const Handle(Geom_Surface)& S, const Vec2& uv0, const gp_Pnt& P, double max_move) {
+  Vec2 uv = uv0;
+  for (int it = 0; it < 4; ++it) {
+    gp_Pnt X;
+    gp_Vec du, dv;
+    S->D1(uv.x(), uv.y(), X, du, dv);
+    const gp_Vec r(X, P);
+    const double a = du.Dot(du), b = du.Dot(dv), c = dv.Dot(dv), det = a * c - b * b;
+    if (!(det > 1e-30 * (a * c + 1e-300))) break;
+    const double ru = du.Dot(r), rv = dv.Dot(r);
+    const Vec2 d((c * ru - b * rv) / det, (a * rv - b * ru) / det);
+    uv += d;
+    if (d.norm() < 1e-15 * (1 + uv.norm())) break;
+  }
+  return (uv - uv0).norm() <= max_move ? uv : uv0;
+}
+
 /// The face route (face_cut.cpp): fills the cut cells, subvolumes, connections and curves of
 /// `g`, whose grid (box, cells, planes) is set. False with `g.message` = the reason when the
 /// part has faces it does not handle or its consistency check fails.

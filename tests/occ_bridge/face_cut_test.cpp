@@ -5,7 +5,13 @@
 // coordinates); the intersection samples lie where their (u, v) say.
 #include <gtest/gtest.h>
 
+#include <BRepAlgoAPI_Common.hxx>
+#include <BRepAlgoAPI_Cut.hxx>
+#include <BRepBuilderAPI_NurbsConvert.hxx>
 #include <BRepBuilderAPI_Transform.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCone.hxx>
+#include <BRepPrimAPI_MakeSphere.hxx>
 #include <BRepBndLib.hxx>
 #include <BRep_Tool.hxx>
 #include <BRepGProp.hxx>
@@ -34,10 +40,25 @@ std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES
 
 // The part turned by `degrees` about the skew axis (1, 2, 3) through its box centre and
 // shifted by `shift` × its box diagonal (0°: the part as read).
+// Parts built here for surfaces the samples lack: a cone frustum with a conical bore, a sphere
+// (poles: degenerated edges) with a box notch, and the cylinder with every face converted to
+// a B-spline surface.
+std::shared_ptr<const PartShape> built(const std::string& name) {
+  TopoDS_Shape s;
+  if (name == "cone") {
+    s = BRepAlgoAPI_Cut(BRepPrimAPI_MakeCone(20, 8, 30).Shape(), BRepPrimAPI_MakeCone(gp_Ax2(gp_Pnt(0, 0, -1), gp_Dir(0, 0, 1)), 6, 3, 32).Shape()).Shape();
+  } else if (name == "sphere") {
+    s = BRepAlgoAPI_Cut(BRepPrimAPI_MakeSphere(20).Shape(), BRepPrimAPI_MakeBox(gp_Pnt(3, 4, 5), 30, 30, 30).Shape()).Shape();
+  } else if (name == "bspline_cylinder") {
+    s = BRepBuilderAPI_NurbsConvert(read_part(sample("cylinder"))->shape).Shape();
+  }
+  return make_part(s, name);
+}
+
 std::shared_ptr<const PartShape> posed(const std::string& name, double degrees, double shift, int solid = -1) {
   ReadOptions ro;
   ro.solid_index = solid;
-  const auto part = read_part(sample(name), ro);
+  const auto part = name == "cone" || name == "sphere" || name == "bspline_cylinder" ? built(name) : read_part(sample(name), ro);
   if (degrees == 0 && shift == 0) return part;
   Bnd_Box bb;
   BRepBndLib::Add(part->shape, bb);
@@ -73,10 +94,22 @@ struct Compared {
   double worst_moment = 0;  ///< largest moment difference, relative to the cell volume
   int subvolumes = 0;
   double face_volume = 0, ref_volume = 0;  ///< Σ subvolume rules + interior cells
+  int splitter_missed = 0;  ///< cells only the face route cuts (checked against a per-cell Boolean)
 };
 
 // Asserts the two cuts agree; returns the largest moment difference.
-Compared compare_cuts(const GridCut& face, const GridCut& ref, const std::string& what, double moment_tol) {
+// A third reference for a cell the two routes disagree on: OCCT's Boolean common of the part
+// and the cell box, as a fraction of the cell volume.
+double boolean_fraction(const PartShape& part, const GridCut& g, const std::array<int, 3>& k) {
+  const xfem::Box3 b = g.cell_box(k);
+  const TopoDS_Shape box = BRepPrimAPI_MakeBox(gp_Pnt(b.min.x(), b.min.y(), b.min.z()), gp_Pnt(b.max.x(), b.max.y(), b.max.z())).Shape();
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(BRepAlgoAPI_Common(part.shape, box).Shape(), props, 1e-13);
+  return props.Mass() / b.volume();
+}
+
+Compared compare_cuts(const GridCut& face, const GridCut& ref, const std::string& what, double moment_tol,
+                      const PartShape* part = nullptr) {
   Compared out;
   // Cells.
   std::map<std::array<int, 3>, const CutCell*> fc, rc;
@@ -85,7 +118,24 @@ Compared compare_cuts(const GridCut& face, const GridCut& ref, const std::string
   std::set<std::array<int, 3>> fk, rk;
   for (const auto& [k, c] : fc) fk.insert(k);
   for (const auto& [k, c] : rc) rk.insert(k);
-  EXPECT_EQ(fk, rk) << what << ": cut cells";
+  // A cell only the face route cuts must hold the material OCCT's per-cell Boolean finds there
+  // (the splitter drops some slivers of 1e-5 of a cell: cone turned 17°); it is then left out
+  // of the comparison. A cell only the splitter cuts is a failure.
+  for (const auto& k : fk)
+    if (!rk.count(k)) {
+      double fraction = 0;
+      for (int sv : fc.at(k)->subvolumes) fraction += moments(face.subvolumes[sv])[0];
+      const double boolean = part ? boolean_fraction(*part, face, k) : -1.0;
+      EXPECT_NEAR(fraction, boolean, 1e-9) << what << ": only the face route cuts cell " << k[0] << " " << k[1] << " " << k[2];
+      std::printf("  cell %d %d %d: only the face route cuts it (fraction %.3e, OCCT's Boolean %.3e)\n", k[0], k[1], k[2],
+                  fraction, boolean);
+      ++out.splitter_missed;
+      fc.erase(k);
+    }
+  for (const auto& k : rk)
+    if (!fk.count(k)) ADD_FAILURE() << what << ": only the splitter cuts cell " << k[0] << " " << k[1] << " " << k[2];
+  fk.clear();
+  for (const auto& [k, c] : fc) fk.insert(k);
   using CellSet = std::set<std::array<int, 3>>;
   const CellSet fi(face.interior_cells.begin(), face.interior_cells.end()), ri(ref.interior_cells.begin(), ref.interior_cells.end());
   EXPECT_EQ(fi, ri) << what << ": interior cells";
@@ -112,7 +162,6 @@ Compared compare_cuts(const GridCut& face, const GridCut& ref, const std::string
       if (best < 0) continue;
       taken[best] = true;
       const double h3 = std::pow(face.subvolumes[c->subvolumes[i]].cell.size().maxCoeff(), 3);
-      out.face_volume += mf[i][0] * h3, out.ref_volume += mr[best][0] * h3;
       match[c->subvolumes[i]] = r.subvolumes[best];
       double worst = 0;
       for (int m = 0; m < 10; ++m) worst = std::max(worst, std::abs(mf[i][m] - mr[best][m]));
@@ -125,11 +174,12 @@ Compared compare_cuts(const GridCut& face, const GridCut& ref, const std::string
   // Connections through grid faces, in reference numbering.
   std::multiset<std::array<int, 2>> fcon, rcon;
   for (const auto& [a, b] : face.connections)
-    fcon.insert({std::min(match[a], match[b]), std::max(match[a], match[b])});
+    if (match[a] >= 0 && match[b] >= 0) fcon.insert({std::min(match[a], match[b]), std::max(match[a], match[b])});
   for (const auto& c : ref.connections) rcon.insert(c);
   EXPECT_EQ(fcon, rcon) << what << ": connections";
   std::multiset<std::pair<int, std::array<int, 3>>> fic, ric;
-  for (const auto& [s, c] : face.interior_connections) fic.insert({match[s], face.interior_cells[c]});
+  for (const auto& [s, c] : face.interior_connections)
+    if (match[s] >= 0) fic.insert({match[s], face.interior_cells[c]});
   for (const auto& [s, c] : ref.interior_connections) ric.insert({s, ref.interior_cells[c]});
   EXPECT_EQ(fic, ric) << what << ": interior connections";
   return out;
@@ -180,13 +230,29 @@ void expect_face_route_matches(const Case& c, double degrees, double shift, doub
   const std::string what = std::string(c.part) + " at " + std::to_string(degrees) + "°";
   ASSERT_TRUE(ref.done && face.done) << what << ": " << ref.message << " / " << face.message;
   ASSERT_EQ(face.method, CutMethod::FaceCut) << what << ": fell back: " << face.fallback_reason;
-  Compared cmp = compare_cuts(face, ref, what, moment_tol);
-  for (const auto& c : face.interior_cells) cmp.face_volume += face.cell_box(c).volume(), cmp.ref_volume += face.cell_box(c).volume();
+  Compared cmp = compare_cuts(face, ref, what, moment_tol, part.get());
+  for (const auto& c : face.interior_cells) cmp.face_volume += face.cell_box(c).volume();
+  for (const auto& c : ref.interior_cells) cmp.ref_volume += ref.cell_box(c).volume();
+  for (const auto& sv : face.subvolumes) cmp.face_volume += moments(sv)[0] * std::pow(sv.cell.size().maxCoeff(), 3);
+  for (const auto& sv : ref.subvolumes) cmp.ref_volume += moments(sv)[0] * std::pow(sv.cell.size().maxCoeff(), 3);
   GProp_GProps props;
-  BRepGProp::VolumeProperties(part->shape, props, 1e-13);
+  // The B-spline cylinder: the exact volume is the analytic cylinder's (OCCT's volume of the
+  // converted solid is itself off by ~2e-9).
+  BRepGProp::VolumeProperties(std::string(c.part) == "bspline_cylinder" ? posed("cylinder", degrees, shift)->shape : part->shape, props, 1e-13);
   const double v_face = std::abs(cmp.face_volume / props.Mass() - 1), v_ref = std::abs(cmp.ref_volume / props.Mass() - 1);
+  for (const auto* cut : {&face, &ref})
+    for (const auto& cc : cut->cut_cells)
+      for (int sv : cc.subvolumes) {
+        const auto m = moments(cut->subvolumes[sv]);
+        for (int a = 0; a < 3; ++a)
+          if (m[1 + a] / m[0] < -1e-9 || m[1 + a] / m[0] > cut->subvolumes[sv].cell.size()[a] / cut->subvolumes[sv].cell.size().maxCoeff() + 1e-9)
+            std::printf("  %s: subvolume %d (fraction %.2e) of cell %d %d %d has its centroid outside the cell\n",
+                        cut == &face ? "face" : "splitter", sv, m[0], cc.index[0], cc.index[1], cc.index[2]);
+      }
   std::printf("  volume vs OCCT: face route %.2e, splitter %.2e\n", v_face, v_ref);
-  EXPECT_LT(v_face, 1e-11) << what << ": the face route's rules miss OCCT's volume of the whole part";
+  // The B-spline cylinder: both routes hold the analytic volume only to ≤ 3.2e-9 (face) and
+  // 3.7e-9 (splitter), measured; the other parts to ≤ 1.4e-11.
+  EXPECT_LT(v_face, std::string(c.part) == "bspline_cylinder" ? 4e-9 : 2e-11) << what << ": the face route's rules miss OCCT's volume of the whole part";
   expect_samples_on_their_surfaces(*part, face, what);
   std::printf("%-12s %5.1f°: %zu cut cells, %d subvolumes, worst moment difference %.2e; "
               "face %.3f s (check %.4f s), splitter %.3f s\n",
@@ -194,10 +260,14 @@ void expect_face_route_matches(const Case& c, double degrees, double shift, doub
 }
 
 // Moments agree to round-off where both routes have exact curves (planar parts). Where planes
-// meet cylinders the splitter's pcurves are B-spline approximations; neighbouring subvolumes
-// then differ by up to 2.4e-9 of the cell volume (measured, two_blocks turned 17°), while the
-// face route's total volume matches OCCT's to ≤ 1.2e-12 (the splitter's: ≤ 2.8e-11).
-constexpr double kPlanar = 1e-14, kCurved = 3e-9;
+// meet cylinders the splitter's pcurves are B-spline approximations of exact conics; with the
+// splitter route's (u, v) refined onto the edges' 3D curves (GridOptions::project_pcurves)
+// subvolumes differ by ≤ 4.2e-10 of the cell volume (ring aligned; ≤ 3.5e-11 on the turned
+// parts; without the refinement 2.4e-9), the volume rules' flux tolerance (1e-10) being the
+// floor. Plane ∩ torus and ∩ B-spline sections are approximated 3D curves in OCCT too:
+// 5.4e-9 (housing), 3.9e-9 (cone aligned), 5.4e-9 (B-spline cylinder), 1.3e-9 (sphere), while the face route's
+// total volume matches OCCT's analytic volume to ≤ 1.4e-11 (the splitter's to ≤ 9e-10).
+constexpr double kPlanar = 1e-14, kCurved = 5e-10, kToric = 6e-9, kCone = 4.5e-9, kBSpline = 6e-9, kSphere = 1.5e-9;
 
 TEST(FaceCut, PlanarPartsMatchTheSplitter) {
   for (const Case c : {Case{"box", 4}, Case{"two_blocks", 6, 0}})
@@ -214,17 +284,80 @@ TEST(FaceCut, CurvedPartsMatchTheSplitter) {
     for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
 }
 
-TEST(FaceCut, UnsupportedSurfacesFallBackToTheSplitterWithTheReason) {
-  for (const char* name : {"half_torus", "housing"}) {
-    const auto part = posed(name, 0, 0);
-    GridOptions o;
-    o.cells_longest = 5;
-    o.method = CutMethod::FaceCut;
-    const GridCut g = cut_by_grid(*part, o);
-    ASSERT_TRUE(g.done) << name << ": " << g.message;
-    EXPECT_EQ(g.method, CutMethod::Splitter) << name;
-    EXPECT_NE(g.fallback_reason.find("torus"), std::string::npos) << name << ": " << g.fallback_reason;
+// Tori (the half torus; the housing's boss fillet) and, built here, a cone frustum, a notched
+// sphere and a B-spline cylinder: the traced level curves of the generic path.
+TEST(FaceCut, ToriMatchTheSplitter) {
+  for (const Case c : {Case{"half_torus", 6}, Case{"housing", 8}})
+    for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kToric);
+}
+
+// Cones: turned 17°, the splitter misses two slivers of 1.8e-5
+// and 8.4e-6 of a cell that OCCT's per-cell Boolean confirms; then neighbouring subvolumes
+// and connections differ, so that pose is checked in ConeSliversTheSplitterMisses.
+TEST(FaceCut, ConesAndSpheresMatchTheSplitter) {
+  for (double deg : {0.0, 31.0}) expect_face_route_matches(Case{"cone", 6}, deg, deg == 0 ? 0 : 0.013, kCone);
+  for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(Case{"sphere", 7}, deg, deg == 0 ? 0 : 0.013, kSphere);
+}
+
+TEST(FaceCut, BSplinesMatchTheSplitter) {
+  for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(Case{"bspline_cylinder", 6}, deg, deg == 0 ? 0 : 0.013, kBSpline);
+}
+
+TEST(FaceCut, ConeSliversTheSplitterMisses) {
+  const auto part = posed("cone", 17, 0.013);
+  GridOptions o;
+  o.cells_longest = 6;
+  const GridCut ref = cut_by_grid(*part, o);
+  o.method = CutMethod::FaceCut;
+  const GridCut face = cut_by_grid(*part, o);
+  ASSERT_EQ(face.method, CutMethod::FaceCut) << face.fallback_reason;
+  std::set<std::array<int, 3>> rk;
+  for (const auto& c : ref.cut_cells) rk.insert(c.index);
+  int only_face = 0;
+  for (const auto& c : face.cut_cells) {
+    double fraction = 0;
+    for (int sv : c.subvolumes) fraction += moments(face.subvolumes[sv])[0];
+    if (!rk.count(c.index)) {
+      ++only_face;
+      EXPECT_NEAR(fraction, boolean_fraction(*part, face, c.index), 1e-10);
+    }
   }
+  EXPECT_EQ(only_face, 2);
+  EXPECT_EQ(face.cut_cells.size(), ref.cut_cells.size() + 2);
+}
+
+// The notched sphere on 6 cells: the grid is centred on the sphere and R = 3h, so grid vertices
+// at (±2, ±2, ±1)h from the centre lie on the sphere (2² + 2² + 1² = 3²). The face route
+// refuses (three planes meeting on the surface) and the part is cut by the splitter, with the reason.
+TEST(FaceCut, SphereFallsBackToTheSplitterWithTheReason) {
+  const auto part = posed("sphere", 17, 0.013);
+  GridOptions o;
+  o.cells_longest = 6;
+  o.method = CutMethod::FaceCut;
+  const GridCut g = cut_by_grid(*part, o);
+  ASSERT_TRUE(g.done) << g.message;
+  EXPECT_EQ(g.method, CutMethod::Splitter);
+  EXPECT_NE(g.fallback_reason.find("a grid vertex on the surface"), std::string::npos) << g.fallback_reason;
+}
+
+// The safety net in the simulation path: a part the face route cannot cut (the notched
+// sphere with grid vertices on it, above) is cut by the splitter, the grid model says so, and its rules hold OCCT's volume.
+TEST(FaceCut, GridModelFallsBackToTheSplitterAndSaysWhy) {
+  const auto part = posed("sphere", 17, 0.013);
+  GridModelOptions o;
+  o.grid.cells_longest = 6;
+  o.grid.method = CutMethod::FaceCut;
+  const GridModel m = build_grid_model(*part, o);
+  ASSERT_TRUE(m.done) << m.message;
+  EXPECT_EQ(m.cut->method, CutMethod::Splitter);
+  EXPECT_NE(m.cut->fallback_reason.find("face route"), std::string::npos) << m.cut->fallback_reason;
+  double v = 0;
+  for (const auto& e : m.elements)
+    for (double w : e.rule.weights) v += w;
+  GProp_GProps props;
+  BRepGProp::VolumeProperties(part->shape, props, 1e-13);
+  std::printf("sphere by the splitter: volume error %.1e\n", std::abs(v / props.Mass() - 1));
+  EXPECT_NEAR(v, props.Mass(), 1e-12 * props.Mass());  // measured 3.1e-13
 }
 
 // The simulation path: a grid model on the face route has the splitter model's elements and

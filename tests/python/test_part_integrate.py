@@ -43,7 +43,7 @@ class Integrate(unittest.TestCase):
         self.assertGreater(lin["grid"]["curve_segments"], out["grid"]["curve_segments"])
 
     def test_cut_by_face_on_both_entry_points(self):
-        # Planes and cylinders: the face route; a torus: the splitter, with the reason.
+        # Planes and cylinders (closed forms) and tori (traced): the face route.
         path = os.path.join(PARTS, "wrench.step")
         code, out = cli(path, "--cells", "6", "--cut", "face")
         self.assertEqual(code, 0)
@@ -52,9 +52,11 @@ class Integrate(unittest.TestCase):
         self.assertLess(out["relative_errors"]["volume"], 1e-11)
         mod = parafab.integrate_part(path, cells=6, cut="face")
         self.assertEqual(out["rules"]["volume"], mod["rules"]["volume"])
+        # A torus (the housing's boss fillet): the face route's traced level curves.
         torus = parafab.integrate_part(os.path.join(PARTS, "housing.step"), cells=6, cut="face")
-        self.assertEqual(torus["grid"]["method"], "splitter")
-        self.assertIn("torus", torus["grid"]["fallback_reason"])
+        self.assertEqual(torus["grid"]["method"], "face")
+        self.assertEqual(torus["grid"]["fallback_reason"], "")
+        self.assertLess(torus["relative_errors"]["volume"], 1e-11)
         with self.assertRaises(Exception):
             parafab.integrate_part(path, cut="boolean")
 

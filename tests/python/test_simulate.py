@@ -66,6 +66,12 @@ class Simulate(unittest.TestCase):
             self.assertEqual(r["grid"]["method"], method)
             tips[method] = r["probes"][0]["displacement"][2]
         self.assertLess(abs(tips["face"] - tips["splitter"]), 1e-10 * abs(tips["splitter"]))
+        # Without grid.method the simulation cuts by face (and says so).
+        del job["grid"]["method"]
+        r = parafab.simulate(BRACKET, job)
+        self.assertEqual(r["grid"]["method"], "face")
+        self.assertEqual(r["grid"]["fallback_reason"], "")
+        self.assertEqual(r["probes"][0]["displacement"][2], tips["face"])
         job["grid"]["method"] = "boolean"
         with self.assertRaises(Exception):
             parafab.simulate(BRACKET, job)

@@ -112,8 +112,8 @@ int main(int argc, char** argv) {
   integrate->add_option("--segments", segments, "Boundary curve segments: parabolic or linear")
       ->check(CLI::IsMember({"parabolic", "linear"}));
   integrate->add_option("--cut", cut_method,
-                        "Grid cut: splitter (OCCT's Boolean splitter) or face (cut by face; planes and cylinders, "
-                        "else the splitter with the reason in grid.fallback_reason)")
+                        "Grid cut: splitter (OCCT's Boolean splitter) or face (cut by face, any surface; if it "
+                        "fails, the splitter with the reason in grid.fallback_reason)")
       ->check(CLI::IsMember({"splitter", "face"}));
   integrate->add_option("--solid", integrate_options.read.solid_index, "Index of the solid when the file holds several");
   integrate->add_flag("--non-negative", "Non-negative weights (NNLS fit) for the cut-cell rules");

@@ -319,7 +319,10 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   if (!(go.rule.flux_tolerance >= 0))
     PARAFAB_INPUT_ERROR("quadrature.flux_tolerance must be >= 0, got " << go.rule.flux_tolerance);
   if (go.grid.block_cells < 0) PARAFAB_INPUT_ERROR("grid.block_cells must be >= 0");
-  const std::string cut_method = grid_job.value("method", std::string("splitter"));
+  // Cut by face by default (issue 11 §1); the splitter stays as its safety net: a face the
+  // face route cannot cut, or rules that miss OCCT's volume, cut the part by the splitter with
+  // the reason in the result's grid.fallback_reason.
+  const std::string cut_method = grid_job.value("method", std::string("face"));
   if (cut_method != "splitter" && cut_method != "face")
     PARAFAB_INPUT_ERROR("grid.method must be \"splitter\" or \"face\", got \"" << cut_method << "\"");
   go.grid.method = cut_method == "face" ? occ::CutMethod::FaceCut : occ::CutMethod::Splitter;
