@@ -109,6 +109,13 @@ struct StripDesign {
   int lp_iterations = 0;    ///< of the final LP
   double lp_seconds = 0;    ///< of the final LP
   double total_seconds = 0;
+  /// Where total_seconds went (wall time per phase, summed over the refinement): the
+  /// arc-length table, zero finding with the strain check, the equilibrium check, sampling
+  /// (arc-length inversion and curve evaluation), every LP solved (both phases), the
+  /// continuous-ratio estimate (Eq. 4.4 only) and the widths/outline. For benchmarks only.
+  struct Phases {
+    double curve = 0, zeros = 0, check = 0, sampling = 0, lp = 0, ratio = 0, outputs = 0;
+  } phases;
   std::string lp_message;
   // Gravity / general LP diagnostics (defaults for the plain Eq. 4.4 design).
   bool general_lp = false;   ///< designed with the gravity LP (Eq. 4.6)
@@ -140,6 +147,13 @@ std::vector<double> composite_inner_width(const std::vector<double>& K,
 /// Throws parafab::Error for invalid options (non-positive E, thickness, width, tolerance) or
 /// a singular curve; an infeasible curve is a result with feasible = false and a reason.
 StripDesign design_strip(const BSplineCurve2& curve, const StripDesignOptions& options = {});
+
+/// A scene of independent strips (e.g. a pavilion, §4.8.1): design_strip for every curve,
+/// distributed over `threads` TBB workers (0: TBB's default, 1: this thread only, in order).
+/// Each result equals design_strip(curves[i], options) exactly; the first error thrown by
+/// any strip is rethrown (naming the strip's index).
+std::vector<StripDesign> design_strips(const std::vector<BSplineCurve2>& curves,
+                                       const StripDesignOptions& options = {}, int threads = 0);
 
 /// Samples equally spaced in arc length plus the interior knots, leaving out points within
 /// 1e-6·length of a zero. `cache` (optional) keeps the curve evaluations by arc length, so
