@@ -168,7 +168,7 @@ def plot(rows, png):
                 vals.append(max(ph["entry"] - named, 0))
             else:
                 vals.append(ph.get(k, 0))
-        ax2.bar(list(x), vals, 0.6, bottom=bottom, label=k)
+        ax2.bar(list(x), vals, 0.6, bottom=bottom, label=k, color=plt.cm.tab20(PHASES.index(k)))
         bottom = [b + v for b, v in zip(bottom, vals)]
     ax2.axhline(2.0, color="gray", ls="--")
     ax2.set_xticks(list(x))
