@@ -118,35 +118,59 @@ nlohmann::json to_json(const py::object& obj) {
 
 // nlohmann::json -> Python objects without text, the same values as json.loads(j.dump()):
 // non-finite floats become None (dump writes null), objects keep the sorted key order.
-py::object to_python(const nlohmann::json& j) {
+// Raw C API (new references; nullptr with a Python error set on failure).
+PyObject* to_python_raw(const nlohmann::json& j) {
   using V = nlohmann::json::value_t;
   switch (j.type()) {
-    case V::null: return py::none();
-    case V::boolean: return py::bool_(j.get<bool>());
-    case V::number_integer: return py::int_(j.get<std::int64_t>());
-    case V::number_unsigned: return py::int_(j.get<std::uint64_t>());
+    case V::null: Py_RETURN_NONE;
+    case V::boolean: if (j.get<bool>()) Py_RETURN_TRUE; else Py_RETURN_FALSE;
+    case V::number_integer: return PyLong_FromLongLong(j.get<std::int64_t>());
+    case V::number_unsigned: return PyLong_FromUnsignedLongLong(j.get<std::uint64_t>());
     case V::number_float: {
       const double x = j.get<double>();
-      if (!std::isfinite(x)) return py::none();
-      return py::reinterpret_steal<py::object>(PyFloat_FromDouble(x));
+      if (!std::isfinite(x)) Py_RETURN_NONE;
+      return PyFloat_FromDouble(x);
     }
-    case V::string: return py::str(j.get_ref<const std::string&>());
+    case V::string: {
+      const std::string& t = j.get_ref<const std::string&>();
+      return PyUnicode_DecodeUTF8(t.data(), static_cast<Py_ssize_t>(t.size()), "strict");
+    }
     case V::array: {
-      py::list a(j.size());
-      size_t i = 0;
+      PyObject* a = PyList_New(static_cast<Py_ssize_t>(j.size()));
+      if (!a) return nullptr;
+      Py_ssize_t i = 0;
       for (const auto& e : j) {
-        py::object v = to_python(e);
-        PyList_SET_ITEM(a.ptr(), static_cast<Py_ssize_t>(i++), v.release().ptr());
+        PyObject* v = to_python_raw(e);
+        if (!v) { Py_DECREF(a); return nullptr; }
+        PyList_SET_ITEM(a, i++, v);
       }
-      return std::move(a);
+      return a;
     }
     case V::object: {
-      py::dict d;
-      for (auto it = j.begin(); it != j.end(); ++it) d[py::str(it.key())] = to_python(it.value());
-      return std::move(d);
+      PyObject* d = PyDict_New();
+      if (!d) return nullptr;
+      for (auto it = j.begin(); it != j.end(); ++it) {
+        const std::string& k = it.key();
+        PyObject* key = PyUnicode_DecodeUTF8(k.data(), static_cast<Py_ssize_t>(k.size()), "strict");
+        PyObject* v = key ? to_python_raw(it.value()) : nullptr;
+        const int rc = v ? PyDict_SetItem(d, key, v) : -1;
+        Py_XDECREF(key);
+        Py_XDECREF(v);
+        if (rc != 0) { Py_DECREF(d); return nullptr; }
+      }
+      return d;
     }
-    default: return py::module_::import("json").attr("loads")(j.dump());  // binary, discarded
+    default: {  // binary, discarded: the text route
+      py::object o = py::module_::import("json").attr("loads")(j.dump());
+      return o.release().ptr();
+    }
   }
+}
+
+py::object to_python(const nlohmann::json& j) {
+  PyObject* o = to_python_raw(j);
+  if (!o) throw py::error_already_set();
+  return py::reinterpret_steal<py::object>(o);
 }
 }  // namespace
 
