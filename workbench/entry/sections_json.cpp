@@ -1,5 +1,7 @@
 #include "sections_json.h"
 
+#include <tbb/parallel_for.h>
+
 #include "common/error.h"
 #include "json_fields.h"
 #include "part_reader.h"
@@ -70,30 +72,39 @@ json strip_sections_json(const std::string& part_path, const json& job) {
   if (!sections.done) PARAFAB_INPUT_ERROR("cannot take sections of " << part_path << ": " << sections.message);
   json curves = json::array();
   int designed = 0, infeasible = 0, failed = 0;
-  for (const occ::SectionCurve& c : sections.curves) {
-    json pts = json::array(), pts2 = json::array();
-    for (const auto& X : c.points) pts.push_back(vec(X));
-    for (const auto& x : c.points2d) pts2.push_back({x.x() * scale, x.y() * scale});
-    json design;
+  // The strips of the sections are independent: designed on TBB workers, collected in order
+  // (each design is the same as alone).
+  const size_t count = sections.curves.size();
+  std::vector<json> designs(count);
+  std::vector<int> outcome(count, 0);  // 1 designed, 2 infeasible, 3 failed
+  tbb::parallel_for(size_t(0), count, [&](size_t k) {
+    const occ::SectionCurve& c = sections.curves[k];
     if (c.closed) {
-      design = error_json("closed section curve: a strip needs two ends; split it (job \"split\")", "closed_curve");
-      ++failed;
-    } else {
-      json request = strip;
-      request["curve"] = {{"points", pts2}, {"degree", 4}};
-      try {
-        design = design_strip_json(request);
-        if (design.value("feasible", false)) ++designed;
-        else ++infeasible;
-      } catch (const parafab::Error& e) {
-        design = error_json(e.what(), "invalid_input");
-        ++failed;
-      }
+      designs[k] = error_json("closed section curve: a strip needs two ends; split it (job \"split\")", "closed_curve");
+      outcome[k] = 3;
+      return;
     }
+    json pts2 = json::array();
+    for (const auto& x : c.points2d) pts2.push_back({x.x() * scale, x.y() * scale});
+    json request = strip;
+    request["curve"] = {{"points", pts2}, {"degree", 4}};
+    try {
+      designs[k] = design_strip_json(request);
+      outcome[k] = designs[k].value("feasible", false) ? 1 : 2;
+    } catch (const parafab::Error& e) {
+      designs[k] = error_json(e.what(), "invalid_input");
+      outcome[k] = 3;
+    }
+  });
+  for (size_t k = 0; k < count; ++k) {
+    const occ::SectionCurve& c = sections.curves[k];
+    json pts = json::array();
+    for (const auto& X : c.points) pts.push_back(vec(X));
+    designed += outcome[k] == 1, infeasible += outcome[k] == 2, failed += outcome[k] == 3;
     curves.push_back({{"plane", c.plane}, {"offset", c.offset}, {"piece", c.piece}, {"closed", c.closed},
                       {"length", c.length * scale},
                       {"frame", {{"origin", vec(c.origin)}, {"u", vec(c.u_axis)}, {"v", vec(c.v_axis)}}},
-                      {"points", pts}, {"strip", design}});
+                      {"points", pts}, {"strip", std::move(designs[k])}});
   }
   return {{"part", part_path},
           {"offsets", sections.offsets},
