@@ -454,6 +454,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
     d.phases.sampling += lap(tp);
     lp = solve(smp, go);
     d.phases.lp += lap(tp);
+    if (o.warm_start && lp.ok()) go.warm_rows = lp.active_rows;
     d.refinement.push_back({n, lp.ok() ? lp.R_first : NAN, NAN});
     if (!lp.ok() || o.fixed_samples > 0) { d.converged = lp.ok(); break; }
     if (std::isfinite(R_prev) && std::abs(lp.R_first / R_prev - 1) <= o.load_tolerance) {
@@ -465,6 +466,10 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   }
   if (lp.ok() && smooth) {
     go.smooth = true;
+    // Phase one on the final grid was solved by the last refinement step: reused (a composite
+    // strip's weights change with every solve, so it solves again).
+    GravityLpResult last = lp;
+    if (!composite_weight) go.phase_one = &last.phase_one_lp;
     lap(tp);
     lp = solve(smp, go);
     d.phases.lp += lap(tp);
