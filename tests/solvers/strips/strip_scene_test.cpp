@@ -49,6 +49,27 @@ TEST(StripScene, ThreadedScenesEqualSingleDesigns) {
   }
 }
 
+// Warm-started gravity LPs (the default) against cold starts: the same optimum bit for bit on
+// these curves, in fewer simplex iterations.
+TEST(StripScene, WarmStartedGravityLpsEqualColdStarts) {
+  int warm_iterations = 0, cold_iterations = 0;
+  for (const auto& c : {test::ellipse_arc(), test::one_inflection(), test::spiral()}) {
+    for (const bool smooth : {false, true}) {
+      StripDesignOptions o;
+      o.gravity.enabled = true;
+      o.smooth = smooth;
+      const StripDesign warm = design_strip(c, o);
+      o.warm_start = false;
+      const StripDesign cold = design_strip(c, o);
+      ASSERT_TRUE(cold.feasible);
+      expect_same(warm, cold);
+      warm_iterations += warm.lp_iterations;
+      cold_iterations += cold.lp_iterations;
+    }
+  }
+  EXPECT_LT(warm_iterations, cold_iterations);
+}
+
 TEST(StripScene, ErrorNamesTheStrip) {
   // Strip 1 has collapsed poles (zero speed): design_strip throws, design_strips names it.
   std::vector<BSplineCurve2> curves{test::ellipse_arc(),
