@@ -179,7 +179,7 @@ GravityLpResult solve_gravity_lp(const std::vector<StripLpSample>& samples_in, d
   }
   const auto t1 = Clock::now();
   const FewVariableLpResult r1 = o.phase_one ? *o.phase_one : solve_few_variable_lp(lp, lo);
-  out.seconds_first = since(t1);
+  out.seconds_first = o.phase_one ? r1.seconds : since(t1);  // reused: when it was solved
   out.iterations_first = r1.iterations;
   out.phase_one_lp = r1;
   for (int j : r1.basic)
