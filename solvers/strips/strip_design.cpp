@@ -593,6 +593,7 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
     d.phases.sampling += lap(tp);
     lp = solve_stiffness_lp(samples, zero_points, line_points, d.length, lpo);
     d.phases.lp += lap(tp);
+    if (options.warm_start_eq44 && lp.ok()) lpo.warm_samples = lp.active_samples, lpo.warm_other = lp.active_other;
     if (!lp.ok()) {
       d.refinement.push_back({n, NAN, NAN});
       break;
