@@ -63,6 +63,103 @@ void basis_derivatives(int span, double u, int p, const std::vector<double>& U, 
     factor *= (p - k);
   }
 }
+
+// The same algorithm with the degree P and the order ND (≤ P, ≤ 3) known at compile time, so
+// the loops unroll: the same operations in the same order, hence bit-identical results (no
+// FMA contraction on this target), for the evaluation hot path of the strip solvers.
+template <int P, int ND>
+void basis_derivatives_fixed(int span, double u, const double* U, double (&ders)[4][8]) {
+  double ndu[P + 1][P + 1], left[P + 1], right[P + 1], a[2][P + 1];
+  ndu[0][0] = 1.0;
+  for (int j = 1; j <= P; ++j) {
+    left[j] = u - U[span + 1 - j];
+    right[j] = U[span + j] - u;
+    double saved = 0.0;
+    for (int r = 0; r < j; ++r) {
+      ndu[j][r] = right[r + 1] + left[j - r];
+      const double temp = ndu[r][j - 1] / ndu[j][r];
+      ndu[r][j] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    ndu[j][j] = saved;
+  }
+  for (int j = 0; j <= P; ++j) ders[0][j] = ndu[j][P];
+  if constexpr (ND > 0) {
+    for (int r = 0; r <= P; ++r) {
+      int s1 = 0, s2 = 1;
+      a[0][0] = 1.0;
+      for (int k = 1; k <= ND; ++k) {
+        double d = 0.0;
+        const int rk = r - k, pk = P - k;
+        if (r >= k) {
+          a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
+          d = a[s2][0] * ndu[rk][pk];
+        }
+        const int j1 = (rk >= -1) ? 1 : -rk;
+        const int j2 = (r - 1 <= pk) ? k - 1 : P - r;
+        for (int j = j1; j <= j2; ++j) {
+          a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
+          d += a[s2][j] * ndu[rk + j][pk];
+        }
+        if (r <= pk) {
+          a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+          d += a[s2][k] * ndu[r][pk];
+        }
+        ders[k][r] = d;
+        std::swap(s1, s2);
+      }
+    }
+    double factor = P;
+    for (int k = 1; k <= ND; ++k) {
+      for (int j = 0; j <= P; ++j) ders[k][j] *= factor;
+      factor *= (P - k);
+    }
+  }
+}
+
+// C^(k)(u) for k ≤ ND (zero beyond) as BSplineCurve2::derivatives computes it: A_k = Σ N w P,
+// W_k = Σ N w, the quotient rule for a rational curve. A non-rational curve skips the weights
+// (N·1.0·P == N·P exactly).
+template <int P, int ND>
+std::array<Vec2, 4> evaluate_fixed(int span, double u, const std::vector<double>& knots,
+                                   const std::vector<Vec2>& poles, const std::vector<double>& weights) {
+  double N[4][8];
+  basis_derivatives_fixed<P, ND>(span, u, knots.data(), N);
+  std::array<Vec2, 4> A;
+  for (auto& x : A) x.setZero();
+  const int first = span - P;
+  if (weights.empty()) {
+    for (int k = 0; k <= ND; ++k)
+      for (int j = 0; j <= P; ++j) A[k] += N[k][j] * poles[first + j];
+    return A;
+  }
+  std::array<double, 4> W{0, 0, 0, 0};
+  for (int k = 0; k <= ND; ++k)
+    for (int j = 0; j <= P; ++j) {
+      const double w = weights[first + j];
+      A[k] += N[k][j] * w * poles[first + j];
+      W[k] += N[k][j] * w;
+    }
+  std::array<Vec2, 4> C;
+  C[0] = A[0] / W[0];
+  C[1] = (A[1] - W[1] * C[0]) / W[0];
+  C[2] = (A[2] - 2 * W[1] * C[1] - W[2] * C[0]) / W[0];
+  C[3] = (A[3] - 3 * W[1] * C[2] - 3 * W[2] * C[1] - W[3] * C[0]) / W[0];
+  return C;
+}
+
+template <int P>
+std::array<Vec2, 4> evaluate_degree(int nd, int span, double u, const std::vector<double>& knots,
+                                    const std::vector<Vec2>& poles, const std::vector<double>& weights) {
+  switch (nd) {
+    case 0: return evaluate_fixed<P, 0>(span, u, knots, poles, weights);
+    case 1: if constexpr (P >= 1) return evaluate_fixed<P, 1>(span, u, knots, poles, weights); break;
+    case 2: if constexpr (P >= 2) return evaluate_fixed<P, 2>(span, u, knots, poles, weights); break;
+    case 3: if constexpr (P >= 3) return evaluate_fixed<P, 3>(span, u, knots, poles, weights); break;
+  }
+  PARAFAB_VERIFY(false, "derivative order " << nd << " above degree " << P);
+  return {};
+}
 }  // namespace
 
 BSplineCurve2::BSplineCurve2(int degree, std::vector<double> knots, std::vector<Vec2> poles,
@@ -127,26 +224,15 @@ std::array<Vec2, 4> BSplineCurve2::derivatives(double u, int order) const {
   u = std::clamp(u, first_parameter(), last_parameter());
   const int span = find_span(u);
   const int nd = std::min(std::clamp(order, 0, 3), degree_);
-  std::array<std::array<double, 8>, 4> N{};
-  basis_derivatives(span, u, degree_, knots_, nd, N);
-  std::array<Vec2, 4> A;
-  std::array<double, 4> W{0, 0, 0, 0};
-  for (auto& a : A) a.setZero();
-  for (int k = 0; k <= nd; ++k)
-    for (int j = 0; j <= degree_; ++j) {
-      const int idx = span - degree_ + j;
-      const double w = rational() ? weights_[idx] : 1.0;
-      A[k] += N[k][j] * w * poles_[idx];
-      W[k] += N[k][j] * w;
-    }
-  if (!rational()) return A;
-  // Quotient rule for C = A / W (up to the requested order; A, W are zero beyond it).
-  std::array<Vec2, 4> C;
-  C[0] = A[0] / W[0];
-  C[1] = (A[1] - W[1] * C[0]) / W[0];
-  C[2] = (A[2] - 2 * W[1] * C[1] - W[2] * C[0]) / W[0];
-  C[3] = (A[3] - 3 * W[1] * C[2] - 3 * W[2] * C[1] - W[3] * C[0]) / W[0];
-  return C;
+  switch (degree_) {
+    case 1: return evaluate_degree<1>(nd, span, u, knots_, poles_, weights_);
+    case 2: return evaluate_degree<2>(nd, span, u, knots_, poles_, weights_);
+    case 3: return evaluate_degree<3>(nd, span, u, knots_, poles_, weights_);
+    case 4: return evaluate_degree<4>(nd, span, u, knots_, poles_, weights_);
+    case 5: return evaluate_degree<5>(nd, span, u, knots_, poles_, weights_);
+    case 6: return evaluate_degree<6>(nd, span, u, knots_, poles_, weights_);
+    default: return evaluate_degree<7>(nd, span, u, knots_, poles_, weights_);
+  }
 }
 
 void BSplineCurve2::set_poles(std::vector<Vec2> poles) {

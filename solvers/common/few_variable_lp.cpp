@@ -72,10 +72,21 @@ void solve_dual(const FewVariableLp& lp, const FewVariableLpOptions& options,
   model.scaling(0);
   model.setDualTolerance(options.tolerance);
   model.setPrimalTolerance(options.tolerance);
+  if (!options.basic_hint.empty()) {
+    int basic = 0;
+    for (int j = 0; j < cols; ++j)
+      model.setColumnStatus(j, j < n ? ClpSimplex::atLowerBound : ClpSimplex::isFree);
+    for (int j : options.basic_hint)
+      if (j >= 0 && j < cols && basic < d) model.setColumnStatus(j, ClpSimplex::basic), ++basic;
+    for (int k = 0; k < d; ++k)
+      model.setRowStatus(k, k < d - basic ? ClpSimplex::basic : ClpSimplex::isFixed);
+  }
   model.primal();
   r.iterations = model.numberIterations();
   const int s = model.status();
   if (s == 0) {
+    for (int j = 0; j < cols; ++j)
+      if (model.getColumnStatus(j) == ClpSimplex::basic) r.basic.push_back(j);
     r.status = LpStatus::Optimal;
     const double* price = model.getRowPrice();
     r.x.resize(d);

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 namespace parafab {
 
@@ -33,6 +34,10 @@ struct FewVariableLpOptions {
   /// A solution violating a row by more than this is reported as Failed, never returned
   /// as optimal (rows should be scaled to O(1) by the caller).
   double max_violation = 1e-8;
+  /// Dual form only: start Clp from a basis containing these dual columns (indices of rows of
+  /// [G; E], e.g. the rows active at the optimum of a similar LP), the rest from slacks. A warm
+  /// start changes Clp's path, so the optimum can differ in the last bits (off when empty).
+  std::vector<int> basic_hint;
 };
 
 struct FewVariableLpResult {
@@ -44,6 +49,7 @@ struct FewVariableLpResult {
   /// a program whose rows depend on a parameter θ has dV/dθ = −yᵀ ∂(Gx − h)/∂θ − zᵀ ∂(Ex − f)/∂θ
   /// (envelope theorem; used for dR/dP in strips/strip_improve).
   Eigen::VectorXd y, z;
+  std::vector<int> basic;      ///< Dual form: rows of [G; E] whose dual columns are basic at the end
   int iterations = 0;          ///< simplex iterations reported by Clp
   double max_violation = 0;    ///< max over rows of (h − Gx)⁺ and |Ex − f| at x
   double seconds = 0;          ///< wall time of load + solve

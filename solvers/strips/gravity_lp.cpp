@@ -170,10 +170,20 @@ GravityLpResult solve_gravity_lp(const std::vector<StripLpSample>& samples_in, d
   for (size_t k = 0; k < eq.size(); ++k) lp.E.row(k) << eq[k], 0.0;
   FewVariableLpOptions lo;
   lo.form = o.form;
+  if (!o.warm_rows.empty()) {  // samples matched by s (nested grids reuse them bit for bit)
+    size_t i = 0;
+    for (const auto& [sw, which] : o.warm_rows) {
+      while (i < smp.size() && smp[i].s < sw) ++i;
+      if (i < smp.size() && smp[i].s == sw) lo.basic_hint.push_back(2 * static_cast<int>(i) + which);
+    }
+  }
   const auto t1 = Clock::now();
-  const FewVariableLpResult r1 = solve_few_variable_lp(lp, lo);
-  out.seconds_first = since(t1);
+  const FewVariableLpResult r1 = o.phase_one ? *o.phase_one : solve_few_variable_lp(lp, lo);
+  out.seconds_first = o.phase_one ? r1.seconds : since(t1);  // reused: when it was solved
   out.iterations_first = r1.iterations;
+  out.phase_one_lp = r1;
+  for (int j : r1.basic)
+    if (j < 2 * n) out.active_rows.emplace_back(smp[j / 2].s, j % 2);
   out.max_violation = r1.max_violation;
   out.status = r1.status;
   out.message = r1.message;

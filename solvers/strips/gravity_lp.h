@@ -54,6 +54,13 @@ struct GravityLpOptions {
   /// σ₃/σ₁ of the normalized rows above this is reported as infeasible.
   double zero_consistency_tolerance = 1e-4;
   LpForm form = LpForm::Dual;
+  /// Warm start of phase one (opt-in, see StripDesignOptions::warm_start): rows active at the
+  /// optimum of a similar LP, as (s, 0 for K ≥ 1 / 1 for K ≤ R) of their samples.
+  std::vector<std::pair<double, int>> warm_rows;
+  /// Phase one already solved on exactly these samples and options (GravityLpResult::
+  /// phase_one_lp of an earlier call): reused instead of solved again, e.g. when phase two
+  /// follows the refinement on the final grid. Same result as solving it again.
+  const FewVariableLpResult* phase_one = nullptr;
 };
 
 struct GravityLpResult {
@@ -77,6 +84,8 @@ struct GravityLpResult {
   double zero_consistency = 0;  ///< σ₃/σ₁ of the equality rows (0 with fewer than 3)
   int equality_rows = 0;
   int iterations_first = 0, iterations_second = 0;
+  std::vector<std::pair<double, int>> active_rows;  ///< basic rows of phase one, as warm_rows
+  FewVariableLpResult phase_one_lp;                 ///< Clp's phase-one result (for phase_one)
   double seconds_first = 0, seconds_second = 0, seconds = 0;
   double max_violation = 0;   ///< of phase one's normalized program
   std::string message;

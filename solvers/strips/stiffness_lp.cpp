@@ -55,11 +55,23 @@ StiffnessLpResult solve_stiffness_lp(const std::vector<CurvePoint>& samples,
   }
   FewVariableLpOptions lo;
   lo.form = options.form;
+  if (!options.warm_samples.empty() || !options.warm_other.empty()) {
+    size_t i = 0;
+    for (const auto& [sw, which] : options.warm_samples) {
+      while (i < samples.size() && samples[i].s < sw) ++i;
+      if (i < samples.size() && samples[i].s == sw) lo.basic_hint.push_back(2 * static_cast<int>(i) + which);
+    }
+    for (int k : options.warm_other) lo.basic_hint.push_back(2 * n + k);
+  }
   const FewVariableLpResult r = solve_few_variable_lp(lp, lo);
   StiffnessLpResult out;
   out.status = r.status;
   out.rows = static_cast<int>(lp.G.rows());
   out.iterations = r.iterations;
+  for (int j : r.basic) {
+    if (j < 2 * n) out.active_samples.emplace_back(samples[j / 2].s, j % 2);
+    else out.active_other.push_back(j - 2 * n);
+  }
   out.seconds = r.seconds;
   out.max_violation = r.max_violation;
   out.message = r.message;

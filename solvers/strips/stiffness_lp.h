@@ -12,6 +12,11 @@ namespace parafab {
 
 struct StiffnessLpOptions {
   LpForm form = LpForm::Dual;
+  /// Warm start (dual form): rows active at the optimum of a similar LP, as
+  /// StiffnessLpResult::active_samples / active_other of an earlier call (samples matched by s;
+  /// the zeros' and line rows by their index). Empty: a cold start.
+  std::vector<std::pair<double, int>> warm_samples;
+  std::vector<int> warm_other;
 };
 
 struct StiffnessLpResult {
@@ -22,6 +27,10 @@ struct StiffnessLpResult {
   double objective = 0;       ///< the LP variable R (≥ R by at most the solver tolerance)
   int rows = 0;               ///< inequality rows of the primal program
   int iterations = 0;
+  /// Rows whose dual columns are basic at the optimum: samples as (s, 0 for K ≥ 1 / 1 for
+  /// K ≤ R), the zeros' rows and the line rows as their column index after the samples'.
+  std::vector<std::pair<double, int>> active_samples;
+  std::vector<int> active_other;
   double seconds = 0;
   double max_violation = 0;   ///< of the normalized program
   std::string message;

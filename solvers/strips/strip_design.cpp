@@ -6,6 +6,9 @@
 #include <map>
 #include <sstream>
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include "common/error.h"
 #include "strips/stiffness_lp.h"
 
@@ -15,6 +18,17 @@ namespace parafab {
 // K is a 0/0 ratio, represented exactly by the l'Hôpital row of the zero itself, and a line
 // fitted within the collinearity tolerance may pass the zero on the wrong side.
 constexpr double kZeroExclusion = 1e-6;
+
+namespace {
+using Clock = std::chrono::steady_clock;
+// Seconds since `t`, and `t` moved to now (phase timers of StripDesign::phases).
+double lap(Clock::time_point& t) {
+  const Clock::time_point now = Clock::now();
+  const double dt = std::chrono::duration<double>(now - t).count();
+  t = now;
+  return dt;
+}
+}  // namespace
 
 std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
                                              const std::vector<ZeroCurvaturePoint>& zeros,
@@ -244,6 +258,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   validate_general(o);
   d.general_lp = true;
   const double l = d.length;
+  Clock::time_point tp = Clock::now();
   ZeroCurvatureOptions zo = o.zeros;
   zo.natural_curvature = o.natural_curvature;
   ZeroCurvatureResult zeros = find_zero_curvature(curve, zo);
@@ -327,8 +342,10 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
     d.R_first = 1;
     return;
   }
+  d.phases.zeros = lap(tp);
   const EquilibriumCheck check = check_equilibrium(curve, zeros, o.check);
   add_end_zeros(check, zeros, d);
+  d.phases.check = lap(tp);
   const bool line_reason = check.reason == Infeasibility::NotCollinear ||
                            check.reason == Infeasibility::LineTangentAtInflection ||
                            check.reason == Infeasibility::LineCrossesCurve;
@@ -432,8 +449,12 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   const bool smooth = go.smooth;
   go.smooth = false;
   for (int n = n0;; n = std::min(2 * n - 1, o.max_samples)) {
+    lap(tp);
     smp = lp_samples(n);
+    d.phases.sampling += lap(tp);
     lp = solve(smp, go);
+    d.phases.lp += lap(tp);
+    if (o.warm_start && lp.ok()) go.warm_rows = lp.active_rows;
     d.refinement.push_back({n, lp.ok() ? lp.R_first : NAN, NAN});
     if (!lp.ok() || o.fixed_samples > 0) { d.converged = lp.ok(); break; }
     if (std::isfinite(R_prev) && std::abs(lp.R_first / R_prev - 1) <= o.load_tolerance) {
@@ -445,7 +466,13 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   }
   if (lp.ok() && smooth) {
     go.smooth = true;
+    // Phase one on the final grid was solved by the last refinement step: reused (a composite
+    // strip's weights change with every solve, so it solves again).
+    GravityLpResult last = lp;
+    if (!composite_weight) go.phase_one = &last.phase_one_lp;
+    lap(tp);
     lp = solve(smp, go);
+    d.phases.lp += lap(tp);
   }
   d.lp_samples = static_cast<int>(smp.size());
   d.lp_iterations = lp.iterations_first + lp.iterations_second;
@@ -503,18 +530,23 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   const PlaneCurve curve(bspline);
   StripDesign d;
   d.length = curve.length();
+  d.phases.curve = std::chrono::duration<double>(Clock::now() - t0).count();
   auto elapsed = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
   if (needs_general_lp(options)) {
     design_general(curve, options, d);
+    Clock::time_point tp = Clock::now();
     if (d.feasible) finish_outputs(options, d);
+    d.phases.outputs = lap(tp);
     d.total_seconds = elapsed();
     return d;
   }
+  Clock::time_point tp = Clock::now();
   ZeroCurvatureResult zeros = find_zero_curvature(curve, options.zeros);
   bending_strain(curve, zeros, options, d);
   d.zeros = zeros.points;
+  d.phases.zeros = lap(tp);
 
   if (zeros.straight) {  // a line segment: any constant K, no bending
     d.feasible = true;
@@ -528,6 +560,7 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   }
   const EquilibriumCheck check = check_equilibrium(curve, zeros, options.check);
   add_end_zeros(check, zeros, d);
+  d.phases.check = lap(tp);
   if (!check.feasible()) {
     d.reason_code = to_code(check.reason);
     d.reason = check.message;
@@ -555,13 +588,18 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   ContinuousRatio cont;
   std::map<double, CurvePoint> cache;
   for (int n = options.initial_samples + 1;; n = std::min(2 * n - 1, options.max_samples)) {
+    lap(tp);
     samples = sample_by_arc_length(curve, n, zeros.points, &cache);
+    d.phases.sampling += lap(tp);
     lp = solve_stiffness_lp(samples, zero_points, line_points, d.length, lpo);
+    d.phases.lp += lap(tp);
+    if (options.warm_start_eq44 && lp.ok()) lpo.warm_samples = lp.active_samples, lpo.warm_other = lp.active_other;
     if (!lp.ok()) {
       d.refinement.push_back({n, NAN, NAN});
       break;
     }
     cont = continuous_ratio(curve, samples, zero_points, lp.a, lp.b);
+    d.phases.ratio += lap(tp);
     d.refinement.push_back({n, lp.R, cont.ratio});
     if (cont.ratio / lp.R - 1 <= options.tolerance) {
       d.converged = true;
@@ -591,6 +629,7 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
     return d;
   }
 
+  lap(tp);
   // Normalize K so that min K = 1 exactly, over samples and zeros alike.
   std::vector<StripSample> all;
   for (const auto& p : samples)
@@ -608,8 +647,34 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   d.R = kmax / kmin;
   d.feasible = true;
   finish_outputs(options, d);
+  d.phases.outputs = lap(tp);
   d.total_seconds = elapsed();
   return d;
+}
+
+std::vector<StripDesign> design_strips(const std::vector<BSplineCurve2>& curves,
+                                       const StripDesignOptions& options, int threads) {
+  PARAFAB_VERIFY(threads >= 0, "design_strips: threads must be >= 0 (0: default), got " << threads);
+  std::vector<StripDesign> out(curves.size());
+  std::vector<std::string> errors(curves.size());
+  auto one = [&](size_t i) {
+    try {
+      out[i] = design_strip(curves[i], options);
+    } catch (const std::exception& e) {
+      errors[i] = e.what();
+    }
+  };
+  if (threads == 1) {
+    for (size_t i = 0; i < curves.size(); ++i) one(i);
+  } else {
+    tbb::task_arena arena(threads == 0 ? tbb::task_arena::automatic : threads);
+    arena.execute([&] {
+      tbb::parallel_for(size_t(0), curves.size(), [&](size_t i) { one(i); });
+    });
+  }
+  for (size_t i = 0; i < errors.size(); ++i)
+    if (!errors[i].empty()) PARAFAB_INPUT_ERROR("strip " << i << ": " << errors[i]);
+  return out;
 }
 
 }  // namespace parafab

@@ -67,6 +67,15 @@ struct StripDesignOptions {
   /// trapezoidal integrals make R converge as O(n⁻²).
   double load_tolerance = 1e-4;
   int fixed_samples = 0;           ///< > 0: exactly this many samples, no refinement
+  /// Gravity LP refinement: start each grid's phase-one LP from the rows active on the
+  /// coarser grid (Clp warm start; nested grids keep those samples). Clp then needs 0–2
+  /// iterations instead of 10–15. It ends in the same optimal basis on every curve tested
+  /// (all samples, the 31-strip scene, the test curves: R and K bit-identical to the cold
+  /// start), but a degenerate LP could end at another optimal vertex; false: cold starts.
+  bool warm_start = true;
+  /// The same for the Eq. 4.4 refinement (no gravity). Off by default: bit-identical on the
+  /// samples and test curves, but on the strip-improve test curve R moved by 3e-16.
+  bool warm_start_eq44 = false;
   /// A free end angle needs κ = κ₀ at that end: |κ − κ₀|·length up to this counts as zero.
   double free_angle_tolerance = 1e-6;
 };
@@ -109,6 +118,13 @@ struct StripDesign {
   int lp_iterations = 0;    ///< of the final LP
   double lp_seconds = 0;    ///< of the final LP
   double total_seconds = 0;
+  /// Where total_seconds went (wall time per phase, summed over the refinement): the
+  /// arc-length table, zero finding with the strain check, the equilibrium check, sampling
+  /// (arc-length inversion and curve evaluation), every LP solved (both phases), the
+  /// continuous-ratio estimate (Eq. 4.4 only) and the widths/outline. For benchmarks only.
+  struct Phases {
+    double curve = 0, zeros = 0, check = 0, sampling = 0, lp = 0, ratio = 0, outputs = 0;
+  } phases;
   std::string lp_message;
   // Gravity / general LP diagnostics (defaults for the plain Eq. 4.4 design).
   bool general_lp = false;   ///< designed with the gravity LP (Eq. 4.6)
@@ -140,6 +156,13 @@ std::vector<double> composite_inner_width(const std::vector<double>& K,
 /// Throws parafab::Error for invalid options (non-positive E, thickness, width, tolerance) or
 /// a singular curve; an infeasible curve is a result with feasible = false and a reason.
 StripDesign design_strip(const BSplineCurve2& curve, const StripDesignOptions& options = {});
+
+/// A scene of independent strips (e.g. a pavilion, §4.8.1): design_strip for every curve,
+/// distributed over `threads` TBB workers (0: TBB's default, 1: this thread only, in order).
+/// Each result equals design_strip(curves[i], options) exactly; the first error thrown by
+/// any strip is rethrown (naming the strip's index).
+std::vector<StripDesign> design_strips(const std::vector<BSplineCurve2>& curves,
+                                       const StripDesignOptions& options = {}, int threads = 0);
 
 /// Samples equally spaced in arc length plus the interior knots, leaving out points within
 /// 1e-6·length of a zero. `cache` (optional) keeps the curve evaluations by arc length, so

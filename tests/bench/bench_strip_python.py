@@ -6,9 +6,15 @@ to a designed strip (interpolation, zeros, sampling, LP, outline, JSON), median 
         [--baseline OLD.json]      -> DIR/strip_python.json, DIR/strip_python.png
 
 Curves (400 points each, metres): an ellipse arc (no inflection), a cubic with one
-inflection, and the same ellipse arc under cardboard gravity (the general LP). With
-``--baseline`` (a JSON written by an earlier build), the ratios old / new are reported per
-case (the baseline is a stored run, not the same process).
+inflection, and the same ellipse arc under cardboard gravity (the general LP).
+
+Per case: the median of every phase the call reports (``diagnostics.phases``: interpolation
+of the points, arc-length table, zeros, equilibrium check, sampling, LPs, continuous-ratio
+estimate, widths/outline, stability verdict, and ``entry`` = the whole C++ call), the
+Python<->C++ conversion (call minus entry), and, as the baseline in the same run, the text
+route ``json.loads(parafab.design_strip_json(json.dumps(request)))`` (what design_strip did
+before the direct dict conversion; its result is checked equal). With ``--baseline`` (a JSON
+written by an earlier build), the ratios old / new are reported too.
 """
 
 import argparse
@@ -66,7 +72,8 @@ def main():
     rows = []
     for name, spec in cases():
         parafab.design_strip(spec)  # warm-up
-        wall, cpu, total, lp = [], [], [], []
+        wall, cpu, total, lp, text = [], [], [], [], []
+        phases = {}
         for _ in range(repeats):
             t0, c0 = time.perf_counter(), time.process_time()
             r = parafab.design_strip(spec)
@@ -74,24 +81,38 @@ def main():
             cpu.append(time.process_time() - c0)
             total.append(r["diagnostics"]["total_seconds"])
             lp.append(r["diagnostics"]["lp_seconds"])
+            for k, v in r["diagnostics"]["phases"].items():
+                phases.setdefault(k, []).append(v)
+            phases.setdefault("conversion", []).append(wall[-1] - r["diagnostics"]["phases"]["entry"])
+            t0 = time.perf_counter()
+            rt = json.loads(parafab.design_strip_json(json.dumps(spec)))
+            text.append(time.perf_counter() - t0)
+        if untimed(rt) != untimed(r):
+            raise SystemExit("%s: the text route's result differs from design_strip's" % name)
         row = {"name": name, "repeats": repeats, "feasible": r["feasible"], "R": r["R"],
                "samples": r["diagnostics"]["samples"],
                "python_ms_median": 1e3 * statistics.median(wall),
                "python_ms_min": 1e3 * min(wall),
                "python_cpu_ms_median": 1e3 * statistics.median(cpu),
                "design_ms_median": 1e3 * statistics.median(total),
-               "lp_ms_median": 1e3 * statistics.median(lp)}
+               "lp_ms_median": 1e3 * statistics.median(lp),
+               "text_route_ms_median": 1e3 * statistics.median(text),
+               "phases_ms_median": {k: 1e3 * statistics.median(v) for k, v in phases.items()}}
+        row["text_route_ratio"] = row["text_route_ms_median"] / row["python_ms_median"]
         old = baseline.get(name)
         if old:
             row["baseline_python_ms_median"] = old["python_ms_median"]
             row["speedup"] = old["python_ms_median"] / row["python_ms_median"]
             row["baseline_R"] = old["R"]
         rows.append(row)
-        print("%-22s R = %.6f, %4d samples: python %.2f ms (min %.2f, CPU %.2f), design %.2f ms, LP %.2f ms%s"
+        print("%-22s R = %.6f, %4d samples: python %.2f ms (min %.2f, CPU %.2f), design %.2f ms, LP %.2f ms;"
+              " text route %.2f ms (%.2fx)%s"
               % (name, r["R"], row["samples"], row["python_ms_median"], row["python_ms_min"],
                  row["python_cpu_ms_median"],
-                 row["design_ms_median"], row["lp_ms_median"],
+                 row["design_ms_median"], row["lp_ms_median"], row["text_route_ms_median"],
+                 row["text_route_ratio"],
                  "  (baseline %.2f ms: %.1fx)" % (old["python_ms_median"], row["speedup"]) if old else ""))
+        print("    phases [ms]: " + ", ".join("%s %.3f" % (k, v) for k, v in row["phases_ms_median"].items()))
     os.makedirs(args.out, exist_ok=True)
     path = os.path.join(args.out, "strip_python.json")
     with open(path, "w") as f:
@@ -101,15 +122,29 @@ def main():
     print("->", path, png)
 
 
+def untimed(x):
+    """The result without its timings (they differ between any two calls)."""
+    if isinstance(x, dict):
+        return {k: untimed(v) for k, v in x.items() if "seconds" not in k and k != "phases"}
+    if isinstance(x, list):
+        return [untimed(v) for v in x]
+    return x
+
+
+PHASES = ["interpolation", "curve", "zeros", "check", "sampling", "lp", "ratio", "outputs",
+          "stability", "json", "conversion"]
+
+
 def plot(rows, png):
     """Bars per case: Python call, design (C++), LP; the baseline's Python call if given."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     x = range(len(rows))
-    keys = [("python_ms_median", "parafab.design_strip (Python)"), ("design_ms_median", "design (C++)"),
-            ("lp_ms_median", "LP")]
+    keys = [("text_route_ms_median", "text route (same run)"),
+            ("python_ms_median", "parafab.design_strip (Python)"), ("design_ms_median", "design (C++)"),
+            ("lp_ms_median", "final LP")]
     if all("baseline_python_ms_median" in r for r in rows):
         keys.insert(0, ("baseline_python_ms_median", "baseline Python call"))
     width = 0.8 / len(keys)
@@ -121,6 +156,25 @@ def plot(rows, png):
     ax.set_ylabel("median time [ms]")
     ax.set_yscale("log")
     ax.legend(fontsize=8)
+    # Stacked phases of the Python call ("json": the rest of the C++ entry, mostly building
+    # the result; "conversion": dict <-> C++).
+    bottom = [0.0] * len(rows)
+    for k in PHASES:
+        vals = []
+        for r in rows:
+            ph = r["phases_ms_median"]
+            if k == "json":
+                named = sum(ph.get(q, 0) for q in PHASES if q not in ("json", "conversion"))
+                vals.append(max(ph["entry"] - named, 0))
+            else:
+                vals.append(ph.get(k, 0))
+        ax2.bar(list(x), vals, 0.6, bottom=bottom, label=k, color=plt.cm.tab20(PHASES.index(k)))
+        bottom = [b + v for b, v in zip(bottom, vals)]
+    ax2.axhline(2.0, color="gray", ls="--")
+    ax2.set_xticks(list(x))
+    ax2.set_xticklabels([r["name"] for r in rows], fontsize=8)
+    ax2.set_ylabel("median per phase [ms], stacked")
+    ax2.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(png, dpi=100)
 

@@ -2,6 +2,9 @@
 // parafab.Error (a ValueError) is raised for invalid input, with the offending field named.
 #include <pybind11/pybind11.h>
 
+#include <cmath>
+#include <cstdint>
+
 #include "common/error.h"
 #include "occt_version.h"
 #include "integrate_json.h"
@@ -30,8 +33,9 @@ parafab::entry::ProgressFn progress_function(const py::object& progress) {
     return keep_going.is_none() || keep_going.cast<bool>();
   };
 }
-// dict -> nlohmann::json through Python's own json module (exact for floats and ints).
-nlohmann::json to_json(const py::object& obj) {
+// dict -> nlohmann::json through Python's own json module (exact for floats and ints): the
+// reference route, and the fallback for what the direct conversion below does not take.
+nlohmann::json to_json_text(const py::object& obj) {
   py::module_ json = py::module_::import("json");
   try {
     return nlohmann::json::parse(py::str(json.attr("dumps")(obj, py::arg("allow_nan") = true))
@@ -41,8 +45,133 @@ nlohmann::json to_json(const py::object& obj) {
     throw parafab::Error("the request contains NaN or infinite numbers");
   }
 }
+
+// The direct conversion gives up (and to_json falls back to the text route, with its errors)
+// on anything json.dumps would not write as plain JSON: non-string keys, other types, deep
+// or circular nesting.
+struct NotPlainJson {};
+
+// Python -> nlohmann::json without text, the same values as json.dumps + parse: float repr
+// round-trips exactly, non-negative ints parse as unsigned and negative ones as signed, ints
+// beyond 64 bits as the nearest double.
+nlohmann::json to_json_direct(PyObject* o, int depth) {
+  if (depth > 500) throw NotPlainJson{};
+  if (o == Py_None) return nullptr;
+  if (PyBool_Check(o)) return o == Py_True;
+  if (PyFloat_Check(o)) {
+    const double x = PyFloat_AS_DOUBLE(o);
+    if (!std::isfinite(x)) throw parafab::Error("the request contains NaN or infinite numbers");
+    return x;
+  }
+  if (PyLong_Check(o)) {
+    int overflow = 0;
+    const long long v = PyLong_AsLongLongAndOverflow(o, &overflow);
+    if (overflow == 0) {
+      if (v == -1 && PyErr_Occurred()) throw py::error_already_set();
+      if (v >= 0) return static_cast<std::uint64_t>(v);
+      return static_cast<std::int64_t>(v);
+    }
+    if (overflow > 0) {
+      const unsigned long long u = PyLong_AsUnsignedLongLong(o);
+      if (!PyErr_Occurred()) return static_cast<std::uint64_t>(u);
+      PyErr_Clear();
+    }
+    throw NotPlainJson{};  // beyond 64 bits: the text route decides
+  }
+  if (PyUnicode_Check(o)) {
+    Py_ssize_t n = 0;
+    const char* c = PyUnicode_AsUTF8AndSize(o, &n);
+    if (!c) throw py::error_already_set();
+    return std::string(c, static_cast<size_t>(n));
+  }
+  if (PyList_Check(o) || PyTuple_Check(o)) {
+    const bool list = PyList_Check(o);
+    const Py_ssize_t n = list ? PyList_GET_SIZE(o) : PyTuple_GET_SIZE(o);
+    nlohmann::json a = nlohmann::json::array();
+    a.get_ref<nlohmann::json::array_t&>().reserve(static_cast<size_t>(n));
+    for (Py_ssize_t i = 0; i < n; ++i)
+      a.push_back(to_json_direct(list ? PyList_GET_ITEM(o, i) : PyTuple_GET_ITEM(o, i), depth + 1));
+    return a;
+  }
+  if (PyDict_Check(o)) {
+    nlohmann::json d = nlohmann::json::object();
+    PyObject *key = nullptr, *value = nullptr;
+    Py_ssize_t pos = 0;
+    while (PyDict_Next(o, &pos, &key, &value)) {
+      if (!PyUnicode_CheckExact(key)) throw NotPlainJson{};
+      Py_ssize_t n = 0;
+      const char* c = PyUnicode_AsUTF8AndSize(key, &n);
+      if (!c) throw py::error_already_set();
+      d[std::string(c, static_cast<size_t>(n))] = to_json_direct(value, depth + 1);
+    }
+    return d;
+  }
+  throw NotPlainJson{};
+}
+
+nlohmann::json to_json(const py::object& obj) {
+  try {
+    return to_json_direct(obj.ptr(), 0);
+  } catch (const NotPlainJson&) {
+    return to_json_text(obj);
+  }
+}
+
+// nlohmann::json -> Python objects without text, the same values as json.loads(j.dump()):
+// non-finite floats become None (dump writes null), objects keep the sorted key order.
+// Raw C API (new references; nullptr with a Python error set on failure).
+PyObject* to_python_raw(const nlohmann::json& j) {
+  using V = nlohmann::json::value_t;
+  switch (j.type()) {
+    case V::null: Py_RETURN_NONE;
+    case V::boolean: if (j.get<bool>()) Py_RETURN_TRUE; else Py_RETURN_FALSE;
+    case V::number_integer: return PyLong_FromLongLong(j.get<std::int64_t>());
+    case V::number_unsigned: return PyLong_FromUnsignedLongLong(j.get<std::uint64_t>());
+    case V::number_float: {
+      const double x = j.get<double>();
+      if (!std::isfinite(x)) Py_RETURN_NONE;
+      return PyFloat_FromDouble(x);
+    }
+    case V::string: {
+      const std::string& t = j.get_ref<const std::string&>();
+      return PyUnicode_DecodeUTF8(t.data(), static_cast<Py_ssize_t>(t.size()), "strict");
+    }
+    case V::array: {
+      PyObject* a = PyList_New(static_cast<Py_ssize_t>(j.size()));
+      if (!a) return nullptr;
+      Py_ssize_t i = 0;
+      for (const auto& e : j) {
+        PyObject* v = to_python_raw(e);
+        if (!v) { Py_DECREF(a); return nullptr; }
+        PyList_SET_ITEM(a, i++, v);
+      }
+      return a;
+    }
+    case V::object: {
+      PyObject* d = PyDict_New();
+      if (!d) return nullptr;
+      for (auto it = j.begin(); it != j.end(); ++it) {
+        const std::string& k = it.key();
+        PyObject* key = PyUnicode_DecodeUTF8(k.data(), static_cast<Py_ssize_t>(k.size()), "strict");
+        PyObject* v = key ? to_python_raw(it.value()) : nullptr;
+        const int rc = v ? PyDict_SetItem(d, key, v) : -1;
+        Py_XDECREF(key);
+        Py_XDECREF(v);
+        if (rc != 0) { Py_DECREF(d); return nullptr; }
+      }
+      return d;
+    }
+    default: {  // binary, discarded: the text route
+      py::object o = py::module_::import("json").attr("loads")(j.dump());
+      return o.release().ptr();
+    }
+  }
+}
+
 py::object to_python(const nlohmann::json& j) {
-  return py::module_::import("json").attr("loads")(j.dump());
+  PyObject* o = to_python_raw(j);
+  if (!o) throw py::error_already_set();
+  return py::reinterpret_steal<py::object>(o);
 }
 }  // namespace
 
@@ -116,6 +245,21 @@ PYBIND11_MODULE(parafab, m) {
       "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
       "min_width, tolerance; optional gravity, boundary, natural_curvature, material.law, "
       "smooth, validate, composite, perforated.");
+  m.def(
+      "design_strip_json",
+      [](const std::string& text) {
+        nlohmann::json in;
+        try {
+          in = nlohmann::json::parse(text);
+        } catch (const nlohmann::json::parse_error& e) {
+          throw parafab::Error(std::string("the request is not valid JSON: ") + e.what());
+        }
+        py::gil_scoped_release release;
+        return parafab::entry::design_strip_json(in).dump();
+      },
+      py::arg("text"),
+      "design_strip with JSON text in and out (the CLI's format): for callers that hold the "
+      "request as text; json.loads(design_strip_json(json.dumps(r))) equals design_strip(r).");
   m.def(
       "export_strip_outline",
       [](const py::dict& result, const std::string& path) {

@@ -1,5 +1,7 @@
 #include "sections_json.h"
 
+#include <tbb/parallel_for.h>
+
 #include "common/error.h"
 #include "json_fields.h"
 #include "part_reader.h"
@@ -82,66 +84,77 @@ json strip_sections_json(const std::string& part_path, const json& job) {
   if (!sections.done) PARAFAB_INPUT_ERROR("cannot take sections of " << part_path << ": " << sections.message);
   json curves = json::array();
   int designed = 0, infeasible = 0, failed = 0;
-  for (const occ::SectionCurve& c : sections.curves) {
-    json pts = json::array(), pts2 = json::array();
-    for (const auto& X : c.points) pts.push_back(vec(X));
-    for (const auto& x : c.points2d) pts2.push_back({x.x() * scale, x.y() * scale});
-    json design, fair_report = nullptr;
+  // The strips of the sections are independent: designed on TBB workers, collected in order
+  // (each design is the same as alone).
+  const size_t count = sections.curves.size();
+  std::vector<json> designs(count), fair_reports(count, json(nullptr));
+  std::vector<int> outcome(count, 0);  // 1 designed, 2 infeasible, 3 failed
+  tbb::parallel_for(size_t(0), count, [&](size_t k) {
+    const occ::SectionCurve& c = sections.curves[k];
     if (c.closed) {
-      design = error_json("closed section curve: a strip needs two ends; split it (job \"split\")", "closed_curve");
-      ++failed;
-    } else {
-      json request = strip;
-      auto fair_design = [&](const std::string& why) {
-        std::vector<Vec2> P;
-        for (const auto& x : c.points2d) P.emplace_back(x.x() * scale, x.y() * scale);
-        auto [curve, report] = fair_points_json(P, fair.is_object() ? fair : json(), "fair");
-        report["why"] = why;
-        request["curve"] = {{"bspline", bspline_json(curve)}};
-        fair_report = std::move(report);
-        return design_strip_json(request);
-      };
-      try {
-        if (fair_always) {
-          design = fair_design("requested");
+      designs[k] = error_json("closed section curve: a strip needs two ends; split it (job \"split\")", "closed_curve");
+      outcome[k] = 3;
+      return;
+    }
+    json& design = designs[k];
+    json& fair_report = fair_reports[k];
+    json request = strip;
+    auto fair_design = [&](const std::string& why) {
+      std::vector<Vec2> P;
+      for (const auto& x : c.points2d) P.emplace_back(x.x() * scale, x.y() * scale);
+      auto [curve, report] = fair_points_json(P, fair.is_object() ? fair : json(), "fair");
+      report["why"] = why;
+      request["curve"] = {{"bspline", bspline_json(curve)}};
+      fair_report = std::move(report);
+      return design_strip_json(request);
+    };
+    try {
+      if (fair_always) {
+        design = fair_design("requested");
+      } else {
+        json pts2 = json::array();
+        for (const auto& x : c.points2d) pts2.push_back({x.x() * scale, x.y() * scale});
+        request["curve"] = {{"points", pts2}, {"degree", 4}};
+        if (!fair_auto) {
+          design = design_strip_json(request);
         } else {
-          request["curve"] = {{"points", pts2}, {"degree", 4}};
-          if (!fair_auto) {
+          std::string why;
+          try {
             design = design_strip_json(request);
-          } else {
-            std::string why;
-            try {
-              design = design_strip_json(request);
-              if (!design.value("feasible", false)) {
-                const json& r = design.contains("reason") ? design["reason"] : json();
-                why = "the interpolated curve is infeasible: " + (r.is_string() ? r.get<std::string>() : "no reason");
-              }
-            } catch (const parafab::Error& e) {
-              design = error_json(e.what(), "invalid_input");
-              why = std::string("the interpolated curve was refused: ") + e.what();
+            if (!design.value("feasible", false)) {
+              const json& r = design.contains("reason") ? design["reason"] : json();
+              why = "the interpolated curve is infeasible: " + (r.is_string() ? r.get<std::string>() : "no reason");
             }
-            if (!why.empty()) {
-              json plain = std::move(design);
-              design = fair_design(why);
-              if (!design.value("feasible", false)) {  // neither works: report the plain design
-                fair_report["kept"] = "interpolation";
-                design = std::move(plain);
-                if (design.contains("error")) throw Error(design["error"]["message"].get<std::string>());
-              }
+          } catch (const parafab::Error& e) {
+            design = error_json(e.what(), "invalid_input");
+            why = std::string("the interpolated curve was refused: ") + e.what();
+          }
+          if (!why.empty()) {
+            json plain = std::move(design);
+            design = fair_design(why);
+            if (!design.value("feasible", false)) {  // neither works: report the plain design
+              fair_report["kept"] = "interpolation";
+              design = std::move(plain);
+              if (design.contains("error")) throw Error(design["error"]["message"].get<std::string>());
             }
           }
         }
-        if (design.value("feasible", false)) ++designed;
-        else ++infeasible;
-      } catch (const parafab::Error& e) {
-        design = error_json(e.what(), "invalid_input");
-        ++failed;
       }
+      outcome[k] = design.value("feasible", false) ? 1 : 2;
+    } catch (const parafab::Error& e) {
+      design = error_json(e.what(), "invalid_input");
+      outcome[k] = 3;
     }
+  });
+  for (size_t k = 0; k < count; ++k) {
+    const occ::SectionCurve& c = sections.curves[k];
+    json pts = json::array();
+    for (const auto& X : c.points) pts.push_back(vec(X));
+    designed += outcome[k] == 1, infeasible += outcome[k] == 2, failed += outcome[k] == 3;
     curves.push_back({{"plane", c.plane}, {"offset", c.offset}, {"piece", c.piece}, {"closed", c.closed},
                       {"length", c.length * scale},
                       {"frame", {{"origin", vec(c.origin)}, {"u", vec(c.u_axis)}, {"v", vec(c.v_axis)}}},
-                      {"points", pts}, {"fair", fair_report}, {"strip", design}});
+                      {"points", pts}, {"fair", std::move(fair_reports[k])}, {"strip", std::move(designs[k])}});
   }
   return {{"part", part_path},
           {"offsets", sections.offsets},

@@ -1,6 +1,7 @@
 #include "strip_json.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "common/error.h"
@@ -191,6 +192,10 @@ json error_json(const std::string& message, const std::string& kind) {
 }
 
 json design_strip_json(const json& request) {
+  const auto t_entry = std::chrono::steady_clock::now();
+  auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
   if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
   StripDesignOptions o;
   const json& material = require(request, "material", "request");
@@ -333,7 +338,9 @@ json design_strip_json(const json& request) {
   }
   StripStabilityOptions stability_options;  // thesis §4.5: on by default (the Jacobi test)
   const bool stability = parse_stability_options(request, stability_options);
+  const auto t_curve = std::chrono::steady_clock::now();
   const BSplineCurve2 curve = parse_curve(request);
+  const double interpolation_seconds = since(t_curve);
   const StripDesign d = design_strip(curve, o);
 
   json out;
@@ -532,10 +539,20 @@ json design_strip_json(const json& request) {
                              {"diamonds", diamonds}};
     }
   }
+  const auto t_stability = std::chrono::steady_clock::now();
   if (stability)
     out["stability"] = d.feasible ? stability_to_json(strip_stability(curve, d, o, stability_options), d.length)
                                   : json(nullptr);
+  const double stability_seconds = since(t_stability);
   out["units"] = {{"length", "m"}, {"E", "Pa"}, {"bending_stiffness", "N*m^2"}};
+  // Wall time per phase (benchmarks): the curve from the request (interpolation of points),
+  // the design's phases, the stability verdict, and everything in this call (`entry`:
+  // request parsing, design, stability, validation and building this JSON).
+  const StripDesign::Phases& ph = d.phases;
+  out["diagnostics"]["phases"] = {{"interpolation", interpolation_seconds}, {"curve", ph.curve},
+                                  {"zeros", ph.zeros}, {"check", ph.check}, {"sampling", ph.sampling},
+                                  {"lp", ph.lp}, {"ratio", ph.ratio}, {"outputs", ph.outputs},
+                                  {"stability", stability_seconds}, {"entry", since(t_entry)}};
   return out;
 }
 
