@@ -321,7 +321,8 @@ def add_result(obj, history, out_dir, placement=None):
             "Iterations": max(len(history.get("iterations", [])) - 1, 0),
             "VolumeRatio": (history["final_volume"] / history["initial_volume"]
                             if history.get("initial_volume") else 0.0),
-            "OptimizationStatus": ("%s: %s" % (status, history.get("message", ""))).strip(": "),
+            "OptimizationStatus": status if history.get("message", "") in ("", status)
+            else "%s: %s" % (status, history["message"]),
             "ParameterChanges": ["%s %.6g -> %.6g" % (p["name"], p["initial"], p["final"])
                                  for p in history.get("parameters", [])],
             "HistoryFile": os.path.join(out_dir, "history.json"),
