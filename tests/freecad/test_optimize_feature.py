@@ -146,7 +146,14 @@ class OptimizeFeatureTest(unittest.TestCase):
         self.assertEqual(new.getEditorMode("FinalObjective"), ["ReadOnly"])
         self.assertAlmostEqual(new.VolumeRatio, new.Shape.Volume / self.wheel.Shape.Volume, delta=1e-9)
         self.assertEqual(len(new.ParameterChanges), 14)
-        self.assertTrue(os.path.isfile(new.HistoryChart) and new.HistoryChart.endswith("history.png"))
+        # FreeCAD's face names (FaceN = engine face N-1), values as in history.json.
+        first = on_disk["parameters"][0]
+        self.assertEqual(new.ParameterChanges[0], "%s plane offset %.6g -> %.6g" % (
+            self.options["parameters"][0][0], first["initial"], first["final"]))
+        for chart in (new.HistoryChart, new.BeforeAfterChart):
+            with open(chart, "rb") as f:
+                self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n", chart)
+        self.assertEqual(os.path.basename(new.BeforeAfterChart), "before_after.png")
         self.assertEqual([it["iteration"] for it in iterates], list(range(len(iterates))))
         self.assertEqual(len(iterates), new.Iterations + 1)
 

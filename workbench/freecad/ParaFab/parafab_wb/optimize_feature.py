@@ -18,6 +18,7 @@ new object gets the original's placement.
 
 import json
 import os
+import re
 import shutil
 import tempfile
 
@@ -281,9 +282,12 @@ _RESULT_PROPERTIES = (
     ("App::PropertyFloat", "TangencyResidual", "Largest tangency residual on the optimized part",
      "tangency_residual_max"),
     ("App::PropertyString", "OptimizationStatus", "Optimizer status and message", None),
-    ("App::PropertyStringList", "ParameterChanges", "Design parameters: name initial -> final", None),
+    ("App::PropertyStringList", "ParameterChanges", "Design parameters (FreeCAD face names): initial -> final",
+     None),
     ("App::PropertyPath", "HistoryFile", "history.json of the run", None),
     ("App::PropertyPath", "HistoryChart", "history.png: objective against iteration and time", None),
+    ("App::PropertyPath", "BeforeAfterChart", "before_after.png: design parameters and objective before and after",
+     None),
 )
 
 
@@ -308,6 +312,13 @@ def add_result(obj, history, out_dir, placement=None):
     if len(solids) != 1 or not solids[0].isValid():
         raise OptimizeError("%s is not one valid solid (%d solids)" % (step, len(solids)))
     solid = solids[0]
+    try:
+        from . import optimize_plot
+        before_after = optimize_plot.plot_before_after(
+            history, os.path.join(out_dir, optimize_plot.BEFORE_AFTER), obj.Label, freecad_parameter_name)
+    except Exception as exc:  # the chart is optional: the history is complete without it
+        FreeCAD.Console.PrintWarning("ParaFab: no before/after chart: %s\n" % exc)
+        before_after = ""
     if placement is None:
         placement = solid_shape(obj).Placement
     doc = obj.Document
@@ -323,10 +334,11 @@ def add_result(obj, history, out_dir, placement=None):
                             if history.get("initial_volume") else 0.0),
             "OptimizationStatus": status if history.get("message", "") in ("", status)
             else "%s: %s" % (status, history["message"]),
-            "ParameterChanges": ["%s %.6g -> %.6g" % (p["name"], p["initial"], p["final"])
+            "ParameterChanges": ["%s %.6g -> %.6g" % (freecad_parameter_name(p["name"]), p["initial"], p["final"])
                                  for p in history.get("parameters", [])],
             "HistoryFile": os.path.join(out_dir, "history.json"),
             "HistoryChart": history.get("chart") or "",
+            "BeforeAfterChart": before_after,
         }
         for prop_type, name, tip, key in _RESULT_PROPERTIES:
             new.addProperty(prop_type, name, "Optimization", tip)
@@ -345,6 +357,12 @@ def add_result(obj, history, out_dir, placement=None):
     return new
 
 
+def freecad_parameter_name(name):
+    """The engine's ``"face 2 plane offset"`` (0-based) as FreeCAD names it: ``"Face3 plane offset"``."""
+    m = re.match(r"face (\d+) (.*)$", name)
+    return "Face%d %s" % (int(m.group(1)) + 1, m.group(2)) if m else name
+
+
 def summary(history):
     """One line: objective, initial -> final, iterations, status."""
     return "%s %.4g -> %.4g in %d iterations (%s)" % (
@@ -358,7 +376,8 @@ def optimize_shape(obj, job_options, out_dir=None, progress=None):
 
     ``job_options``: see :func:`default_options`. ``progress(iterate)`` (``{iteration, objective,
     constraint_violation, seconds}``) may return False to cancel (nothing is added then).
-    Returns ``{"object", "history", "out_dir", "job", "chart"}``; raises :class:`OptimizeError`
+    Returns ``{"object", "history", "out_dir", "job", "chart"}`` (``chart``: history.png; the
+    object's ``BeforeAfterChart`` is before_after.png); raises :class:`OptimizeError`
     with the problem named, the document unchanged."""
     import parafab
     part, job, _, out_dir, placement = prepare(obj, job_options, out_dir)

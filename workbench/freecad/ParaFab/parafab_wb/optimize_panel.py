@@ -82,29 +82,31 @@ class OptimizeTaskPanel(object):
 
         params = QtGui.QGroupBox("Design parameters")
         lay = QtGui.QVBoxLayout(params)
-        hint = QtGui.QLabel("Part: %s, %d faces, %d tangency relations in %d groups (a group moves "
-                            "together). Check parameters, or use all." % (
+        hint = QtGui.QLabel("%s: %d faces, %d tangency relations, %d tangency groups (a group "
+                            "moves together)." % (
                                 self.obj.Label, len(self.model["faces"]), self.model["relations"],
                                 len(self.model["groups"])))
         hint.setWordWrap(True)
         lay.addWidget(hint)
-        self.auto = QtGui.QCheckBox("All parameters of all analytic faces (auto)")
+        self.auto = QtGui.QCheckBox("All parameters (auto)")
+        self.auto.setToolTip("Every parameter of every analytic face that is not fixed")
         lay.addWidget(self.auto)
         self.tree = QtGui.QTreeWidget()
-        self.tree.setHeaderLabels(["Face / parameter", "type"])
+        self.tree.setHeaderHidden(True)
+        self.tree.setColumnCount(1)
         self.tree.setMinimumHeight(140)
         self._param_items = {}
         faces = {f["name"]: f for f in self.model["faces"]}
         grouped = set()
         for k, group in enumerate(self.model["groups"]):
-            top = QtGui.QTreeWidgetItem(["Tangency group %d" % (k + 1), ", ".join(group)])
+            top = QtGui.QTreeWidgetItem(["Tangency group %d: %s" % (k + 1, ", ".join(group))])
             self.tree.addTopLevelItem(top)
             for name in group:
                 grouped.add(name)
                 self._add_face(top, faces[name])
         rest = [f for f in self.model["faces"] if f["name"] not in grouped]
         if rest:
-            top = QtGui.QTreeWidgetItem(["Faces without tangency", "%d faces" % len(rest)])
+            top = QtGui.QTreeWidgetItem(["Faces without tangency (%d)" % len(rest)])
             self.tree.addTopLevelItem(top)
             for f in rest:
                 self._add_face(top, f)
@@ -185,9 +187,19 @@ class OptimizeTaskPanel(object):
         self.changes.setMaximumHeight(90)
         self.changes.setToolTip("Design parameters: initial -> final")
         lay.addWidget(self.changes)
-        self.chart = QtGui.QLabel()
-        self.chart.setAlignment(QtCore.Qt.AlignCenter)
-        lay.addWidget(self.chart)
+        self.charts = QtGui.QTabWidget()
+        self.chart = QtGui.QLabel("history chart after a run")
+        self.before_after = QtGui.QLabel("before/after chart after a run")
+        for label, title in ((self.chart, "History"), (self.before_after, "Before/after")):
+            label.setAlignment(QtCore.Qt.AlignCenter)
+            label.setMinimumHeight(150)
+            self.charts.addTab(label, title)
+        lay.addWidget(self.charts)
+        self.open_chart = QtGui.QPushButton("Open chart")
+        self.open_chart.setToolTip("Show the chart of the current tab full size")
+        self.open_chart.setEnabled(False)
+        self.open_chart.clicked.connect(self.show_chart)
+        lay.addWidget(self.open_chart)
         self.run_button.clicked.connect(self.start_run)
         self.cancel_button.clicked.connect(self.cancel_run)
         layout.addWidget(run)
@@ -195,14 +207,14 @@ class OptimizeTaskPanel(object):
         return form
 
     def _add_face(self, parent, face):
-        item = QtGui.QTreeWidgetItem(parent, [face["name"], face["type"]])
+        item = QtGui.QTreeWidgetItem(parent, ["%s (%s)" % (face["name"], face["type"])])
         for name in face["parameters"]:
-            child = QtGui.QTreeWidgetItem(item, [name, ""])
+            child = QtGui.QTreeWidgetItem(item, [name])
             child.setFlags(child.flags() | QtCore.Qt.ItemIsUserCheckable)
             child.setCheckState(0, QtCore.Qt.Unchecked)
             self._param_items[(face["name"], name)] = child
         if not face["parameters"]:
-            item.setText(1, "%s (fixed: no analytic parameters)" % face["type"])
+            item.setText(0, "%s (%s: fixed, no analytic parameters)" % (face["name"], face["type"]))
 
     def check_faces(self, names):
         """Check the default parameter (offset, radius) of faces ``names``; returns those checked."""
@@ -282,17 +294,40 @@ class OptimizeTaskPanel(object):
                 new.Label, optimize_feature.summary(self.run.history), new.VolumeRatio, self.run.out_dir))
             self.changes.clear()
             self.changes.addItems(list(new.ParameterChanges))
-            pixmap = QtGui.QPixmap(new.HistoryChart) if new.HistoryChart else QtGui.QPixmap()
-            if not pixmap.isNull():
-                self.chart.setPixmap(pixmap.scaledToWidth(360, QtCore.Qt.SmoothTransformation))
-                self.chart.setToolTip(new.HistoryChart)
-            else:
-                self.chart.setText("no chart (history in %s)" % new.HistoryFile)
+            self._show(self.chart, new.HistoryChart, new.HistoryFile)
+            self._show(self.before_after, new.BeforeAfterChart, new.HistoryFile)
+            self.open_chart.setEnabled(True)
         else:
             self.progress.setValue(0)
             self.progress.setFormat("cancelled" if outcome.state == optimize_runner.CANCELLED else "failed")
             self.status.setText("%s: %s (document unchanged)" % (outcome.state, outcome.message))
         FreeCADGui.updateGui()
+
+    def _show(self, label, path, history_file):
+        pixmap = QtGui.QPixmap(path) if path else QtGui.QPixmap()
+        if pixmap.isNull():
+            label.setPixmap(QtGui.QPixmap())
+            label.setText("no chart (history in %s)" % history_file)
+        else:
+            width = max(200, self.charts.width() - 10)
+            label.setPixmap(pixmap.scaled(width, 260, QtCore.Qt.KeepAspectRatio, QtCore.Qt.SmoothTransformation))
+        label.setToolTip(path or "")
+
+    def show_chart(self):
+        """A window with the chart of the current tab at full size; returns it."""
+        label = self.charts.currentWidget()
+        pixmap = QtGui.QPixmap(label.toolTip())
+        if pixmap.isNull():
+            return None
+        dialog = QtGui.QDialog(FreeCADGui.getMainWindow())
+        dialog.setWindowTitle("%s: %s" % (self.obj.Label, self.charts.tabText(self.charts.currentIndex())))
+        lay = QtGui.QVBoxLayout(dialog)
+        view = QtGui.QLabel()
+        view.setPixmap(pixmap)
+        lay.addWidget(view)
+        dialog.setAttribute(QtCore.Qt.WA_DeleteOnClose)
+        dialog.show()
+        return dialog
 
     # -- task dialog -------------------------------------------------------------------------
 
