@@ -117,7 +117,7 @@ class OptimizeFeatureTest(unittest.TestCase):
         iterates = []
         r = optimize_feature.optimize_shape(self.wheel, self.options, self.tmp,
                                             progress=lambda it: iterates.append(it) or True)
-        new, h = r["object"], r["history"]
+        new = r["object"]
         # The original is untouched; exactly one object was added.
         names_before = before[0]
         self.assertEqual(before[1:], self.snapshot()[1:])

@@ -14,7 +14,6 @@ them (one undo transaction).
 GUI only: imported by the command.
 """
 
-import FreeCAD
 import FreeCADGui
 from PySide import QtCore, QtGui
 
