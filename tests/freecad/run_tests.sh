@@ -1,5 +1,5 @@
 #!/bin/bash
-# Run the headless FreeCAD tests of the ParaFab workbench (strip, rod and analysis features).
+# Run the headless FreeCAD tests of the ParaFab workbench (strip, rod, analysis features, optimize shape).
 #
 # Usage: tests/freecad/run_tests.sh [BUILD_DIR]      (default: <repo>/build)
 #
@@ -28,7 +28,7 @@ trap 'rm -rf "$tmp_home"' EXIT
 
 echo "run_tests.sh: solver from $PARAFAB_MODULE_DIR, workbench from $PARAFAB_WB_DIR"
 status=0
-for module in test_strip_feature test_rod_feature test_analysis_feature test_strip_improve test_strip_stabilize; do
+for module in test_strip_feature test_rod_feature test_analysis_feature test_strip_improve test_strip_stabilize test_optimize_feature; do
     HOME=$tmp_home PYTHONPATH="$here${PYTHONPATH:+:$PYTHONPATH}" \
         timeout "$timeout_s" freecadcmd -t "$module" || { status=$?; break; }
 done

@@ -16,8 +16,14 @@ Xvfb, with the workbench installed in FreeCAD's user Mod directory.  Steps:
    stay as they were); OK; screenshot of the coloured part; reopen the panel by editing the
    feature and close it with Cancel; save and reopen.
 
+7. "Optimize shape" on the wheel (``parts/wheel.step``): select a spoke side face and the hub
+   hole, run the command, check the panel lists the faces with those two parameters checked; set
+   3 iterations and Run (the ``parafab optimize`` CLI in a QProcess); check the new
+   ``Wheel_optimized`` solid, the original untouched, the status, the parameter changes and the
+   history chart shown; run again and cancel at the first iterate (nothing added); OK.
+
 Results go to ``$PARAFAB_ARTIFACT_DIR`` (``status.json``, ``strip.png``, ``analysis.png``,
-``analysis_panel.png``).
+``analysis_panel.png``, ``optimize_panel.png``, ``optimize.png``).
 FreeCAD is then left with ``os._exit`` (0 = pass, 1 = fail), so no dialog
 ("save changes?") can block the run.
 """
@@ -39,6 +45,9 @@ ANALYSIS_SCREENSHOT = os.path.join(ARTIFACT_DIR, "analysis.png")
 PANEL_SCREENSHOT = os.path.join(ARTIFACT_DIR, "analysis_panel.png")
 ANALYSIS_DOCUMENT = os.path.join(ARTIFACT_DIR, "gui_smoke_analysis.FCStd")
 ANALYSIS_OUT = os.path.join(ARTIFACT_DIR, "analysis_out")
+OPTIMIZE_SCREENSHOT = os.path.join(ARTIFACT_DIR, "optimize_panel.png")
+OPTIMIZE_VIEW = os.path.join(ARTIFACT_DIR, "optimize.png")
+OPTIMIZE_OUT = os.path.join(ARTIFACT_DIR, "optimize_out")
 SAMPLES_DIR = os.environ.get("PARAFAB_SAMPLES_DIR", "")
 #: Seconds to wait for the CLI run of the bracket.
 RUN_TIMEOUT = 120
@@ -229,6 +238,87 @@ def run_analysis(check):
             "analysis_color_pixels": bands, "cli": cli, "analysis_screenshot": ANALYSIS_SCREENSHOT}
 
 
+def run_optimize(check):
+    """Step 7: the "Optimize shape" task panel on the wheel."""
+    from parafab_wb import optimize_panel, optimize_runner
+    check("optimize_command_registered", "ParaFab_OptimizeShape" in FreeCADGui.listCommands())
+    doc = FreeCAD.newDocument("GuiOptimize")
+    part = doc.addObject("Part::Feature", "Wheel")
+    part.Shape = Part.read(os.path.join(SAMPLES_DIR, "parts", "wheel.step"))
+    doc.recompute()
+    spoke = next("Face%d" % (i + 1) for i, f in enumerate(part.Shape.Faces)
+                 if isinstance(f.Surface, Part.Plane) and abs(f.Surface.Axis.z) < 0.5)
+    hole = next("Face%d" % (i + 1) for i, f in enumerate(part.Shape.Faces)
+                if isinstance(f.Surface, Part.Cylinder) and abs(f.Surface.Radius - 5) < 1e-6)
+    volume = part.Shape.Volume
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(doc.Name, part.Name, spoke)
+    FreeCADGui.Selection.addSelection(doc.Name, part.Name, hole)
+    FreeCADGui.updateGui()
+    FreeCADGui.runCommand("ParaFab_OptimizeShape")
+    FreeCADGui.updateGui()
+    panel = optimize_panel.active_panel()
+    check("optimize_panel_open", panel is not None and FreeCADGui.Control.activeDialog())
+    check("optimize_panel_faces", panel.tree.topLevelItemCount() >= 1
+          and len(panel.model["faces"]) == len(part.Shape.Faces))
+    check("optimize_panel_checked", sorted(panel.checked_parameters()) == sorted(
+        [(spoke, "offset"), (hole, "radius")]), panel.checked_parameters())
+    check("optimize_objective_default", panel.objective.currentData() == "center_of_mass")
+    panel.iterations.setValue(3)
+    panel.output_dir.setText(OPTIMIZE_OUT)
+    names = sorted(o.Name for o in doc.Objects)
+    panel.run_button.click()
+    check("optimize_run_finished", wait_for(lambda: panel.outcome is not None, RUN_TIMEOUT))
+    check("optimize_run_solved", panel.outcome.state == optimize_runner.SOLVED, panel.outcome.message)
+    new = panel.run.result_object
+    check("optimize_result_added", new is not None and len(doc.Objects) == len(names) + 1
+          and new.Label == "Wheel_optimized" and new.Shape.isValid())
+    check("optimize_original_untouched", abs(part.Shape.Volume - volume) < 1e-9 * volume)
+    check("optimize_improved", new.FinalObjective < new.InitialObjective,
+          (new.InitialObjective, new.FinalObjective))
+    check("optimize_progress_full", panel.progress.value() == 100, panel.progress.value())
+    check("optimize_status", "Wheel_optimized added" in panel.status.text(), panel.status.text())
+    check("optimize_changes_listed", panel.changes.count() == 2, panel.changes.count())
+    for name, label in (("history", panel.chart), ("before_after", panel.before_after)):
+        check("optimize_chart_shown_" + name, label.pixmap() is not None and not label.pixmap().isNull())
+    panel.charts.setCurrentIndex(1)
+    dialog = panel.show_chart()
+    check("optimize_chart_window", dialog is not None and dialog.isVisible())
+    dialog.close()
+    # Screenshot: the 3D view (original transparent, result green) and the panel's run section.
+    view = FreeCADGui.getDocument(doc.Name).activeView()
+    view.viewIsometric()
+    view.fitAll()
+    FreeCADGui.updateGui()
+    view.saveImage(OPTIMIZE_VIEW, 1280, 1024, "White")
+    bands = color_pixels(OPTIMIZE_VIEW)
+    check("optimize_result_visible", bands["green"] >= 2000, bands)
+    from PySide2 import QtWidgets
+    area = panel.form.parent()
+    while area is not None and not isinstance(area, QtWidgets.QScrollArea):
+        area = area.parent()
+    if area is not None:
+        area.ensureWidgetVisible(panel.open_chart)
+    FreeCADGui.updateGui()
+    FreeCADGui.getMainWindow().grab().save(OPTIMIZE_SCREENSHOT)
+    # Cancel a second run at its first iterate: nothing is added.
+    panel.iterations.setValue(40)
+    panel.run_button.click()
+    panel.run.progress.connect(lambda phase, fraction: panel.cancel_button.click())
+    check("optimize_cancel_finished", wait_for(lambda: panel.outcome is not None, RUN_TIMEOUT))
+    check("optimize_cancel_outcome", panel.outcome.state == optimize_runner.CANCELLED, panel.outcome)
+    check("optimize_cancel_nothing_added", len(doc.Objects) == len(names) + 1)
+    check("optimize_cancel_progress_bar", panel.progress.format() == "cancelled", panel.progress.format())
+    panel.accept()
+    FreeCADGui.updateGui()
+    check("optimize_panel_closed", not FreeCADGui.Control.activeDialog())
+    check("optimize_result_kept", doc.getObject(new.Name) is not None)
+    info = {"optimize_initial": new.InitialObjective, "optimize_final": new.FinalObjective,
+            "optimize_screenshot": OPTIMIZE_SCREENSHOT, "optimize_green_pixels": bands["green"]}
+    FreeCAD.closeDocument(doc.Name)
+    return info
+
+
 def run(check):
     """The smoke test proper; raises on the first failed check."""
     FreeCADGui.activateWorkbench("ParaFabWorkbench")
@@ -307,6 +397,7 @@ def run(check):
           strip.getStatusString())
     FreeCAD.closeDocument(doc.Name)
     info.update(run_analysis(check))
+    info.update(run_optimize(check))
     return info
 
 

@@ -13,6 +13,9 @@ Modules:
 * :mod:`parafab_wb.result_display` -- ``surface.vtu`` -> deformed mesh coloured by von Mises.
 * :mod:`parafab_wb.cli_runner` -- locate the ``parafab`` CLI and run it in a QProcess.
 * :mod:`parafab_wb.analysis_panel` -- the "Analyze part" task panel (GUI only).
+* :mod:`parafab_wb.optimize_feature` -- "Optimize shape" core: face model, job, the optimized
+  solid added beside the original; :mod:`parafab_wb.optimize_runner` runs the CLI in a QProcess;
+  :mod:`parafab_wb.optimize_panel` is its task panel (GUI only).
 * :mod:`parafab_wb.commands` -- GUI commands (imported by ``InitGui.py`` only).
 
 This ``__init__`` must stay importable without FreeCAD: it only knows where

@@ -94,6 +94,10 @@ class SimulationProcess(QtCore.QObject):
     progress = QtCore.Signal(str, float)
     done = QtCore.Signal(object)
 
+    #: The subcommand run and the text of a cancelled run (subclasses run other subcommands).
+    SUBCOMMAND = "simulate"
+    CANCEL_MESSAGE = "simulation cancelled by the user"
+
     def __init__(self, parent=None):
         super(SimulationProcess, self).__init__(parent)
         self.process = None
@@ -108,7 +112,7 @@ class SimulationProcess(QtCore.QObject):
         self.process.readyReadStandardError.connect(self._read_stderr)
         self.process.finished.connect(self._finished)
         self.process.errorOccurred.connect(self._error)
-        self.process.start(cli, ["simulate", part, job, "-o", out_dir, "--progress"])
+        self.process.start(cli, [self.SUBCOMMAND, part, job, "-o", out_dir, "--progress"])
 
     def running(self):
         return self.process is not None and self.process.state() != QtCore.QProcess.NotRunning
@@ -126,11 +130,15 @@ class SimulationProcess(QtCore.QObject):
             line = raw.decode("utf-8", "replace").strip()
             if not line:
                 continue
-            parsed = parse_progress(line)
+            parsed = self.parse_progress(line)
             if parsed is None:
                 self._other_stderr.append(line)
             else:
                 self.progress.emit(*parsed)
+
+    def parse_progress(self, line):
+        """``(phase, fraction)`` of a stderr line, or ``None`` for other output."""
+        return parse_progress(line)
 
     def _error(self, error):
         if error == QtCore.QProcess.FailedToStart and not self.finished:
@@ -145,7 +153,7 @@ class SimulationProcess(QtCore.QObject):
         self._read_stderr()
         stdout = bytes(self.process.readAllStandardOutput()).decode("utf-8", "replace")
         if self.cancelled:
-            outcome = Outcome(CANCELLED, message="simulation cancelled by the user")
+            outcome = Outcome(CANCELLED, message=self.CANCEL_MESSAGE)
         elif exit_status == QtCore.QProcess.CrashExit:
             outcome = Outcome(ERROR, message="parafab crashed%s" % (
                 ": " + " ".join(self._other_stderr[-3:]) if self._other_stderr else ""))

@@ -20,6 +20,9 @@ Importing this module registers the commands with ``FreeCADGui.addCommand``;
   transaction, the original kept hidden (:mod:`parafab_wb.strip_stabilize`).
 * ``ParaFab_AnalyzePart`` -- "Analyze part": create an ``Analysis`` of the selected
   solid (selected faces fixed) and open its task panel (:mod:`parafab_wb.analysis_panel`).
+* ``ParaFab_OptimizeShape`` -- "Optimize shape": open the shape-optimization task panel on the
+  selected solid (selected faces' offsets/radii checked as design parameters); the result is a
+  new solid beside the original (:mod:`parafab_wb.optimize_panel`, :mod:`parafab_wb.optimize_feature`).
 """
 
 import FreeCAD
@@ -360,3 +363,37 @@ class AnalyzePartCommand(object):
 
 
 FreeCADGui.addCommand("ParaFab_AnalyzePart", AnalyzePartCommand())
+
+
+class OptimizeShapeCommand(object):
+    """Optimize the selected solid on its own face parameters (tangencies kept, thesis §6.5):
+    opens the task panel; the optimized solid is added beside the original."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_OptimizeShape.svg"),
+            "MenuText": "Optimize shape",
+            "ToolTip": "Shape optimization of the selected solid on its plane offsets, radii and axes, "
+                       "keeping its tangencies (e.g. balance it about an axis); selected faces start as "
+                       "design parameters; the result is a new solid beside the original",
+        }
+
+    def IsActive(self):
+        sel = FreeCADGui.Selection.getSelectionEx()
+        return bool(sel) and hasattr(sel[0].Object, "Shape") and bool(sel[0].Object.Shape.Solids) \
+            and not FreeCADGui.Control.activeDialog()
+
+    def Activated(self):
+        from . import optimize_feature, optimize_panel
+        sel = FreeCADGui.Selection.getSelectionEx()[0]
+        try:
+            optimize_feature.solid_shape(sel.Object)
+        except optimize_feature.OptimizeError as exc:
+            FreeCAD.Console.PrintError("ParaFab: cannot optimize: %s\n" % exc)
+            return
+        faces = [n.split(".")[-1] for n in sel.SubElementNames if n.split(".")[-1].startswith("Face")]
+        FreeCADGui.Selection.clearSelection()
+        optimize_panel.open_panel(sel.Object, faces)
+
+
+FreeCADGui.addCommand("ParaFab_OptimizeShape", OptimizeShapeCommand())

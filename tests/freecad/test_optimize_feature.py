@@ -1,0 +1,235 @@
+"""Headless FreeCAD tests of "Optimize shape" (:mod:`parafab_wb.optimize_feature`, the panel's
+process runner :mod:`parafab_wb.optimize_runner`).
+
+The wheel (samples/parts/wheel.step) is balanced about its axis on the 14 design parameters of
+tests/bench/bench_optimize_wheel.py (spoke side plane offsets; hub hole, hub, rim inside, rim
+outside radii, split arcs tied), 3 iterations, placed off the origin and turned so the
+placement and axis transform are exercised. Independent reference: FreeCAD's (OCCT's)
+``Shape.CenterOfMass`` of the original and of the new solid.
+
+Run with ``tests/freecad/run_tests.sh``.
+"""
+
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import unittest
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+_REPO = os.path.normpath(os.path.join(_HERE, os.pardir, os.pardir))
+for _p in (os.environ.get("PARAFAB_MODULE_DIR") or os.path.join(_REPO, "build", "workbench", "entry"),
+           os.environ.get("PARAFAB_WB_DIR") or os.path.join(_REPO, "workbench", "freecad", "ParaFab")):
+    if _p not in sys.path:
+        sys.path.insert(0, _p)
+
+import FreeCAD  # noqa: E402
+import Part  # noqa: E402
+from parafab_wb import optimize_feature  # noqa: E402
+from parafab_wb import optimize_runner  # noqa: E402
+from PySide import QtCore  # noqa: E402
+
+WHEEL = os.path.join(_REPO, "samples", "parts", "wheel.step")
+ITERATIONS = 3
+#: The wheel is placed here; the axis of the objective is the wheel's own z axis, in global terms.
+PLACEMENT = FreeCAD.Placement(FreeCAD.Vector(100, 50, -20), FreeCAD.Rotation(FreeCAD.Vector(1, 0, 0), 90))
+
+
+def wheel_parameters(shape):
+    """The bench's 14 design parameters and ties, found on the FreeCAD shape itself."""
+    params, ties = [], []
+    for i, f in enumerate(shape.Faces):
+        s = f.Surface
+        if isinstance(s, Part.Plane) and abs(s.Axis.z) < 0.5:
+            params.append(("Face%d" % (i + 1), "offset"))
+    for r in (5, 12, 42, 50):
+        group = [("Face%d" % (i + 1), "radius") for i, f in enumerate(shape.Faces)
+                 if isinstance(f.Surface, Part.Cylinder) and abs(f.Surface.Radius - r) < 1e-6]
+        params.append(group[0])
+        if len(group) > 1:
+            ties.append(group)
+    return params, ties
+
+
+def axis_distance(point, axis_point, axis_dir):
+    d = point - axis_point
+    return (d - axis_dir * d.dot(axis_dir)).Length
+
+
+def _app():
+    return QtCore.QCoreApplication.instance() or QtCore.QCoreApplication([])
+
+
+class OptimizeFeatureTest(unittest.TestCase):
+    def setUp(self):
+        self.doc = FreeCAD.newDocument("ParaFabOptimizeTest")
+        self.tmp = tempfile.mkdtemp()
+        self.wheel = self.doc.addObject("Part::Feature", "Wheel")
+        self.wheel.Shape = Part.read(WHEEL)
+        params, ties = wheel_parameters(self.wheel.Shape)  # before placing it: axis z
+        self.wheel.Placement = PLACEMENT
+        self.doc.recompute()
+        self.axis_point = PLACEMENT.Base
+        self.axis_dir = PLACEMENT.Rotation.multVec(FreeCAD.Vector(0, 0, 1))
+        self.assertEqual(len(params), 14)
+        self.options = {"objective": "center_of_mass", "parameters": params, "ties": ties,
+                        "axis_point": tuple(self.axis_point), "axis_direction": tuple(self.axis_dir),
+                        "max_iterations": ITERATIONS}
+
+    def tearDown(self):
+        FreeCAD.closeDocument(self.doc.Name)
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def snapshot(self):
+        """What an optimization may never change: the objects and the original's geometry."""
+        s = self.wheel.Shape
+        b = s.BoundBox
+        return (sorted((o.Name, o.TypeId, o.Label) for o in self.doc.Objects), s.Volume,
+                (b.XMin, b.XMax, b.YMin, b.YMax, b.ZMin, b.ZMax), tuple(s.CenterOfMass),
+                tuple(self.wheel.Placement.Base), tuple(self.wheel.Placement.Rotation.Q), len(s.Faces))
+
+    def assertUnchanged(self, before):
+        self.assertEqual(self.snapshot(), before)
+
+    def test_face_model_lists_parameters_and_tangency_groups(self):
+        m = optimize_feature.face_model(self.wheel)
+        self.assertEqual(len(m["faces"]), len(self.wheel.Shape.Faces))
+        self.assertEqual(m["groups"], [])  # the wheel has sharp edges only
+        for f, face in zip(m["faces"], self.wheel.Shape.Faces):
+            expected = {"Plane": "plane", "Cylinder": "cylinder"}[type(face.Surface).__name__]
+            self.assertEqual(f["type"], expected)
+        # The L-bracket's fillet is tangent to its two planes: one group of three faces.
+        bracket = self.doc.addObject("Part::Feature", "Bracket")
+        bracket.Shape = Part.read(os.path.join(_REPO, "samples", "parts", "l_bracket.step"))
+        m = optimize_feature.face_model(bracket)
+        self.assertEqual(m["relations"], 4)
+        cylinders = {"Face%d" % (i + 1) for i, f in enumerate(bracket.Shape.Faces)
+                     if isinstance(f.Surface, Part.Cylinder)}
+        for group in m["groups"]:
+            self.assertTrue(set(group) & cylinders, group)  # every group holds a fillet/round
+        self.assertIn("radius", m["faces"][2]["parameters"])
+
+    def test_wheel_balanced_beside_the_original(self):
+        before = self.snapshot()
+        c0 = axis_distance(self.wheel.Shape.CenterOfMass, self.axis_point, self.axis_dir)
+        iterates = []
+        r = optimize_feature.optimize_shape(self.wheel, self.options, self.tmp,
+                                            progress=lambda it: iterates.append(it) or True)
+        new = r["object"]
+        # The original is untouched; exactly one object was added.
+        names_before = before[0]
+        self.assertEqual(before[1:], self.snapshot()[1:])
+        self.assertEqual(len(self.doc.Objects), len(names_before) + 1)
+        self.assertEqual(new.TypeId, "Part::Feature")
+        self.assertEqual(new.Label, "Wheel_optimized")
+        self.assertTrue(new.Shape.isValid())
+        self.assertEqual(len(new.Shape.Solids), 1)
+        self.assertEqual(len(new.Shape.Faces), len(self.wheel.Shape.Faces))
+        self.assertEqual((tuple(new.Placement.Base), tuple(new.Placement.Rotation.Q)),
+                         (tuple(self.wheel.Placement.Base), tuple(self.wheel.Placement.Rotation.Q)))
+        # Independent number: OCCT's centre of mass of the new solid, in global coordinates, is as
+        # close to the axis as the history claims (|c⊥|² -> distance), and far closer than before.
+        c1 = axis_distance(new.Shape.CenterOfMass, self.axis_point, self.axis_dir)
+        # measured: both differ by 4e-12 mm
+        self.assertAlmostEqual(math.sqrt(new.InitialObjective), c0, delta=1e-10)
+        self.assertAlmostEqual(math.sqrt(new.FinalObjective), c1, delta=1e-10)
+        self.assertLess(c1, 0.003 * c0)  # measured 0.4853 mm -> 1.19e-3 mm in 3 iterations
+        self.assertAlmostEqual(c0, 0.4853, delta=1e-4)
+        # Stored history (read-only) matches history.json.
+        with open(new.HistoryFile) as f:
+            on_disk = json.load(f)
+        self.assertEqual(new.Iterations, len(on_disk["iterations"]) - 1)
+        self.assertLessEqual(new.Iterations, ITERATIONS)
+        self.assertEqual(new.FinalObjective, on_disk["final_objective"])
+        self.assertEqual(new.getEditorMode("FinalObjective"), ["ReadOnly"])
+        self.assertAlmostEqual(new.VolumeRatio, new.Shape.Volume / self.wheel.Shape.Volume, delta=1e-9)
+        self.assertEqual(len(new.ParameterChanges), 14)
+        # FreeCAD's face names (FaceN = engine face N-1), values as in history.json.
+        first = on_disk["parameters"][0]
+        self.assertEqual(new.ParameterChanges[0], "%s plane offset %.6g -> %.6g" % (
+            self.options["parameters"][0][0], first["initial"], first["final"]))
+        for chart in (new.HistoryChart, new.BeforeAfterChart):
+            with open(chart, "rb") as f:
+                self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n", chart)
+        self.assertEqual(os.path.basename(new.BeforeAfterChart), "before_after.png")
+        self.assertEqual([it["iteration"] for it in iterates], list(range(len(iterates))))
+        self.assertEqual(len(iterates), new.Iterations + 1)
+
+    def test_bad_inputs_leave_the_document_unchanged(self):
+        sheet = self.doc.addObject("Part::Feature", "Sheet")
+        sheet.Shape = Part.makePlane(10, 10)
+        self.doc.recompute()
+        before = self.snapshot()
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "Sheet is not a single solid"):
+            optimize_feature.optimize_shape(sheet, self.options, os.path.join(self.tmp, "sheet"))
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "sheet")))
+        bad = dict(self.options, parameters=[("Face99", "radius")])
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "Face99 is not a face"):
+            optimize_feature.optimize_shape(self.wheel, bad, self.tmp)
+        # Refused by the engine (a plane has no radius): its message, naming the face's parameters.
+        plane = self.options["parameters"][0][0]
+        bad = dict(self.options, parameters=[(plane, "radius")])
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "offset"):
+            optimize_feature.optimize_shape(self.wheel, bad, self.tmp)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "unknown objective type 'stiffness'"):
+            optimize_feature.optimize_shape(self.wheel, dict(self.options, objective="stiffness"), self.tmp)
+        # Cancelled from the progress callback: nothing is added.
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "cancelled"):
+            optimize_feature.optimize_shape(self.wheel, self.options, self.tmp, progress=lambda it: False)
+        self.assertUnchanged(before)
+
+    def test_objective_list_is_extensible(self):
+        types = [o.type for o in optimize_feature.OBJECTIVES]
+        self.assertEqual(types[:3], ["center_of_mass", "inertia_alignment", "balance"])
+        extra = optimize_feature.Objective("compliance_test", "Test", "", ("material", "supports", "loads"))
+        optimize_feature.register_objective(extra)
+        try:
+            shape = self.wheel.Shape.copy()
+            with self.assertRaisesRegex(optimize_feature.OptimizeError, "needs supports"):
+                optimize_feature.build_job(shape, dict(self.options, objective="compliance_test"))
+            job = optimize_feature.build_job(shape, dict(self.options, objective="compliance_test",
+                                                         supports=["Face1"], loads=["Face2"], force=(0, 0, -10)))
+            self.assertEqual(job["supports"], [{"face": 0}])
+            area = shape.Faces[1].Area
+            self.assertAlmostEqual(job["loads"][0]["traction"][2], -10 / area, delta=1e-12)
+            self.assertAlmostEqual(job["material"]["density"], 7850e-12, delta=1e-20)
+        finally:
+            optimize_feature.OBJECTIVES.remove(extra)
+
+    def test_panel_process_runs_the_cli_and_cancels_cleanly(self):
+        _app()
+        from parafab_wb import cli_runner
+        self.assertTrue(cli_runner.find_cli(), "parafab CLI not found (PARAFAB_CLI)")
+        before = self.snapshot()
+        # Cancel at the first progress line: the process is killed, nothing is added.
+        run = optimize_runner.OptimizeRun(self.wheel, dict(self.options, max_iterations=40),
+                                          os.path.join(self.tmp, "cancel"))
+        run.progress.connect(lambda phase, fraction: run.cancel())
+        outcome = optimize_runner.run_blocking(run, 120000)
+        self.assertEqual(outcome.state, optimize_runner.CANCELLED, outcome.message)
+        self.assertUnchanged(before)
+        # An input the CLI refuses: its JSON error message, nothing added.
+        plane = self.options["parameters"][0][0]
+        run = optimize_runner.OptimizeRun(self.wheel, dict(self.options, parameters=[(plane, "radius")]),
+                                          os.path.join(self.tmp, "bad"))
+        outcome = optimize_runner.run_blocking(run, 120000)
+        self.assertEqual(outcome.state, optimize_runner.ERROR)
+        self.assertIn("offset", outcome.message)
+        self.assertUnchanged(before)
+        # Solved: the new solid beside the original, the same figures as in-process.
+        seen = []
+        run = optimize_runner.OptimizeRun(self.wheel, self.options, os.path.join(self.tmp, "cli"))
+        outcome = optimize_runner.run_blocking(run, 120000, on_progress=lambda p, f: seen.append(f))
+        self.assertEqual(outcome.state, optimize_runner.SOLVED, outcome.message)
+        new = run.result_object
+        self.assertEqual(len(self.doc.Objects), len(before[0]) + 1)
+        self.assertEqual(before[1:], self.snapshot()[1:])
+        c1 = axis_distance(new.Shape.CenterOfMass, self.axis_point, self.axis_dir)
+        self.assertAlmostEqual(math.sqrt(new.FinalObjective), c1, delta=1e-10)
+        self.assertEqual(seen[-1], min(1.0, new.Iterations / float(ITERATIONS)))
+
+
+if __name__ == "__main__":
+    unittest.main()

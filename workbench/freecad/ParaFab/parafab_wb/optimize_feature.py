@@ -1,0 +1,389 @@
+"""FreeCAD "Optimize shape": shape optimization of a solid on its own CAD parameters (thesis §6.5).
+
+Non-GUI core of the "Optimize shape" command (the task panel is :mod:`parafab_wb.optimize_panel`):
+
+* :func:`face_model` -- the faces of a solid, their parameter names and the tangency groups
+  (faces linked by the face model's tangency relations: moving one drags the others along).
+* :func:`build_job` -- the ``parafab optimize`` job (README "Shape optimization") from panel
+  options that name faces the FreeCAD way (``FaceN`` = ParaFab face N − 1).
+* :func:`optimize_shape` -- export the solid, run ``parafab.optimize`` in-process and add the
+  optimized solid as a NEW ``Part::Feature`` beside the original (:func:`add_result`).
+
+The original is never changed. Every error (not a solid, bad face, engine error, invalid
+result, cancel) raises :class:`OptimizeError` before anything is added to the document.
+The shape is optimized in the object's local coordinates (exported as BREP, which keeps the
+face order); the axis of the objective is given in global coordinates and transformed; the
+new object gets the original's placement.
+"""
+
+import json
+import os
+import re
+import shutil
+import tempfile
+
+import FreeCAD
+
+CANCELLED = "cancelled"
+RESULT_SUFFIX = "_optimized"
+
+
+class OptimizeError(RuntimeError):
+    """Bad input, an engine error or a cancelled run: the document is left unchanged."""
+
+
+class Objective(object):
+    """One objective type of the engine, as offered by the panel.
+
+    ``uses`` names the inputs the job must carry for it: "axis" (objective.axis), "density"
+    (objective.density), "material", "supports", "loads" (simulation-job format). Supports and
+    loads are always sent when given (the engine keeps their faces fixed).
+    """
+
+    def __init__(self, type, label, tooltip, uses=()):
+        self.type = type
+        self.label = label
+        self.tooltip = tooltip
+        self.uses = tuple(uses)
+
+
+#: Objective types offered by the panel, in order. Extend with :func:`register_objective`, e.g.
+#: ``register_objective(Objective("compliance", "Compliance (stiffness)", "...",
+#: uses=("material", "supports", "loads")))`` once the engine accepts it.
+OBJECTIVES = [
+    Objective("center_of_mass", "Centre of mass onto the axis",
+              "|c⊥|²: squared distance of the centre of mass from the axis (static balance)", ("axis",)),
+    Objective("inertia_alignment", "Axis a principal axis of inertia",
+              "|I a − (aᵀIa) a|² / (tr I)²: the axis a principal axis of inertia about the centre",
+              ("axis",)),
+    Objective("balance", "Balance (centre + principal axis)",
+              "centre-of-mass term / L² + inertia alignment (static and dynamic balance)", ("axis",)),
+    Objective("mass", "Mass", "ρV (density in kg/m³)", ("density",)),
+    Objective("volume", "Volume", "V"),
+]
+
+
+def register_objective(objective):
+    """Add (or replace, by type) an objective offered by the panel."""
+    for i, o in enumerate(OBJECTIVES):
+        if o.type == objective.type:
+            OBJECTIVES[i] = objective
+            return
+    OBJECTIVES.append(objective)
+
+
+def objective_by_type(type):
+    for o in OBJECTIVES:
+        if o.type == type:
+            return o
+    raise OptimizeError("unknown objective type '%s' (available: %s)" % (type, ", ".join(o.type for o in OBJECTIVES)))
+
+
+#: Parameter names per face type (the engine's block names, solvers/optimize/shape_constraints.cpp).
+PARAMETER_NAMES = {
+    "plane": ("offset", "normal x", "normal y", "normal z"),
+    "cylinder": ("radius", "axis point x", "axis point y", "axis point z", "axis x", "axis y", "axis z"),
+    "cone": ("radius", "half-angle", "axis point x", "axis point y", "axis point z", "axis x", "axis y", "axis z"),
+    "sphere": ("radius", "centre x", "centre y", "centre z"),
+    "torus": ("minor radius", "major radius", "centre x", "centre y", "centre z", "axis x", "axis y", "axis z"),
+}
+
+
+def default_parameter(face_type):
+    """The parameter a picked face contributes by default (offset or radius), or None."""
+    names = PARAMETER_NAMES.get(face_type)
+    return names[0] if names else None
+
+
+def solid_shape(obj):
+    """The shape of ``obj`` when it is one valid solid; raises :class:`OptimizeError` otherwise."""
+    if obj is None:
+        raise OptimizeError("no object selected: select one solid")
+    shape = getattr(obj, "Shape", None)
+    label = getattr(obj, "Label", "?")
+    if shape is None or shape.isNull():
+        raise OptimizeError("%s has no shape: select a solid" % label)
+    if len(shape.Solids) != 1:
+        raise OptimizeError("%s is not a single solid (%d solids, %d faces): select one solid"
+                            % (label, len(shape.Solids), len(shape.Faces)))
+    if not shape.isValid():
+        raise OptimizeError("%s is not a valid solid (Part > Check geometry names the problem)" % label)
+    return shape
+
+
+def _local_shape(obj):
+    """``(shape without placement, placement)`` of ``obj``'s solid."""
+    shape = solid_shape(obj).copy()
+    placement = shape.Placement
+    shape.Placement = FreeCAD.Placement()
+    return shape, placement
+
+
+def face_index(name, n_faces, what):
+    """ParaFab face index of a FreeCAD face name ``FaceN`` (or an int index, passed through)."""
+    if isinstance(name, int):
+        index = name
+    elif isinstance(name, str) and name.startswith("Face") and name[4:].isdigit():
+        index = int(name[4:]) - 1
+    else:
+        raise OptimizeError("%s: '%s' is not a face name (Face1..Face%d)" % (what, name, n_faces))
+    if not 0 <= index < n_faces:
+        raise OptimizeError("%s: Face%d is not a face of the part (Face1..Face%d)" % (what, index + 1, n_faces))
+    return index
+
+
+def face_model(obj):
+    """Faces and tangency groups of ``obj``'s solid, from ``parafab.inspect_part``.
+
+    Returns ``{"faces": [{"name": "FaceN", "index", "type", "parameters": [names]}],
+    "groups": [[FaceN, ...]]}``: a group is a set of faces connected by tangency relations
+    (two or more faces; faces in no relation are in no group)."""
+    import parafab
+    shape, _ = _local_shape(obj)
+    tmp = tempfile.mkdtemp(prefix="parafab_inspect_")
+    try:
+        brep = os.path.join(tmp, "part.brep")
+        shape.exportBrep(brep)
+        model = parafab.inspect_part(brep)
+    except Exception as exc:
+        raise OptimizeError("cannot read the face model of %s: %s" % (obj.Label, exc))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    faces = [{"name": "Face%d" % (f["index"] + 1), "index": f["index"], "type": f["type"],
+              "parameters": list(PARAMETER_NAMES.get(f["type"], ()))} for f in model["faces"]]
+    parent = list(range(len(faces)))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+    for rel in model.get("relations", []):
+        a, b = rel["faces"][0], rel["faces"][1]
+        parent[find(a)] = find(b)
+    groups = {}
+    for i in range(len(faces)):
+        groups.setdefault(find(i), []).append(i)
+    tangent = sorted((g for g in groups.values() if len(g) > 1), key=lambda g: g[0])
+    return {"faces": faces, "groups": [["Face%d" % (i + 1) for i in g] for g in tangent],
+            "relations": len(model.get("relations", []))}
+
+
+def default_options():
+    """Panel options with their defaults (see :func:`build_job`)."""
+    return {
+        "objective": "center_of_mass",
+        "axis_point": (0.0, 0.0, 0.0),       # global coordinates [mm]
+        "axis_direction": (0.0, 0.0, 1.0),
+        "density": 7850.0,                    # kg/m³
+        "parameters": "auto",                 # or [("FaceN", "radius"), ...]
+        "ties": [],                           # [[("FaceN", "radius"), ("FaceM", "radius")], ...]
+        "fixed_faces": [],                    # ["FaceN", ...]
+        "supports": [],                       # ["FaceN", ...]
+        "loads": [],                          # ["FaceN", ...]
+        "force": (0.0, 0.0, 0.0),             # total force on the loaded faces [N]
+        "E": 210000.0, "nu": 0.3,             # MPa, for objectives that use "material"
+        "max_iterations": 20,
+        "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
+        "bound": 0.3,
+        "relative_improvement": 1e-9,
+    }
+
+
+def build_job(shape, options, placement=None):
+    """The ``parafab optimize`` job for ``options`` (see :func:`default_options`) on the local
+    ``shape``; ``placement`` maps local to global coordinates (the axis is given globally)."""
+    opts = default_options()
+    opts.update(options or {})
+    n = len(shape.Faces)
+    objective = objective_by_type(opts["objective"])
+    obj_json = {"type": objective.type}
+    if "axis" in objective.uses:
+        inv = (placement or FreeCAD.Placement()).inverse()
+        direction = FreeCAD.Vector(*opts["axis_direction"])
+        if direction.Length < 1e-12:
+            raise OptimizeError("the objective's axis direction is zero")
+        point = inv.multVec(FreeCAD.Vector(*opts["axis_point"]))
+        d = inv.Rotation.multVec(direction)
+        obj_json["axis"] = {"point": [point.x, point.y, point.z], "direction": [d.x, d.y, d.z]}
+    if "density" in objective.uses:
+        obj_json["density"] = float(opts["density"])
+    job = {"objective": obj_json, "max_iterations": int(opts["max_iterations"]),
+           "bound": float(opts["bound"]), "relative_improvement": float(opts["relative_improvement"])}
+
+    def ref(item, what):
+        face, name = item
+        return {"face": face_index(face, n, what), "parameter": str(name)}
+    params = opts["parameters"]
+    if params == "auto":
+        job["parameters"] = "auto"
+    else:
+        if not params:
+            raise OptimizeError("no design parameters chosen (pick faces, or use all parameters)")
+        job["parameters"] = [ref(p, "parameters[%d]" % i) for i, p in enumerate(params)]
+    if opts["ties"]:
+        job["ties"] = [[ref(p, "ties[%d]" % i) for p in tie] for i, tie in enumerate(opts["ties"])]
+    if opts["fixed_faces"]:
+        job["fixed_faces"] = [face_index(f, n, "fixed faces") for f in opts["fixed_faces"]]
+    if opts["supports"]:
+        job["supports"] = [{"face": face_index(f, n, "supports")} for f in opts["supports"]]
+    loaded = [face_index(f, n, "loads") for f in opts["loads"]]
+    if loaded:
+        area = sum(shape.Faces[i].Area for i in loaded)
+        fx, fy, fz = opts["force"]
+        # The total force spread over the loaded faces by area (N/mm² = MPa), as in "Analyze part".
+        job["loads"] = [{"face": i, "traction": [fx / area, fy / area, fz / area]} for i in loaded]
+    if "material" in objective.uses:
+        job["material"] = {"E": float(opts["E"]), "nu": float(opts["nu"]),
+                           "density": float(opts["density"]) * 1e-12}
+        if "supports" in objective.uses and not opts["supports"]:
+            raise OptimizeError("objective '%s' needs supports: pick fixed faces" % objective.type)
+    if opts.get("max_volume_ratio"):
+        job["constraints"] = [{"type": "volume", "max_ratio": float(opts["max_volume_ratio"])}]
+    return job
+
+
+def default_output_dir(obj):
+    """``<document folder>/<Document>_<Name>_optimize`` (the temp folder for unsaved documents)."""
+    doc_file = obj.Document.FileName
+    base = os.path.dirname(doc_file) if doc_file else tempfile.gettempdir()
+    return os.path.join(base, "%s_%s_optimize" % (obj.Document.Name, obj.Name))
+
+
+def prepare(obj, options, out_dir=None):
+    """Check ``obj``, write ``part.brep`` and ``job.json`` into ``out_dir``; returns
+    ``(part_path, job, job_path, out_dir, placement)``. Raises :class:`OptimizeError`."""
+    shape, placement = _local_shape(obj)
+    job = build_job(shape, options, placement)
+    out_dir = out_dir or default_output_dir(obj)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+        part = os.path.join(out_dir, "part.brep")
+        shape.exportBrep(part)
+        job_path = os.path.join(out_dir, "job.json")
+        with open(job_path, "w") as f:
+            json.dump(job, f, indent=1)
+    except OSError as exc:
+        raise OptimizeError("cannot write into %s: %s" % (out_dir, exc))
+    return part, job, job_path, out_dir, placement
+
+
+_RESULT_PROPERTIES = (
+    # (type, name, tooltip, history key)
+    ("App::PropertyString", "OptimizedFrom", "Name and label of the original solid", None),
+    ("App::PropertyString", "Objective", "Objective type", "objective"),
+    ("App::PropertyFloat", "InitialObjective", "Objective of the original", "initial_objective"),
+    ("App::PropertyFloat", "FinalObjective", "Objective of the optimized solid", "final_objective"),
+    ("App::PropertyInteger", "Iterations", "Optimizer iterations", None),
+    ("App::PropertyInteger", "Evaluations", "Objective evaluations (valid models)", "evaluations"),
+    ("App::PropertyInteger", "InvalidModels", "Rejected trial models (projection or B-rep update failed)",
+     "invalid_models"),
+    ("App::PropertyFloat", "VolumeRatio", "Final volume / initial volume", None),
+    ("App::PropertyFloat", "TangencyResidual", "Largest tangency residual on the optimized part",
+     "tangency_residual_max"),
+    ("App::PropertyString", "OptimizationStatus", "Optimizer status and message", None),
+    ("App::PropertyStringList", "ParameterChanges", "Design parameters (FreeCAD face names): initial -> final",
+     None),
+    ("App::PropertyPath", "HistoryFile", "history.json of the run", None),
+    ("App::PropertyPath", "HistoryChart", "history.png: objective against iteration and time", None),
+    ("App::PropertyPath", "BeforeAfterChart", "before_after.png: design parameters and objective before and after",
+     None),
+)
+
+
+def add_result(obj, history, out_dir, placement=None):
+    """Add the optimized solid (``out_dir/optimized.step``) as a new ``Part::Feature`` named
+    ``<Label>_optimized`` beside ``obj`` with the history in read-only properties; returns it.
+
+    Raises :class:`OptimizeError` (document unchanged) for a cancelled run, a missing or invalid
+    result."""
+    import Part
+    status = history.get("status", "")
+    if status == CANCELLED:
+        raise OptimizeError("optimization cancelled by the user: the document is unchanged")
+    step = history.get("optimized_step") or os.path.join(out_dir, "optimized.step")
+    if not os.path.isfile(step):
+        raise OptimizeError("the optimizer wrote no %s (status %s: %s)" % (step, status, history.get("message", "")))
+    try:
+        shape = Part.read(step)
+    except Exception as exc:
+        raise OptimizeError("cannot read %s: %s" % (step, exc))
+    solids = shape.Solids
+    if len(solids) != 1 or not solids[0].isValid():
+        raise OptimizeError("%s is not one valid solid (%d solids)" % (step, len(solids)))
+    solid = solids[0]
+    try:
+        from . import optimize_plot
+        before_after = optimize_plot.plot_before_after(
+            history, os.path.join(out_dir, optimize_plot.BEFORE_AFTER), obj.Label, freecad_parameter_name)
+    except Exception as exc:  # the chart is optional: the history is complete without it
+        FreeCAD.Console.PrintWarning("ParaFab: no before/after chart: %s\n" % exc)
+        before_after = ""
+    if placement is None:
+        placement = solid_shape(obj).Placement
+    doc = obj.Document
+    new = doc.addObject("Part::Feature", obj.Name + "Optimized")
+    try:
+        new.Label = obj.Label + RESULT_SUFFIX
+        new.Shape = solid
+        new.Placement = placement
+        values = {
+            "OptimizedFrom": "%s (%s)" % (obj.Name, obj.Label),
+            "Iterations": max(len(history.get("iterations", [])) - 1, 0),
+            "VolumeRatio": (history["final_volume"] / history["initial_volume"]
+                            if history.get("initial_volume") else 0.0),
+            "OptimizationStatus": status if history.get("message", "") in ("", status)
+            else "%s: %s" % (status, history["message"]),
+            "ParameterChanges": ["%s %.6g -> %.6g" % (freecad_parameter_name(p["name"]), p["initial"], p["final"])
+                                 for p in history.get("parameters", [])],
+            "HistoryFile": os.path.join(out_dir, "history.json"),
+            "HistoryChart": history.get("chart") or "",
+            "BeforeAfterChart": before_after,
+        }
+        for prop_type, name, tip, key in _RESULT_PROPERTIES:
+            new.addProperty(prop_type, name, "Optimization", tip)
+            value = values[name] if key is None else history.get(key)
+            if value is not None:
+                setattr(new, name, value)
+            new.setEditorMode(name, 1)  # read-only
+        if FreeCAD.GuiUp and new.ViewObject is not None:
+            new.ViewObject.ShapeColor = (0.35, 0.75, 0.45)
+            if obj.ViewObject is not None:
+                obj.ViewObject.Transparency = 60
+    except Exception:
+        doc.removeObject(new.Name)
+        raise
+    doc.recompute()
+    return new
+
+
+def freecad_parameter_name(name):
+    """The engine's ``"face 2 plane offset"`` (0-based) as FreeCAD names it: ``"Face3 plane offset"``."""
+    m = re.match(r"face (\d+) (.*)$", name)
+    return "Face%d %s" % (int(m.group(1)) + 1, m.group(2)) if m else name
+
+
+def summary(history):
+    """One line: objective, initial -> final, iterations, status."""
+    return "%s %.4g -> %.4g in %d iterations (%s)" % (
+        history.get("objective", ""), history.get("initial_objective", float("nan")),
+        history.get("final_objective", float("nan")), max(len(history.get("iterations", [])) - 1, 0),
+        history.get("status", ""))
+
+
+def optimize_shape(obj, job_options, out_dir=None, progress=None):
+    """Optimize ``obj``'s solid in-process and add the result beside it.
+
+    ``job_options``: see :func:`default_options`. ``progress(iterate)`` (``{iteration, objective,
+    constraint_violation, seconds}``) may return False to cancel (nothing is added then).
+    Returns ``{"object", "history", "out_dir", "job", "chart"}`` (``chart``: history.png; the
+    object's ``BeforeAfterChart`` is before_after.png); raises :class:`OptimizeError`
+    with the problem named, the document unchanged."""
+    import parafab
+    part, job, _, out_dir, placement = prepare(obj, job_options, out_dir)
+    try:
+        history = parafab.optimize(part, job, out_dir=out_dir, progress=progress)
+    except Exception as exc:  # parafab.Error (bad job, bad part) and internal errors
+        raise OptimizeError("optimization of %s failed: %s" % (obj.Label, exc))
+    new = add_result(obj, history, out_dir, placement)
+    return {"object": new, "history": history, "out_dir": out_dir, "job": job, "chart": history.get("chart")}

@@ -1,0 +1,370 @@
+"""Task panel of "Optimize shape" (the command ``ParaFab_OptimizeShape`` on a selected solid).
+
+Shows the solid's faces grouped by the face model's tangency relations (a tangency group moves
+together: a moved plane drags its fillet along) with each face's parameters (offset, normal,
+radius, axis, ...), checkable as design parameters, or "all parameters" (``"auto"``); the
+objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density); supports and
+loads (their faces stay fixed); iterations and a volume bound. **Run** runs ``parafab optimize``
+in a QProcess (:class:`optimize_runner.OptimizeRun`): the progress bar follows its iterates,
+**Cancel run** kills it and leaves the document as it was. A finished run adds
+``<Label>_optimized`` beside the original and shows the objective before → after, the parameter
+changes and the history chart (``history.png``). **OK** keeps the results, **Cancel** removes
+them (one undo transaction).
+
+GUI only: imported by the command.
+"""
+
+import FreeCADGui
+from PySide import QtCore, QtGui
+
+from . import analysis_panel
+from . import icon_path
+from . import optimize_feature
+from . import optimize_runner
+
+_active = None
+
+
+def active_panel():
+    """The open :class:`OptimizeTaskPanel`, or ``None``."""
+    return _active
+
+
+def open_panel(obj, faces=()):
+    """Show the panel for solid ``obj``; ``faces`` (``FaceN``) start checked. Returns the panel."""
+    global _active
+    if FreeCADGui.Control.activeDialog():
+        FreeCADGui.Control.closeDialog()
+    _active = OptimizeTaskPanel(obj, faces)
+    FreeCADGui.Control.showDialog(_active)
+    return _active
+
+
+def _spin(lo, hi, value, decimals=3, suffix=""):
+    return analysis_panel._spin(lo, hi, value, decimals, suffix)
+
+
+class OptimizeTaskPanel(object):
+    """The task dialog (``form`` + accept/reject) for optimizing one solid."""
+
+    def __init__(self, obj, faces=()):
+        self.obj = obj
+        self.doc = obj.Document
+        self.run = None
+        self.outcome = None
+        self.results = []
+        self._own_transaction = False
+        if not self.doc.HasPendingTransaction:
+            self.doc.openTransaction("Optimize shape")
+            self._own_transaction = True
+        try:
+            self.model = optimize_feature.face_model(obj)
+            model_error = ""
+        except optimize_feature.OptimizeError as exc:
+            self.model = {"faces": [], "groups": [], "relations": 0}
+            model_error = str(exc)
+        vobj = getattr(obj, "ViewObject", None)
+        self._transparency = vobj.Transparency if vobj is not None else 0
+        self.form = self._build()
+        self.form.setWindowTitle("Optimize shape")
+        self.form.setWindowIcon(QtGui.QIcon(icon_path("ParaFab_OptimizeShape.svg")))
+        self.check_faces(list(faces))
+        if model_error:
+            self.status.setText(model_error)
+
+    # -- widgets -----------------------------------------------------------------------------
+
+    def _build(self):
+        form = QtGui.QWidget()
+        layout = QtGui.QVBoxLayout(form)
+        defaults = optimize_feature.default_options()
+
+        params = QtGui.QGroupBox("Design parameters")
+        lay = QtGui.QVBoxLayout(params)
+        hint = QtGui.QLabel("%s: %d faces, %d tangency relations, %d tangency groups (a group "
+                            "moves together)." % (
+                                self.obj.Label, len(self.model["faces"]), self.model["relations"],
+                                len(self.model["groups"])))
+        hint.setWordWrap(True)
+        lay.addWidget(hint)
+        self.auto = QtGui.QCheckBox("All parameters (auto)")
+        self.auto.setToolTip("Every parameter of every analytic face that is not fixed")
+        lay.addWidget(self.auto)
+        self.tree = QtGui.QTreeWidget()
+        self.tree.setHeaderHidden(True)
+        self.tree.setColumnCount(1)
+        self.tree.setMinimumHeight(140)
+        self._param_items = {}
+        faces = {f["name"]: f for f in self.model["faces"]}
+        grouped = set()
+        for k, group in enumerate(self.model["groups"]):
+            top = QtGui.QTreeWidgetItem(["Tangency group %d: %s" % (k + 1, ", ".join(group))])
+            self.tree.addTopLevelItem(top)
+            for name in group:
+                grouped.add(name)
+                self._add_face(top, faces[name])
+        rest = [f for f in self.model["faces"] if f["name"] not in grouped]
+        if rest:
+            top = QtGui.QTreeWidgetItem(["Faces without tangency (%d)" % len(rest)])
+            self.tree.addTopLevelItem(top)
+            for f in rest:
+                self._add_face(top, f)
+        self.tree.expandToDepth(0)
+        lay.addWidget(self.tree)
+        pick = QtGui.QPushButton("Check selected faces")
+        pick.setToolTip("Check the offset/radius of the faces selected in the 3D view")
+        pick.clicked.connect(lambda: self.check_faces(analysis_panel.selected_faces([self.obj])))
+        lay.addWidget(pick)
+        self.auto.toggled.connect(self.tree.setDisabled)
+        layout.addWidget(params)
+
+        objective = QtGui.QGroupBox("Objective")
+        grid = QtGui.QFormLayout(objective)
+        grid.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)
+        self.objective = analysis_panel._narrow(QtGui.QComboBox())
+        for o in optimize_feature.OBJECTIVES:
+            self.objective.addItem(o.label, o.type)
+            self.objective.setItemData(self.objective.count() - 1, o.tooltip, QtCore.Qt.ToolTipRole)
+        grid.addRow("Minimize", self.objective)
+        self.axis_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["axis_point"]]
+        self.axis_dir = [_spin(-1, 1, v, 4) for v in defaults["axis_direction"]]
+        for label, boxes in (("Axis point", self.axis_point), ("Axis direction", self.axis_dir)):
+            row = QtGui.QHBoxLayout()
+            for b in boxes:
+                row.addWidget(b)
+            grid.addRow(label, row)
+        self.density = _spin(0.0, 1e6, defaults["density"], 1, " kg/m³")
+        grid.addRow("Density", self.density)
+        self.iterations = QtGui.QSpinBox()
+        self.iterations.setRange(1, 1000)
+        self.iterations.setValue(defaults["max_iterations"])
+        grid.addRow("Max iterations", self.iterations)
+        self.volume_ratio = _spin(0.0, 10.0, 0.0, 3)
+        self.volume_ratio.setSpecialValueText("no bound")
+        self.volume_ratio.setToolTip("Volume at most this times the original's (0: no bound)")
+        grid.addRow("Max volume ratio", self.volume_ratio)
+        self.objective.currentIndexChanged.connect(self._objective_changed)
+        layout.addWidget(objective)
+
+        loads = QtGui.QGroupBox("Supports and loads (their faces stay fixed)")
+        lay = QtGui.QVBoxLayout(loads)
+        self.supports = analysis_panel.FaceList("Supports (fixed faces)", [], [self.obj])
+        self.loads = analysis_panel.FaceList("Loaded faces", [], [self.obj])
+        lay.addWidget(self.supports)
+        lay.addWidget(self.loads)
+        force = QtGui.QFormLayout()
+        self.force = [_spin(-1e9, 1e9, 0.0, 3, " N") for _ in range(3)]
+        for axis, box in zip("xyz", self.force):
+            force.addRow("Total force %s" % axis, box)
+        lay.addLayout(force)
+        layout.addWidget(loads)
+
+        out = QtGui.QFormLayout()
+        self.output_dir = analysis_panel._narrow(QtGui.QLineEdit())
+        self.output_dir.setPlaceholderText(optimize_feature.default_output_dir(self.obj))
+        out.addRow("Output", self.output_dir)
+        layout.addLayout(out)
+
+        run = QtGui.QGroupBox("Run")
+        lay = QtGui.QVBoxLayout(run)
+        buttons = QtGui.QHBoxLayout()
+        self.run_button = QtGui.QPushButton("Run")
+        self.cancel_button = QtGui.QPushButton("Cancel run")
+        self.cancel_button.setEnabled(False)
+        buttons.addWidget(self.run_button)
+        buttons.addWidget(self.cancel_button)
+        lay.addLayout(buttons)
+        self.progress = QtGui.QProgressBar()
+        self.progress.setRange(0, 100)
+        self.progress.setValue(0)
+        lay.addWidget(self.progress)
+        self.status = QtGui.QLabel("Not run yet")
+        self.status.setWordWrap(True)
+        self.status.setTextInteractionFlags(QtCore.Qt.TextSelectableByMouse)
+        lay.addWidget(self.status)
+        self.changes = QtGui.QListWidget()
+        self.changes.setMaximumHeight(90)
+        self.changes.setToolTip("Design parameters: initial -> final")
+        lay.addWidget(self.changes)
+        self.charts = QtGui.QTabWidget()
+        self.chart = QtGui.QLabel("history chart after a run")
+        self.before_after = QtGui.QLabel("before/after chart after a run")
+        for label, title in ((self.chart, "History"), (self.before_after, "Before/after")):
+            label.setAlignment(QtCore.Qt.AlignCenter)
+            label.setMinimumHeight(150)
+            self.charts.addTab(label, title)
+        lay.addWidget(self.charts)
+        self.open_chart = QtGui.QPushButton("Open chart")
+        self.open_chart.setToolTip("Show the chart of the current tab full size")
+        self.open_chart.setEnabled(False)
+        self.open_chart.clicked.connect(self.show_chart)
+        lay.addWidget(self.open_chart)
+        self.run_button.clicked.connect(self.start_run)
+        self.cancel_button.clicked.connect(self.cancel_run)
+        layout.addWidget(run)
+        self._objective_changed()
+        return form
+
+    def _add_face(self, parent, face):
+        item = QtGui.QTreeWidgetItem(parent, ["%s (%s)" % (face["name"], face["type"])])
+        for name in face["parameters"]:
+            child = QtGui.QTreeWidgetItem(item, [name])
+            child.setFlags(child.flags() | QtCore.Qt.ItemIsUserCheckable)
+            child.setCheckState(0, QtCore.Qt.Unchecked)
+            self._param_items[(face["name"], name)] = child
+        if not face["parameters"]:
+            item.setText(0, "%s (%s: fixed, no analytic parameters)" % (face["name"], face["type"]))
+
+    def check_faces(self, names):
+        """Check the default parameter (offset, radius) of faces ``names``; returns those checked."""
+        checked = []
+        types = {f["name"]: f["type"] for f in self.model["faces"]}
+        for name in names:
+            param = optimize_feature.default_parameter(types.get(name, ""))
+            item = self._param_items.get((name, param))
+            if item is not None:
+                item.setCheckState(0, QtCore.Qt.Checked)
+                item.parent().setExpanded(True)
+                checked.append((name, param))
+        return checked
+
+    def _objective_changed(self, *args):
+        uses = optimize_feature.objective_by_type(self.objective.currentData()).uses
+        for b in self.axis_point + self.axis_dir:
+            b.setEnabled("axis" in uses)
+        self.density.setEnabled("density" in uses or "material" in uses)
+
+    # -- options -----------------------------------------------------------------------------
+
+    def checked_parameters(self):
+        return [key for key, item in self._param_items.items() if item.checkState(0) == QtCore.Qt.Checked]
+
+    def options(self):
+        """The job options of :func:`optimize_feature.build_job` as edited in the panel."""
+        ratio = self.volume_ratio.value()
+        return {"objective": self.objective.currentData(),
+                "axis_point": tuple(b.value() for b in self.axis_point),
+                "axis_direction": tuple(b.value() for b in self.axis_dir),
+                "density": self.density.value(),
+                "parameters": "auto" if self.auto.isChecked() else self.checked_parameters(),
+                "supports": self.supports.faces(), "loads": self.loads.faces(),
+                "force": tuple(b.value() for b in self.force),
+                "max_iterations": self.iterations.value(),
+                "max_volume_ratio": ratio if ratio > 0 else None}
+
+    # -- running -----------------------------------------------------------------------------
+
+    def start_run(self):
+        if self.running():
+            return False
+        self.outcome = None
+        self.progress.setValue(0)
+        self.progress.setFormat("starting %p%")
+        self.status.setText("Running…")
+        self.run_button.setEnabled(False)
+        self.cancel_button.setEnabled(True)
+        self.run = optimize_runner.OptimizeRun(self.obj, self.options(), self.output_dir.text().strip() or None)
+        self.run.progress.connect(self._progress)
+        self.run.done.connect(self._done)
+        self.run.start()
+        return True
+
+    def cancel_run(self):
+        if self.run is not None:
+            self.run.cancel()
+
+    def running(self):
+        return self.run is not None and self.run.running()
+
+    def _progress(self, phase, fraction):
+        self.progress.setValue(int(round(100 * fraction)))
+        self.progress.setFormat("%s  %%p%%" % phase)
+
+    def _done(self, outcome):
+        self.outcome = outcome
+        self.run_button.setEnabled(True)
+        self.cancel_button.setEnabled(False)
+        if outcome.state == optimize_runner.SOLVED:
+            new = self.run.result_object
+            self.results.append(new)
+            self.progress.setValue(100)
+            self.progress.setFormat("done")
+            self.status.setText("%s added: %s; volume × %.4f; written to %s" % (
+                new.Label, optimize_feature.summary(self.run.history), new.VolumeRatio, self.run.out_dir))
+            self.changes.clear()
+            self.changes.addItems(list(new.ParameterChanges))
+            self._show(self.chart, new.HistoryChart, new.HistoryFile)
+            self._show(self.before_after, new.BeforeAfterChart, new.HistoryFile)
+            self.open_chart.setEnabled(True)
+        else:
+            self.progress.setValue(0)
+            self.progress.setFormat("cancelled" if outcome.state == optimize_runner.CANCELLED else "failed")
+            self.status.setText("%s: %s (document unchanged)" % (outcome.state, outcome.message))
+        FreeCADGui.updateGui()
+
+    def _show(self, label, path, history_file):
+        pixmap = QtGui.QPixmap(path) if path else QtGui.QPixmap()
+        if pixmap.isNull():
+            label.setPixmap(QtGui.QPixmap())
+            label.setText("no chart (history in %s)" % history_file)
+        else:
+            width = max(200, self.charts.width() - 10)
+            label.setPixmap(pixmap.scaled(width, 260, QtCore.Qt.KeepAspectRatio, QtCore.Qt.SmoothTransformation))
+        label.setToolTip(path or "")
+
+    def show_chart(self):
+        """A window with the chart of the current tab at full size; returns it."""
+        label = self.charts.currentWidget()
+        pixmap = QtGui.QPixmap(label.toolTip())
+        if pixmap.isNull():
+            return None
+        dialog = QtGui.QDialog(FreeCADGui.getMainWindow())
+        dialog.setWindowTitle("%s: %s" % (self.obj.Label, self.charts.tabText(self.charts.currentIndex())))
+        lay = QtGui.QVBoxLayout(dialog)
+        view = QtGui.QLabel()
+        view.setPixmap(pixmap)
+        lay.addWidget(view)
+        dialog.setAttribute(QtCore.Qt.WA_DeleteOnClose)
+        dialog.show()
+        return dialog
+
+    # -- task dialog -------------------------------------------------------------------------
+
+    def getStandardButtons(self):
+        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+
+    def _stop(self):
+        if self.running():
+            self.run.cancel()
+            self.run.process.process.waitForFinished(5000)
+            QtCore.QCoreApplication.processEvents()
+
+    def _close(self):
+        global _active
+        if _active is self:
+            _active = None
+        FreeCADGui.Control.closeDialog()
+
+    def accept(self):
+        """OK: keep the optimized solids."""
+        self._stop()
+        if self._own_transaction:
+            self.doc.commitTransaction()
+        self._close()
+        return True
+
+    def reject(self):
+        """Cancel: stop a run and remove what the panel added."""
+        self._stop()
+        if self._own_transaction:
+            self.doc.abortTransaction()
+        for new in self.results:  # also when undo is off
+            try:
+                if self.doc.getObject(new.Name) is not None:
+                    self.doc.removeObject(new.Name)
+            except Exception:
+                pass
+        if self.obj.ViewObject is not None:
+            self.obj.ViewObject.Transparency = self._transparency
+        self._close()
+        return True

@@ -1,0 +1,104 @@
+"""Run ``parafab optimize`` in a separate process (QProcess) for the "Optimize shape" panel.
+
+:class:`OptimizeRun` writes the part and job (:func:`optimize_feature.prepare`), runs
+``parafab optimize PART JOB -o OUTDIR --progress`` (:class:`OptimizeProcess`; one JSON line
+``{"progress": {iteration, objective, ...}}`` per iterate on stderr), and when the process ends
+adds the optimized solid beside the original (:func:`optimize_feature.add_result`). Cancel kills
+the process: nothing is added. Errors (bad input, the CLI's JSON error, an invalid result) only
+set the outcome's message.
+
+Only ``QtCore`` is used, so this works in ``freecadcmd`` too (with a ``QCoreApplication``).
+"""
+
+import json
+
+from PySide import QtCore
+
+from . import cli_runner
+from . import optimize_feature
+
+SOLVED, ERROR, CANCELLED = cli_runner.SOLVED, cli_runner.ERROR, cli_runner.CANCELLED
+
+
+class OptimizeProcess(cli_runner.SimulationProcess):
+    """One ``parafab optimize --progress`` process; ``iterate(dict)`` per optimizer iterate."""
+
+    SUBCOMMAND = "optimize"
+    CANCEL_MESSAGE = "optimization cancelled by the user"
+    iterate = QtCore.Signal(object)
+
+    def __init__(self, max_iterations, parent=None):
+        super(OptimizeProcess, self).__init__(parent)
+        self.max_iterations = max(int(max_iterations), 1)
+        self.iterates = []
+
+    def parse_progress(self, line):
+        try:
+            it = json.loads(line)["progress"]
+            k = int(it["iteration"])
+            f = float(it["objective"])
+        except (ValueError, KeyError, TypeError):
+            return None
+        self.iterates.append(it)
+        self.iterate.emit(it)
+        return "iteration %d: objective %.4g" % (k, f), min(1.0, k / float(self.max_iterations))
+
+
+class OptimizeRun(QtCore.QObject):
+    """Optimize ``obj`` with panel ``options`` through the CLI; on success ``result_object`` is
+    the new solid and ``history`` the run's history."""
+
+    progress = QtCore.Signal(str, float)
+    iterate = QtCore.Signal(object)
+    done = QtCore.Signal(object)
+
+    def __init__(self, obj, options, out_dir=None, cli=None, parent=None):
+        super(OptimizeRun, self).__init__(parent)
+        self.obj = obj
+        self.options = dict(options)
+        self.out_dir = out_dir
+        self.cli = cli or cli_runner.find_cli()
+        self.process = None
+        self.outcome = None
+        self.history = None
+        self.result_object = None
+        self._placement = None
+
+    def start(self):
+        try:
+            if not self.cli:
+                raise optimize_feature.OptimizeError(
+                    "the parafab executable was not found (set PARAFAB_CLI, or install it beside the workbench)")
+            part, job, job_path, self.out_dir, self._placement = optimize_feature.prepare(
+                self.obj, self.options, self.out_dir)
+        except Exception as exc:
+            self._done(cli_runner.Outcome(ERROR, message=str(exc) or type(exc).__name__))
+            return
+        self.process = OptimizeProcess(job.get("max_iterations", 20), self)
+        self.process.progress.connect(self.progress)
+        self.process.iterate.connect(self.iterate)
+        self.process.done.connect(self._done)
+        self.process.start(self.cli, part, job_path, self.out_dir)
+
+    def running(self):
+        return self.process is not None and self.process.running()
+
+    def cancel(self):
+        if self.process is not None:
+            self.process.cancel()
+
+    def _done(self, outcome):
+        if outcome.state == SOLVED:
+            self.history = outcome.result
+            try:
+                self.result_object = optimize_feature.add_result(self.obj, self.history, self.out_dir,
+                                                                 self._placement)
+            except Exception as exc:
+                outcome = cli_runner.Outcome(ERROR, result=outcome.result, message=str(exc))
+        self.outcome = outcome
+        self.done.emit(outcome)
+
+
+def run_blocking(run, timeout_ms=300000, on_progress=None):
+    """Start ``run`` and wait in a local event loop until it ends; returns its Outcome."""
+    return cli_runner.run_blocking(run, timeout_ms, on_progress)
