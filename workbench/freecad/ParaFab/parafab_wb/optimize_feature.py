@@ -47,9 +47,7 @@ class Objective(object):
         self.uses = tuple(uses)
 
 
-#: Objective types offered by the panel, in order. Extend with :func:`register_objective`, e.g.
-#: ``register_objective(Objective("compliance", "Compliance (stiffness)", "...",
-#: uses=("material", "supports", "loads")))`` once the engine accepts it.
+#: Objective types offered by the panel, in order. Extend with :func:`register_objective`.
 OBJECTIVES = [
     Objective("center_of_mass", "Centre of mass onto the axis",
               "|c⊥|²: squared distance of the centre of mass from the axis (static balance)", ("axis",)),
@@ -60,6 +58,9 @@ OBJECTIVES = [
               "centre-of-mass term / L² + inertia alignment (static and dynamic balance)", ("axis",)),
     Objective("mass", "Mass", "ρV (density in kg/m³)", ("density",)),
     Objective("volume", "Volume", "V"),
+    Objective("compliance", "Compliance (stiffness)",
+              "fᵀu of the linear XFEM solve on a fixed grid (semi-analytic gradient): lower is stiffer; "
+              "combine with a volume bound", ("material", "supports", "loads")),
 ]
 
 
@@ -185,6 +186,7 @@ def default_options():
         "E": 210000.0, "nu": 0.3,             # MPa, for objectives that use "material"
         "max_iterations": 20,
         "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
+        "cells": None,                        # grid cells along the longest side (compliance; None: engine default)
         "bound": 0.3,
         "relative_improvement": 1e-9,
     }
@@ -231,13 +233,23 @@ def build_job(shape, options, placement=None):
     if loaded:
         area = sum(shape.Faces[i].Area for i in loaded)
         fx, fy, fz = opts["force"]
-        # The total force spread over the loaded faces by area (N/mm² = MPa), as in "Analyze part".
-        job["loads"] = [{"face": i, "traction": [fx / area, fy / area, fz / area]} for i in loaded]
+        if "loads" in objective.uses:
+            # A total force per face (its share by area) stays that force on every model: a
+            # traction per area would let the optimizer lower the load by shrinking the face.
+            job["loads"] = [{"face": i, "force": [c * shape.Faces[i].Area / area for c in (fx, fy, fz)]}
+                            for i in loaded]
+        else:
+            # The total force spread over the loaded faces by area (N/mm² = MPa), as in "Analyze part".
+            job["loads"] = [{"face": i, "traction": [fx / area, fy / area, fz / area]} for i in loaded]
     if "material" in objective.uses:
         job["material"] = {"E": float(opts["E"]), "nu": float(opts["nu"]),
                            "density": float(opts["density"]) * 1e-12}
         if "supports" in objective.uses and not opts["supports"]:
             raise OptimizeError("objective '%s' needs supports: pick fixed faces" % objective.type)
+        if "loads" in objective.uses and not loaded:
+            raise OptimizeError("objective '%s' needs loads: pick loaded faces and a force" % objective.type)
+        if opts.get("cells"):
+            job["grid"] = {"cells": int(opts["cells"])}
     if opts.get("max_volume_ratio"):
         job["constraints"] = [{"type": "volume", "max_ratio": float(opts["max_volume_ratio"])}]
     return job
