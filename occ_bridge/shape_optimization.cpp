@@ -273,6 +273,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     ShapeIterate s;
     s.iteration = iteration_count++;
     s.outer = outer_index;
+    s.evaluations = result.evaluations;
     s.objective = accepted.objective;
     s.constraint_violation = accepted.violation;
     s.tangency_residual = tangency_residual_max(model, sp, accepted.p);

@@ -83,6 +83,7 @@ struct ShapeIterate {
   double objective = 0;             ///< without the penalty
   double constraint_violation = 0;  ///< volume bound violation (relative), 0 if none
   int outer = 0;                    ///< augmented-Lagrangian outer iteration of this iterate
+  int evaluations = 0;              ///< evaluations of the run so far
   double tangency_residual = 0;     ///< face model relations at p⊥
   Eigen::VectorXd design;           ///< design entries of p⊥
   double seconds = 0;

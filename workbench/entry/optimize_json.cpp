@@ -286,6 +286,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
                                {"objective", it.objective},
                                {"constraint_violation", it.constraint_violation},
                                {"outer", it.outer},
+                               {"evaluations", it.evaluations},
                                {"tangency_residual", it.tangency_residual},
                                {"parameters", values},
                                {"seconds", it.seconds}});
