@@ -2,6 +2,7 @@
 // projection Eq. 6.25-6.26, §6.5.2 chain rule Eq. 6.28-6.29).
 #include "shape_optimization.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <set>
@@ -55,7 +56,7 @@ namespace {
 struct Evaluation {
   bool ok = false;
   double objective = 0, penalized = 0, violation = 0, volume = 0, tangency = 0;
-  Eigen::VectorXd p, lambda;
+  Eigen::VectorXd p, lambda, volume_gradient;  ///< volume_gradient: dV/dx (design entries)
   std::shared_ptr<const PartShape> part;
 };
 
@@ -118,6 +119,16 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     lower[k] = std::max(sp.lower[design[k]], x0[k] - span);
     upper[k] = std::min(sp.upper[design[k]], x0[k] + span);
   }
+  if (options.design_start.size() > 0) {
+    PARAFAB_VERIFY(options.design_start.size() == nd, "design_start has " << options.design_start.size()
+                                                                          << " entries, the design " << nd);
+    for (int k = 0; k < nd; ++k) {
+      PARAFAB_VERIFY(std::isfinite(options.design_start[k]), "design_start[" << k << "] is not finite");
+      x0[k] = std::clamp(options.design_start[k], lower[k], upper[k]);
+    }
+  }
+  PARAFAB_VERIFY(options.max_outer >= 1, "max_outer must be >= 1, got " << options.max_outer);
+  PARAFAB_VERIFY(options.volume_tolerance > 0, "volume_tolerance must be positive");
   Eigen::VectorXd warm_p = start.p;
   double part_size = 1;
   {
@@ -130,6 +141,28 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     const std::string& n = sp.names[i];
     return n.find(" normal ") != std::string::npos || n.find("half-angle") != std::string::npos ||
            (n.size() > 7 && n.compare(n.size() - 7, 6, " axis ") == 0);
+  };
+
+  // Volume bounds: augmented Lagrangian of Powell–Hestenes–Rockafellar (Nocedal & Wright,
+  // Numerical Optimization, §17.4, Eq. 17.65 for inequalities): for g = V/V0 − ratio ≤ 0 the
+  // inner L-BFGS minimizes f + s·ψ(g), ψ = (ρ/2)(max(0, g + λ/ρ)² − (λ/ρ)²) (s = max(|f0|, tiny)),
+  // and each outer iteration updates λ ← max(0, λ + ρ g), ρ ← 10ρ when |g| did not fall by 4×.
+  // Unlike the old quadratic penalty (violation ≈ λ*/ρ, where the line search stalled) λ
+  // converges to the true multiplier and the bound holds with ρ bounded.
+  struct Bound {
+    bool on = false;
+    double ratio = 0, sign = 1, lambda = 0, rho = 0;  // g = sign·(V/V0 − ratio)
+  };
+  Bound bounds[2];
+  if (options.volume_max_ratio > 0) bounds[0] = {true, options.volume_max_ratio, 1, 0, options.penalty};
+  if (options.volume_min_ratio > 0) bounds[1] = {true, options.volume_min_ratio, -1, 0, options.penalty};
+  const bool bounded = bounds[0].on || bounds[1].on;
+  bool volume_only = false;  // the restoration: V and dV/dx only (no compliance solve)
+  auto signed_violation = [&](double V, double V0v) {
+    double g = -1e300;
+    for (const Bound& b : bounds)
+      if (b.on) g = std::max(g, b.sign * (V / V0v - b.ratio));
+    return g;
   };
 
   double V0 = 0, f_scale = 1;
@@ -154,7 +187,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     Eigen::Matrix<double, 10, 1> dfdm = Eigen::Matrix<double, 10, 1>::Zero();
     double f = 0;
     Eigen::VectorXd compliance_gradient;
-    if (compliance) {
+    if (compliance && !volume_only) {
       // C at p⊥ on the fixed grid, and dC/dx_k by the semi-analytic route: each design entry
       // perturbed by ±h through the projection and the write-back, only the cells the change
       // touches re-cut and differenced (shape_compliance.h).
@@ -193,26 +226,32 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         result.topology_switches += cd.topology_switches;
         result.gradient_cells += cd.cells_changed;
       }
-    } else {
+    } else if (!compliance) {
       f = objective_from_moments(spec, md.moments, &dfdm);
     }
     Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;
-    // Volume bounds by a quadratic penalty on the relative violation.
+    // Volume bounds: the augmented-Lagrangian term (see Bound above).
     const double V = md.moments[0];
     if (V0 == 0) V0 = V, f_scale = std::max(std::abs(f), 1e-300);
-    double violation = 0, dviol = 0;
-    if (options.volume_max_ratio > 0 && V / V0 > options.volume_max_ratio)
-      violation = V / V0 - options.volume_max_ratio, dviol = 1 / V0;
-    if (options.volume_min_ratio > 0 && V / V0 < options.volume_min_ratio)
-      violation = options.volume_min_ratio - V / V0, dviol = -1 / V0;
-    F = f + options.penalty * f_scale * violation * violation;
-    dfdp += (2 * options.penalty * f_scale * violation * dviol) * md.gradient.row(0).transpose();
+    double violation = 0, dpsi_dV = 0;
+    F = f;
+    for (const Bound& b : bounds) {
+      if (!b.on) continue;
+      const double g = b.sign * (V / V0 - b.ratio);
+      violation = std::max(violation, g);
+      const double m = std::max(0.0, b.lambda + b.rho * g);
+      F += f_scale * (m * m - b.lambda * b.lambda) / (2 * b.rho);
+      dpsi_dV += f_scale * m * b.sign / V0;
+    }
     // Chain rule through the projection (Eq. 6.29): dF/dp̃ = (dp⊥/dp̃)ᵀ dF/dp⊥.
     const optimize::ProjectionDerivative D = optimize::projection_derivative(sp.constraints, proj, sp.lower, sp.upper, popt.weights);
     const Eigen::VectorXd g_target = D.jacobian.transpose() * dfdp;
+    const Eigen::VectorXd v_target = D.jacobian.transpose() * md.gradient.row(0).transpose();
     grad.resize(nd);
-    for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]];
-    if (compliance) grad += compliance_gradient;
+    last.volume_gradient.resize(nd);
+    for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]], last.volume_gradient[k] = v_target[design[k]];
+    grad += dpsi_dV * last.volume_gradient;
+    if (compliance && !volume_only) grad += compliance_gradient;
     last.ok = true;
     last.objective = f;
     last.penalized = F;
@@ -226,10 +265,15 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   };
 
   Evaluation accepted;
+  int outer_index = 0, iteration_count = 0;
   auto on_iterate = [&](const optimize::LbfgsIterate& it) {
     accepted = last;
+    // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
+    if (it.iteration == 0 && outer_index > 0) return true;
     ShapeIterate s;
-    s.iteration = it.iteration;
+    s.iteration = iteration_count++;
+    s.outer = outer_index;
+    s.evaluations = result.evaluations;
     s.objective = accepted.objective;
     s.constraint_violation = accepted.violation;
     s.tangency_residual = tangency_residual_max(model, sp, accepted.p);
@@ -240,17 +284,90 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     return !progress || progress(s);
   };
   optimize::LbfgsResult run;
+  Eigen::VectorXd x = x0;
   try {
-    run = optimize::minimize_lbfgs(evaluate, x0, lower, upper, options.lbfgs, on_iterate);
+    double previous_g = 1e300;
+    for (outer_index = 0; outer_index < (bounded ? options.max_outer : 1); ++outer_index) {
+      const int evaluations_before = result.evaluations;
+      run = optimize::minimize_lbfgs(evaluate, x, lower, upper, options.lbfgs, on_iterate);
+      x = run.x;
+      if (!bounded) break;
+      AugmentedLagrangianStep step;
+      step.outer = outer_index;
+      step.multiplier = bounds[0].on ? bounds[0].lambda : bounds[1].lambda;
+      step.penalty = bounds[0].on ? bounds[0].rho : bounds[1].rho;
+      step.violation = signed_violation(accepted.volume, V0);
+      step.objective = accepted.objective;
+      step.inner_status = run.status;
+      step.inner_iterations = static_cast<int>(run.iterates.size()) - 1;
+      step.evaluations = result.evaluations - evaluations_before;
+      result.outer.push_back(step);
+      if (run.status == "cancelled" || run.status == "evaluation_failed") break;
+      // Multiplier update (first-order), penalty growth when the violation did not fall enough.
+      double g_max = 0;  // complementarity: |g| where λ > 0, max(g, 0) where λ = 0
+      for (Bound& b : bounds) {
+        if (!b.on) continue;
+        const double g = b.sign * (accepted.volume / V0 - b.ratio);
+        b.lambda = std::max(0.0, b.lambda + b.rho * g);
+        g_max = std::max(g_max, b.lambda > 0 ? std::abs(g) : std::max(g, 0.0));
+        if (g > 0.25 * previous_g && g > options.volume_tolerance) b.rho *= 10;
+      }
+      const double viol = std::max(0.0, signed_violation(accepted.volume, V0));
+      // Stop when feasible and complementary (an active bound: |g| ≤ 100·tolerance, relative;
+      // an inactive one: λ = 0), or when the inner run made no step (the multiplier cannot move
+      // the design any more).
+      if (viol <= options.volume_tolerance && g_max <= 100 * options.volume_tolerance) break;
+      if (step.inner_iterations == 0 && viol <= options.volume_tolerance) break;
+      previous_g = viol > 0 ? viol : previous_g;
+    }
+    if (outer_index >= options.max_outer) outer_index = options.max_outer - 1;
   } catch (const Error& e) {
     result.status = "invalid_start";
     result.message = std::string("the start cannot be evaluated: ") + e.what() +
                      (result.notes.empty() ? "" : " (" + result.notes.back() + ")");
     return result;
   }
+  // Restoration: if the outer iterations end above the tolerance, Newton steps on the volume
+  // alone along dV/dx (V is smooth in x; a few steps) onto the bound minus half the tolerance.
+  if (bounded && accepted.ok && signed_violation(accepted.volume, V0) > options.volume_tolerance &&
+      run.status != "cancelled") {
+    volume_only = true;
+    Evaluation good = accepted;
+    Eigen::VectorXd xr(nd), gr;
+    for (int k = 0; k < nd; ++k) xr[k] = good.p[design[k]];
+    double F = 0;
+    for (int it = 0; it < 10 && signed_violation(good.volume, V0) > options.volume_tolerance; ++it) {
+      const double g = signed_violation(good.volume, V0) + 0.5 * options.volume_tolerance;
+      const Bound& b = bounds[0].on && bounds[0].sign * (good.volume / V0 - bounds[0].ratio) > 0 ? bounds[0] : bounds[1];
+      const Eigen::VectorXd dg = b.sign * good.volume_gradient / V0;
+      if (dg.squaredNorm() == 0) break;
+      xr = (xr - g / dg.squaredNorm() * dg).cwiseMax(lower).cwiseMin(upper);
+      if (!evaluate(xr, F, gr)) break;
+      good = last;
+    }
+    volume_only = false;
+    if (signed_violation(good.volume, V0) <= options.volume_tolerance) {
+      // The objective at the restored design (a full evaluation, compliance included).
+      if (evaluate(xr, F, gr)) {
+        result.volume_restored = true;
+        last.violation = std::max(0.0, signed_violation(last.volume, V0));
+        ++outer_index;
+        on_iterate({iteration_count, F, xr, 0, result.evaluations});
+      }
+    }
+  }
+  result.final_violation = std::max(0.0, bounded ? signed_violation(accepted.volume, V0) : 0.0);
   result.done = run.done;
   result.status = run.status;
   result.message = run.message;
+  if (bounded && result.final_violation > options.volume_tolerance && run.done) {
+    result.done = false;
+    result.status = "infeasible";
+    result.message = "the volume bound is violated by " + std::to_string(result.final_violation) +
+                     " (relative) after the augmented-Lagrangian iterations and the restoration";
+  } else if (bounded && result.volume_restored) {
+    result.message = "feasible after a volume restoration (inner run: " + run.status + ")";
+  }
   result.initial_objective = result.iterations.front().objective;
   result.final_objective = accepted.objective;
   result.initial_volume = V0;

@@ -48,9 +48,18 @@ struct ShapeOptimizationOptions {
   ShapeParameterOptions parameterization;
   /// Bounds on design entries: ± this times max(1, |initial|) around the start (0: none).
   double relative_bound = 0.5;
-  double volume_max_ratio = 0;     ///< V ≤ ratio·V0 (0: no bound), by a quadratic penalty
+  /// Volume bounds by an augmented Lagrangian (Powell–Hestenes–Rockafellar, see optimize_shape):
+  double volume_max_ratio = 0;     ///< V ≤ ratio·V0 (0: no bound)
   double volume_min_ratio = 0;     ///< V ≥ ratio·V0 (0: no bound)
-  double penalty = 1e4;            ///< penalty weight relative to max(|f0|, tiny)
+  double penalty = 1e4;            ///< initial penalty weight ρ, relative to max(|f0|, tiny)
+  int max_outer = 8;               ///< multiplier updates (outer iterations) at most
+  /// A run ends feasible when the relative violation (V/V0 − ratio) is at most this; if the
+  /// outer iterations end above it, a volume-only Newton restoration moves onto the bound.
+  double volume_tolerance = 1e-7;
+  /// Start the design entries here instead of the part's own values (empty: the part's own;
+  /// clamped into the bounds around the part's own values). With lbfgs.max_iterations = 0 this
+  /// just applies the given parameters (projection + write-back).
+  Eigen::VectorXd design_start;
   /// Projection weight of the entries that are not design variables (design entries: 1), so
   /// that tangent neighbours follow a design change instead of pulling it back.
   double follower_weight = 1e-4;
@@ -73,9 +82,22 @@ struct ShapeIterate {
   int iteration = 0;
   double objective = 0;             ///< without the penalty
   double constraint_violation = 0;  ///< volume bound violation (relative), 0 if none
+  int outer = 0;                    ///< augmented-Lagrangian outer iteration of this iterate
+  int evaluations = 0;              ///< evaluations of the run so far
   double tangency_residual = 0;     ///< face model relations at p⊥
   Eigen::VectorXd design;           ///< design entries of p⊥
   double seconds = 0;
+};
+
+/// One augmented-Lagrangian outer iteration: the inner L-BFGS run with multiplier λ and
+/// penalty ρ (both relative to max(|f0|, tiny), per unit relative violation), its end point.
+struct AugmentedLagrangianStep {
+  int outer = 0;
+  double multiplier = 0, penalty = 0;  ///< used in this inner run
+  double violation = 0;                ///< signed g = V/V0 − max_ratio (or min_ratio − V/V0) at its end
+  double objective = 0;
+  std::string inner_status;
+  int inner_iterations = 0, evaluations = 0;
 };
 
 struct ShapeOptimizationResult {
@@ -96,6 +118,9 @@ struct ShapeOptimizationResult {
   std::string gradient = "exact";
   int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
   int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
+  std::vector<AugmentedLagrangianStep> outer;  ///< empty without a volume bound
+  bool volume_restored = false;        ///< the final volume-only restoration moved the design
+  double final_violation = 0;          ///< relative, ≥ 0
   std::vector<std::string> notes;      ///< parameterization notes and first invalid-model message
   double seconds = 0;
 };

@@ -1,12 +1,13 @@
 """`parafab optimize` with the compliance objective (thesis §6.5.3, issue 12): the L-bracket
 (samples/simulations/l_bracket.json loads, face-route grid of 8 cells, shifted off the part's
 planes by the optimizer's grid margin) with its two bolt-hole radii as design variables under a
-volume bound of 1.005 V0. Checked by independent numbers: a fresh `parafab simulate` of the
+volume bound of 1.005 V0 (an augmented Lagrangian; the bound ends active). Checked by independent numbers: a fresh `parafab simulate` of the
 written STEP on three other grids (compliance C = fᵀu = −2·potential) must be lower than the
-original's; OCCT's volume of the written STEP within the bound; tangency residual; the
+original's; OCCT's volume of the written STEP on the bound (violation <= 1e-6 relative); tangency residual; the
 input file untouched; the history says the gradient is semi-analytic."""
 import hashlib
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -20,13 +21,14 @@ import parafab  # noqa: E402
 CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
+THICKNESS = 8.0  # the base plate the bolt holes go through (mm)
 
 ELASTIC = {"material": {"E": 210000, "nu": 0.3},
            "supports": [{"point": [0, 20, 30]}],
            "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
 JOB = dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8},
            parameters=[{"point": [44, 12, 4], "parameter": "radius"}, {"point": [44, 28, 4], "parameter": "radius"}],
-           constraints=[{"type": "volume", "max_ratio": 1.005}], max_iterations=2, first_step=0.5, bound=0.4)
+           constraints=[{"type": "volume", "max_ratio": 1.005}], max_iterations=8, first_step=0.5, bound=0.4)
 
 
 def sha(path):
@@ -64,19 +66,26 @@ class OptimizeCompliance(unittest.TestCase):
         self.assertEqual(h["invalid_models"], 0)
         self.assertEqual(h["topology_switches"], 0)
         self.assertGreater(h["gradient_cells"], 0)
-        # Measured: 40.729 -> 40.536 (-0.47 %) on the optimizer's fixed grid.
-        self.assertLess(h["final_objective"], 0.996 * h["initial_objective"])
-        for a, b in zip(h["iterations"], h["iterations"][1:]):
-            self.assertLess(b["objective"], a["objective"])
+        # Measured: 40.729 -> 40.516 (-0.52 %) on the optimizer's fixed grid, status converged.
+        self.assertEqual(h["status"], "converged", h["message"])
+        self.assertLess(h["final_objective"], 0.9952 * h["initial_objective"])
         self.assertLess(h["tangency_residual_max"], 1e-9)
-        # Independent: OCCT's volume of the written STEP within the bound (the bound is a quadratic
-        # penalty; measured violation 0 after two iterations, up to 2e-4 relative in longer runs).
+        # Augmented Lagrangian: outer 0 ends 1e-4 above the bound (the old quadratic penalty's
+        # end), the multiplier update (lambda 0.995) brings it back onto it in one more outer.
+        al = h["augmented_lagrangian"]
+        self.assertGreaterEqual(len(al), 2)
+        self.assertEqual(al[0]["multiplier"], 0)
+        self.assertGreater(al[0]["violation"], 1e-5)
+        self.assertGreater(al[-1]["multiplier"], 0.5)
+        self.assertFalse(h["volume_restored"])
+        # Independent: OCCT's volume of the written STEP on the bound: violation <= 1e-6 relative
+        # (measured -1.3e-7) and the bound active (within 1e-5).
         step = os.path.join(out, "optimized.step")
         v0 = parafab.integrate_part(self.part, cells=4)["occt"]["volume"]
         v = parafab.integrate_part(step, cells=4)["occt"]["volume"]
-        self.assertLessEqual(v, 1.005 * v0 * (1 + 1e-6))
+        self.assertLessEqual(v / (1.005 * v0) - 1, 1e-6)
+        self.assertGreater(v / (1.005 * v0) - 1, -1e-5)
         self.assertAlmostEqual(v, h["final_volume"], delta=1e-6 * v0)
-        self.assertGreater(v, v0)  # the holes shrank: material was added up to the bound
         # Independent: fresh simulations (their own grids, not the optimizer's) of both parts.
         # Measured ratios 0.9917 / 0.9938 / 0.9913 at 8 / 12 / 16 cells.
         for cells in (8, 12, 16):
@@ -87,6 +96,38 @@ class OptimizeCompliance(unittest.TestCase):
                 self.assertEqual(code, 0, r)
                 c.append(-2 * r["potential"])
             self.assertLess(c[1], 0.997 * c[0], cells)
+
+    def test_a_run_that_ends_above_the_bound_is_restored_onto_it(self):
+        # One outer iteration of two L-BFGS steps ends 3.3e-4 above V <= 1.002 V0 (measured);
+        # the volume-only Newton restoration moves onto the bound. OCCT's volume of the STEP.
+        out = os.path.join(self.dir, "out")
+        job = dict(JOB, constraints=[{"type": "volume", "max_ratio": 1.002}], max_iterations=2, max_outer=1)
+        code, h = cli(["optimize", self.part, "-o", out], job)
+        self.assertEqual(code, 0, h)
+        self.assertGreater(h["augmented_lagrangian"][0]["violation"], 1e-4)
+        self.assertTrue(h["volume_restored"])
+        self.assertIn("restoration", h["message"])
+        v0 = parafab.integrate_part(self.part, cells=4)["occt"]["volume"]
+        v = parafab.integrate_part(os.path.join(out, "optimized.step"), cells=4)["occt"]["volume"]
+        self.assertLessEqual(v / (1.002 * v0) - 1, 1e-6)
+        self.assertGreater(v / (1.002 * v0) - 1, -1e-5)
+        self.assertLess(h["final_objective"], h["initial_objective"])
+
+    def test_start_applies_given_parameters(self):
+        # "start" + max_iterations 0 applies the given hole radii and writes the STEP: OCCT's
+        # volume grows by the two cylinders' difference pi (4^2 - 3.5^2) * 8 (plate 8 mm thick).
+        out = os.path.join(self.dir, "out")
+        job = dict(JOB, objective={"type": "volume"}, start=[3.5, 3.5], max_iterations=0)
+        del job["constraints"]
+        code, h = cli(["optimize", self.part, "-o", out], job)
+        self.assertEqual(code, 0, h)
+        self.assertAlmostEqual(h["parameters"][0]["final"], 3.5, delta=1e-9)
+        v0 = parafab.integrate_part(self.part, cells=4)["occt"]["volume"]
+        v = parafab.integrate_part(os.path.join(out, "optimized.step"), cells=4)["occt"]["volume"]
+        self.assertAlmostEqual(v - v0, 2 * math.pi * (16 - 3.5 ** 2) * THICKNESS, delta=1e-6 * v0)
+        code, err = cli(["optimize", self.part, "-o", out], dict(job, start=[3.5]))
+        self.assertEqual(code, 2)
+        self.assertIn("start", json.dumps(err))
 
     def test_compliance_without_supports_is_a_clear_error(self):
         job = dict(JOB)

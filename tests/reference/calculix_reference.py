@@ -90,6 +90,7 @@ Result JSON::
    "selections": {name: {"nodes", "faces", "area", "picked", "force",
                          "distribution"}},
    "reactions": {name: [Fx, Fy, Fz]},               # for fixed/displacement
+   "compliance": f^T u,                             # if every load is a *CLOAD
    "line": {"points", "s", "u", "von_mises", "method"}, # if "line" given
    "ccx_warnings": [...],                            # if any
    "workdir": path or null, "versions": {...}}
@@ -569,6 +570,8 @@ def write_deck(mesh, job, path):
                     out.append("%d, %d, %.12g" % (nid[i], d + 1, cl[i][d]))
     if dl:
         out += ["*DLOAD"] + dl
+    # the nodal loads (mesh index -> force) for the compliance f^T u (none with a *DLOAD)
+    mesh.cloads = None if dl else {i: np.asarray(cl[i], float) for i in cl}
     out += ["*NODE FILE", "U", "*EL FILE", "S"]
     # .frd values have only 5 significant digits (E12.5); the .dat print
     # (E13.6) is used for displacements when present.
@@ -817,6 +820,9 @@ def run_job(job, base_dir=".", workdir=None, log=None):
             # ccx upper-cases set names in the .dat; map back to job names
             "reactions": {names.get(k, k): v for k, v in totals.items()},
         }
+        if getattr(mesh, "cloads", None):
+            # compliance f^T u of the nodal loads (only when every load is a *CLOAD)
+            res["compliance"] = float(sum(F @ U[i] for i, F in mesh.cloads.items()))
         if warnings:
             res["ccx_warnings"] = warnings
         if mesh.n_flipped:

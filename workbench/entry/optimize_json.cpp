@@ -224,6 +224,20 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     o.lbfgs.relative_improvement = number(job["relative_improvement"], "relative_improvement");
   if (job.contains("first_step")) o.lbfgs.first_step = number(job["first_step"], "first_step");
   if (job.contains("bound")) o.relative_bound = number(job["bound"], "bound");
+  if (job.contains("max_outer")) {
+    if (!job["max_outer"].is_number_integer() || job["max_outer"].get<int>() < 1)
+      PARAFAB_INPUT_ERROR("max_outer must be a positive integer");
+    o.max_outer = job["max_outer"].get<int>();
+  }
+  if (job.contains("start")) {
+    // Design values to start from, one per entry of "parameters" (with max_iterations 0: apply
+    // them and write the STEP, the route of tests/bench/bench_optimize_routes.py).
+    const json& st = job["start"];
+    if (!st.is_array() || st.size() != o.design.size())
+      PARAFAB_INPUT_ERROR("start must be a list of " << o.design.size() << " numbers (one per parameters entry)");
+    o.design_start.resize(st.size());
+    for (size_t k = 0; k < st.size(); ++k) o.design_start[k] = number(st[k], "start[" + std::to_string(k) + "]");
+  }
 
   occ::ShapeProgress report;
   if (progress)
@@ -250,6 +264,16 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;
   }
+  h["final_violation"] = r.final_violation;
+  if (!r.outer.empty()) {
+    h["volume_restored"] = r.volume_restored;
+    h["augmented_lagrangian"] = json::array();
+    for (const auto& a : r.outer)
+      h["augmented_lagrangian"].push_back({{"outer", a.outer}, {"multiplier", a.multiplier}, {"penalty", a.penalty},
+                                           {"violation", a.violation}, {"objective", a.objective},
+                                           {"inner_status", a.inner_status}, {"inner_iterations", a.inner_iterations},
+                                           {"evaluations", a.evaluations}});
+  }
   h["evaluations"] = r.evaluations;
   h["invalid_models"] = r.invalid_models;
   h["failed_projections"] = r.failed_projections;
@@ -261,6 +285,8 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["iterations"].push_back({{"iteration", it.iteration},
                                {"objective", it.objective},
                                {"constraint_violation", it.constraint_violation},
+                               {"outer", it.outer},
+                               {"evaluations", it.evaluations},
                                {"tangency_residual", it.tangency_residual},
                                {"parameters", values},
                                {"seconds", it.seconds}});
