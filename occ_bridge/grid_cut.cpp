@@ -579,7 +579,9 @@ bool on_surface_of(const std::vector<gp_Pnt>& samples, const TopoDS_Face& g, dou
 namespace {
 
 // The boxes of the changes between old_part and part (merged until no two overlap), counted in R.
-std::vector<Box3> changed_regions(const PartShape& part, const PartShape& old_part, double tol, RecutReport& R) {
+// `shapes`, if given, receives the changed faces and edges themselves (of both parts).
+std::vector<Box3> changed_regions(const PartShape& part, const PartShape& old_part, double tol, RecutReport& R,
+                                  std::vector<TopoDS_Shape>* shapes = nullptr) {
   // Changed regions: faces on a surface no old face lies on (and old ones gone), and edges
   // without an identical old edge (and old ones gone); the dirty box holds them all.
   // Each changed face or edge adds its box; overlapping boxes are merged into the box around
@@ -604,7 +606,10 @@ std::vector<Box3> changed_regions(const PartShape& part, const PartShape& old_pa
         if (((fb.max - tb.min).array() < -tol).any() || ((tb.max - fb.min).array() < -tol).any()) continue;
         found = on_surface_of(samples, to.face(j), tol);
       }
-      if (!found) ++R.changed_faces, grow(fb);
+      if (!found) {
+        ++R.changed_faces, grow(fb);
+        if (shapes) shapes->push_back(from.face(i));
+      }
     }
   };
   unmatched_faces(part, new_boxes, old_part, old_boxes);
@@ -617,10 +622,16 @@ std::vector<Box3> changed_regions(const PartShape& part, const PartShape& old_pa
     bool found = false;
     for (size_t j = 0; j < old_edges.size() && !found; ++j)
       if (!old_matched[j] && same_edge(n, old_edges[j], tol)) old_matched[j] = found = true;
-    if (!found) ++R.changed_edges, grow(n.box);
+    if (!found) {
+      ++R.changed_edges, grow(n.box);
+      if (shapes) shapes->push_back(part.edge(static_cast<int>(&n - new_edges.data())));
+    }
   }
   for (size_t j = 0; j < old_edges.size(); ++j)
-    if (!old_matched[j]) ++R.changed_edges, grow(old_edges[j].box);
+    if (!old_matched[j]) {
+      ++R.changed_edges, grow(old_edges[j].box);
+      if (shapes) shapes->push_back(old_part.edge(static_cast<int>(j)));
+    }
   auto overlap = [&](const Box3& a, const Box3& b) {
     return !(((a.max - b.min).array() < -tol).any() || ((b.max - a.min).array() < -tol).any());
   };
@@ -649,8 +660,56 @@ bool boxes_overlap(const Box3& a, const Box3& b, double tol) {
 // Face route re-cut (thesis §6.3 per face, issue 11 §1): the cells whose boxes meet a changed
 // region are cut again by the face route; every other cell keeps its subvolumes, curves and
 // connections; pieces meeting across a kept/re-cut cell face are matched by that face.
+// Points on a changed face (its surface over its uv box) or edge, at most `spacing` apart
+// (chord estimate), for marking the cells it meets.
+std::vector<Vec3> shape_samples(const TopoDS_Shape& shape, double spacing) {
+  std::vector<Vec3> out;
+  auto v3 = [](const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); };
+  if (shape.ShapeType() == TopAbs_FACE) {
+    const TopoDS_Face& f = TopoDS::Face(shape);
+    double u0, u1, v0, v1;
+    BRepTools::UVBounds(f, u0, u1, v0, v1);
+    const Handle(Geom_Surface) S = BRep_Tool::Surface(f);
+    auto chord = [&](bool along_u, double w) {
+      double L = 0;
+      gp_Pnt prev = along_u ? S->Value(u0, w) : S->Value(w, v0);
+      for (int i = 1; i <= 64; ++i) {
+        const double t = i / 64.0;
+        const gp_Pnt q = along_u ? S->Value(u0 + t * (u1 - u0), w) : S->Value(w, v0 + t * (v1 - v0));
+        L += prev.Distance(q), prev = q;
+      }
+      return L;
+    };
+    double Lu = 0, Lv = 0;
+    for (double t : {0.0, 0.5, 1.0}) {
+      Lu = std::max(Lu, chord(true, v0 + t * (v1 - v0)));
+      Lv = std::max(Lv, chord(false, u0 + t * (u1 - u0)));
+    }
+    const int nu = std::clamp(static_cast<int>(std::ceil(2 * Lu / spacing)), 1, 1000);
+    const int nv = std::clamp(static_cast<int>(std::ceil(2 * Lv / spacing)), 1, 1000);
+    for (int i = 0; i <= nu; ++i)
+      for (int j = 0; j <= nv; ++j) out.push_back(v3(S->Value(u0 + (u1 - u0) * i / nu, v0 + (v1 - v0) * j / nv)));
+  } else if (shape.ShapeType() == TopAbs_EDGE) {
+    const TopoDS_Edge& e = TopoDS::Edge(shape);
+    if (BRep_Tool::Degenerated(e)) return out;
+    double a, b;
+    const Handle(Geom_Curve) c = BRep_Tool::Curve(e, a, b);
+    if (c.IsNull()) return out;
+    GProp_GProps props;
+    BRepGProp::LinearProperties(e, props);
+    const int n = std::clamp(static_cast<int>(std::ceil(4 * props.Mass() / spacing)), 2, 20000);
+    for (int i = 0; i <= n; ++i) {
+      gp_Pnt p = c->Value(a + (b - a) * i / n);
+      p.Transform(e.Location().Transformation());
+      out.push_back(v3(p));
+    }
+  }
+  return out;
+}
+
 GridCut recut_by_faces(const PartShape& part, const GridCut& old, const std::vector<Box3>& dirty_boxes,
-                       const GridOptions& o, RecutReport& R, std::string& why_not) {
+                       const std::vector<TopoDS_Shape>& changed, const GridOptions& o, RecutReport& R,
+                       std::string& why_not) {
   const double h = old.cell_size.maxCoeff();
   const double tol = 1e-7 * h;
   const auto& n = old.cells;
@@ -659,16 +718,34 @@ GridCut recut_by_faces(const PartShape& part, const GridCut& old, const std::vec
   detail::FaceRecut fr;
   fr.dirty.assign(ncells, 0);
   fr.status.assign(ncells, 0);
+  for (const auto& c : old.interior_cells) fr.status[lin(c)] = 1;
+  for (const auto& c : old.cut_cells) fr.status[lin(c.index)] = 2;
+  // Cells the changed faces and edges (old and new) meet: every sample marks the cells within
+  // `margin` of it (samples are at most a quarter cell apart on the chord estimate).
+  const double spacing = 0.25 * h, margin = 0.5 * spacing + 1e-7 * h;
+  for (const TopoDS_Shape& shape : changed)
+    for (const Vec3& p : shape_samples(shape, spacing)) {
+      std::array<int, 3> lo{}, hi{};
+      for (int a = 0; a < 3; ++a) {
+        const auto& pl = old.planes[a];
+        lo[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), p[a] - margin) - pl.begin());
+        hi[a] = std::min(n[a] - 1, static_cast<int>(std::upper_bound(pl.begin(), pl.end(), p[a] + margin) - pl.begin()));
+      }
+      for (int i = lo[0]; i <= hi[0]; ++i)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int k = lo[2]; k <= hi[2]; ++k) fr.dirty[lin({i, j, k})] = 1;
+    }
+  // Uncut cells inside a change region may have been swept through whole (a face moving more
+  // than a cell): their state is tested again (one point test per connected run).
   for (int k = 0; k < n[2]; ++k)
     for (int j = 0; j < n[1]; ++j)
       for (int i = 0; i < n[0]; ++i) {
+        if (fr.status[lin({i, j, k})] == 2) continue;
         const Box3 cb = old.cell_box({i, j, k});
         for (const Box3& d : dirty_boxes)
           if (boxes_overlap(cb, d, tol)) fr.dirty[lin({i, j, k})] = 1;
       }
-  for (const auto& c : old.interior_cells) fr.status[lin(c)] = 1;
-  for (const auto& c : old.cut_cells) fr.status[lin(c.index)] = 2;
-  for (char d : fr.dirty) R.cells_recut += d;
+  for (int i = 0; i < ncells; ++i) R.cells_recut += fr.dirty[i] && fr.status[i] == 2;
   R.cells = ncells;
 
   GridCut g;
@@ -786,13 +863,14 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   if (((bb.min - old.grid.min).array() < -tol).any() || ((old.grid.max - bb.max).array() < -tol).any())
     return full_cut("the changed part leaves the old grid");
 
-  const std::vector<Box3> dirty = changed_regions(part, old_part, tol, R);
+  std::vector<TopoDS_Shape> changed_shapes;
+  const std::vector<Box3> dirty = changed_regions(part, old_part, tol, R, &changed_shapes);
   const bool changed = R.changed_faces + R.changed_edges > 0;
   auto overlap = [&](const Box3& a, const Box3& b) { return boxes_overlap(a, b, tol); };
   if (old.method == CutMethod::FaceCut && o.method == CutMethod::FaceCut) {
     if (o.nurbs) return full_cut("the face route re-cut does not convert to NURBS");
     std::string why;
-    GridCut g = recut_by_faces(part, old, dirty, o, R, why);
+    GridCut g = recut_by_faces(part, old, dirty, changed_shapes, o, R, why);
     if (!g.done) {
       const RecutReport counts = R;
       R = RecutReport{};

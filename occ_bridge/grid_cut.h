@@ -153,8 +153,9 @@ struct RecutReport {
   int changed_edges = 0;       ///< edges without an identical edge in the other part (both ways)
   int regions = 0;             ///< changed regions (boxes of overlapping changes, merged)
   int blocks = 0, blocks_recut = 0;
-  /// Face route: grid cells, cells cut again (their boxes meet a changed region), cut cells
-  /// among those, and B-rep faces cut again (those meeting a re-cut cell).
+  /// Face route: grid cells; old cut cells cut again (a changed face or edge, old or new, meets
+  /// them); cells that came out cut among all re-cut cells (those plus uncut cells in a change
+  /// region, whose state is tested again); B-rep faces cut again (those meeting a re-cut cell).
   int cells = 0, cells_recut = 0, cut_cells_recut = 0, faces_recut = 0;
   bool verified = true;        ///< rebuild_grid_model: the rules' volume matched OCCT's (else cut again whole)
   int subvolumes_kept = 0, subvolumes_new = 0;
