@@ -35,6 +35,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <map>
 #include <numeric>
 #include <set>
@@ -929,16 +930,46 @@ struct GridPatch {
   std::array<int, 2> cells2;  ///< the square's cell indices along axis+1, axis+2
   Region loops;
   std::array<int, 2> owner{INT32_MIN, INT32_MIN};  ///< below, above: subvolume ≥ 0 or −1 − interior cell
+  std::array<int, 2> patch{-1, -1};  ///< below, above: the owning subvolume's patch index
 };
 
 }  // namespace
 
-bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
+bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceRecut* recut) {
   const int nf = part.face_count();
+  const auto& n = g.cells;
+  auto lin = [&](const std::array<int, 3>& c) { return c[0] + n[0] * (c[1] + n[1] * c[2]); };
+  const int ncells = n[0] * n[1] * n[2];
+  if (recut && (static_cast<int>(recut->dirty.size()) != ncells || static_cast<int>(recut->status.size()) != ncells)) {
+    g.message = "face route re-cut: the cell lists do not match the grid";
+    return false;
+  }
+  auto dirty = [&](const std::array<int, 3>& c) { return !recut || recut->dirty[lin(c)]; };
+  // Re-cut: only faces whose box meets a dirty cell are cut again.
+  std::vector<char> cut_this(nf, 1);
+  if (recut) {
+    const double tol = 1e-7 * g.cell_size.maxCoeff();
+    for (int f = 0; f < nf; ++f) {
+      const Box3 fb = tight_box(part.face(f));
+      std::array<int, 3> lo{}, hi{};
+      for (int a = 0; a < 3; ++a) {
+        const auto& pl = g.planes[a];
+        lo[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), fb.min[a] - tol) - pl.begin());
+        hi[a] = std::min(n[a] - 1, static_cast<int>(std::upper_bound(pl.begin(), pl.end(), fb.max[a] + tol) - pl.begin()));
+      }
+      bool meets = false;
+      for (int i = lo[0]; i <= hi[0] && !meets; ++i)
+        for (int j = lo[1]; j <= hi[1] && !meets; ++j)
+          for (int k = lo[2]; k <= hi[2] && !meets; ++k) meets = recut->dirty[lin({i, j, k})];
+      cut_this[f] = meets;
+      recut->faces_cut += meets;
+    }
+  }
   std::vector<std::vector<FacePatch>> patches(nf);
   std::vector<std::string> failures(nf);
   std::vector<Handle(Geom_Surface)> surfaces(nf);
   auto cut_face = [&](int f) {
+    if (!cut_this[f]) return;
     try {
       FaceCutter fc(part, g, f);
       surfaces[f] = fc.surface();
@@ -963,12 +994,20 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
   for (int f = 0; f < nf; ++f)
     for (size_t p = 0; p < patches[f].size(); ++p) in_cell[patches[f][p].cell].push_back({f, static_cast<int>(p), 1});
 
-  // Uncut cells: connected runs, one point test each.
-  const auto& n = g.cells;
-  auto lin = [&](const std::array<int, 3>& c) { return c[0] + n[0] * (c[1] + n[1] * c[2]); };
-  const int ncells = n[0] * n[1] * n[2];
+  // Uncut cells: connected runs, one point test each (re-cut: kept cells keep their state).
   std::vector<int> status(ncells, -1);  // −1 unknown, 0 outside, 1 inside, 2 cut
-  for (const auto& [c, list] : in_cell) status[lin(c)] = 2;
+  if (recut)
+    for (int i = 0; i < ncells; ++i)
+      if (!recut->dirty[i]) status[i] = recut->status[i];
+  for (const auto& [c, list] : in_cell) {
+    if (recut && !recut->dirty[lin(c)] && status[lin(c)] != 2) {
+      g.message = "face route re-cut: a face meets a kept cell the old cut did not cut";
+      return false;
+    }
+    status[lin(c)] = 2;
+  }
+  if (recut)
+    for (int i = 0; i < ncells; ++i) recut->cells_cut += recut->dirty[i] && status[i] == 2;
   BRepClass3d_SolidClassifier classifier(part.shape);
   const double h = g.cell_size.maxCoeff();
   auto inside_at = [&](const Vec3& p) {
@@ -1022,7 +1061,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
   std::vector<GridPatch> grid_patches;
   std::set<std::array<int, 4>> squares;  // axis, plane, j1, j2
   for (const auto& [c, list] : in_cell)
-    for (int a = 0; a < 3; ++a) {
+    for (int a = 0; a < 3 && dirty(c); ++a) {
       const int j1 = c[(a + 1) % 3], j2 = c[(a + 2) % 3];
       if (c[a] > 0) squares.insert({a, c[a], j1, j2});
       if (c[a] + 1 < n[a]) squares.insert({a, c[a] + 1, j1, j2});
@@ -1187,6 +1226,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
     for (int sd = 0; sd < 2; ++sd) {
       const auto& c = sd == 0 ? below : above;
       const int st = status[lin(c)];
+      if (st == 2 && !dirty(c)) continue;  // a kept cut cell: matched by the caller (block faces)
       if (st == 2) grid_in_cell[sd][c].push_back(static_cast<int>(i));
       else if (st == 1) grid_patches[i].owner[sd] = -1 - interior_index.at(c);
       else {
@@ -1232,6 +1272,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
   int open_edges = 0, first_open = -1;
   double verify_seconds = 0;
   for (const auto& [cell, list] : in_cell) {
+    if (!dirty(cell)) continue;
     std::vector<PatchRef> refs = list;
     for (int sd = 0; sd < 2; ++sd) {
       auto it = grid_in_cell[sd].find(cell);
@@ -1302,14 +1343,21 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
         patch.orientation = r.sign;
         patch.grid_axis = gp.axis;
         gp.owner[r.sign > 0 ? 0 : 1] = s;
+        gp.patch[r.sign > 0 ? 0 : 1] = static_cast<int>(g.subvolumes[s].patches.size());
       }
       g.subvolumes[s].patches.push_back(std::move(patch));
       ++g.patches;
     }
     g.cut_cells.push_back(std::move(cc));
   }
-  for (const GridPatch& gp : grid_patches) {
+  std::vector<int> pending;  // re-cut: grid patches whose other side is a kept cut cell
+  for (size_t i = 0; i < grid_patches.size(); ++i) {
+    const GridPatch& gp = grid_patches[i];
     const int a = gp.owner[0], b = gp.owner[1];
+    if (recut && (a == INT32_MIN) != (b == INT32_MIN)) {
+      pending.push_back(static_cast<int>(i));
+      continue;
+    }
     if (a == INT32_MIN || b == INT32_MIN) {
       g.message = "face route: a cell-face patch has no subvolume on one side";
       return false;
@@ -1328,6 +1376,23 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
     else
       for (int i = 0; i < static_cast<int>(loop_jobs.size()); ++i) run(i);
     for (int n : segs) g.segments += n;
+  }
+  for (int i : pending) {  // block faces of the re-cut side, after its loops are sampled
+    const GridPatch& gp = grid_patches[i];
+    const int side = gp.owner[0] == INT32_MIN ? 1 : 0;  // the re-cut side
+    const int owner = gp.owner[side];
+    BlockFace bf;
+    bf.owner = owner;
+    bf.cell_face = {gp.axis, gp.plane, gp.cells2[0], gp.cells2[1]};
+    bf.upper = side == 1;
+    const double q = g.planes[gp.axis][gp.plane - 1];
+    if (owner >= 0) {
+      grid_patch_area_centroid(g.subvolumes[owner].patches[gp.patch[side]], gp.axis, q, bf.area, bf.centroid);
+    } else {  // an interior cell facing a kept cut cell: cannot happen (squares come from re-cut cut cells)
+      g.message = "face route re-cut: an interior cell's face borders a kept cut cell without a cut cell face";
+      return false;
+    }
+    g.block_faces.push_back(bf);
   }
   // Intersection curves with their samples.
   std::map<int, std::array<int, 2>> edge_faces;
@@ -1436,7 +1501,8 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g) {
   else
     for (int i = 0; i < static_cast<int>(jobs.size()); ++i) make_curve(i);
   for (int n : curve_segments) g.segments += n;
-  g.curves = std::move(curves);
+  if (recut) g.curves.insert(g.curves.end(), std::make_move_iterator(curves.begin()), std::make_move_iterator(curves.end()));
+  else g.curves = std::move(curves);
   if (g.cut_cells.empty() && g.interior_cells.empty()) {
     g.message = "face route: no cell meets the part";
     return false;

@@ -576,29 +576,12 @@ bool on_surface_of(const std::vector<gp_Pnt>& samples, const TopoDS_Face& g, dou
 
 }  // namespace
 
-GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape& old_part,
-                      const GridOptions& o, RecutReport* report) {
-  RecutReport local;
-  RecutReport& R = report ? *report : local;
-  R = RecutReport{};
-  const auto t0 = std::chrono::steady_clock::now();
-  PARAFAB_VERIFY(old.done, "recut: the old cut is not done");
-  const double h = old.cell_size.maxCoeff();
-  const double tol = 1e-7 * h;
-  const Box3 bb = tight_box(part.shape);
-  auto full_cut = [&](const std::string& why) {
-    R.full = true;
-    R.message = why;
-    GridOptions fo = o;
-    fo.anchored = true;
-    fo.origin = old.grid.min;
-    fo.cell_size = h;
-    return cut_by_grid(part, fo);
-  };
-  if (old.block_cells <= 0) return full_cut("the old cut has no blocks (block_cells = 0)");
-  if (((bb.min - old.grid.min).array() < -tol).any() || ((old.grid.max - bb.max).array() < -tol).any())
-    return full_cut("the changed part leaves the old grid");
+namespace {
 
+// The boxes of the changes between old_part and part (merged until no two overlap), counted in R.
+// `shapes`, if given, receives the changed faces and edges themselves (of both parts).
+std::vector<Box3> changed_regions(const PartShape& part, const PartShape& old_part, double tol, RecutReport& R,
+                                  std::vector<TopoDS_Shape>* shapes = nullptr) {
   // Changed regions: faces on a surface no old face lies on (and old ones gone), and edges
   // without an identical old edge (and old ones gone); the dirty box holds them all.
   // Each changed face or edge adds its box; overlapping boxes are merged into the box around
@@ -623,7 +606,10 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
         if (((fb.max - tb.min).array() < -tol).any() || ((tb.max - fb.min).array() < -tol).any()) continue;
         found = on_surface_of(samples, to.face(j), tol);
       }
-      if (!found) ++R.changed_faces, grow(fb);
+      if (!found) {
+        ++R.changed_faces, grow(fb);
+        if (shapes) shapes->push_back(from.face(i));
+      }
     }
   };
   unmatched_faces(part, new_boxes, old_part, old_boxes);
@@ -636,11 +622,16 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
     bool found = false;
     for (size_t j = 0; j < old_edges.size() && !found; ++j)
       if (!old_matched[j] && same_edge(n, old_edges[j], tol)) old_matched[j] = found = true;
-    if (!found) ++R.changed_edges, grow(n.box);
+    if (!found) {
+      ++R.changed_edges, grow(n.box);
+      if (shapes) shapes->push_back(part.edge(static_cast<int>(&n - new_edges.data())));
+    }
   }
   for (size_t j = 0; j < old_edges.size(); ++j)
-    if (!old_matched[j]) ++R.changed_edges, grow(old_edges[j].box);
-  const bool changed = R.changed_faces + R.changed_edges > 0;
+    if (!old_matched[j]) {
+      ++R.changed_edges, grow(old_edges[j].box);
+      if (shapes) shapes->push_back(old_part.edge(static_cast<int>(j)));
+    }
   auto overlap = [&](const Box3& a, const Box3& b) {
     return !(((a.max - b.min).array() < -tol).any() || ((b.max - a.min).array() < -tol).any());
   };
@@ -659,6 +650,238 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
     dirty.push_back(b);
   }
   R.regions = static_cast<int>(dirty.size());
+  return dirty;
+}
+
+bool boxes_overlap(const Box3& a, const Box3& b, double tol) {
+  return !(((a.max - b.min).array() < -tol).any() || ((b.max - a.min).array() < -tol).any());
+}
+
+// Face route re-cut (thesis §6.3 per face, issue 11 §1): the cells whose boxes meet a changed
+// region are cut again by the face route; every other cell keeps its subvolumes, curves and
+// connections; pieces meeting across a kept/re-cut cell face are matched by that face.
+// Points on a changed face (its surface over its uv box) or edge, at most `spacing` apart
+// (chord estimate), for marking the cells it meets.
+std::vector<Vec3> shape_samples(const TopoDS_Shape& shape, double spacing) {
+  std::vector<Vec3> out;
+  auto v3 = [](const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); };
+  if (shape.ShapeType() == TopAbs_FACE) {
+    const TopoDS_Face& f = TopoDS::Face(shape);
+    double u0, u1, v0, v1;
+    BRepTools::UVBounds(f, u0, u1, v0, v1);
+    const Handle(Geom_Surface) S = BRep_Tool::Surface(f);
+    auto chord = [&](bool along_u, double w) {
+      double L = 0;
+      gp_Pnt prev = along_u ? S->Value(u0, w) : S->Value(w, v0);
+      for (int i = 1; i <= 64; ++i) {
+        const double t = i / 64.0;
+        const gp_Pnt q = along_u ? S->Value(u0 + t * (u1 - u0), w) : S->Value(w, v0 + t * (v1 - v0));
+        L += prev.Distance(q), prev = q;
+      }
+      return L;
+    };
+    double Lu = 0, Lv = 0;
+    for (double t : {0.0, 0.5, 1.0}) {
+      Lu = std::max(Lu, chord(true, v0 + t * (v1 - v0)));
+      Lv = std::max(Lv, chord(false, u0 + t * (u1 - u0)));
+    }
+    const int nu = std::clamp(static_cast<int>(std::ceil(2 * Lu / spacing)), 1, 1000);
+    const int nv = std::clamp(static_cast<int>(std::ceil(2 * Lv / spacing)), 1, 1000);
+    for (int i = 0; i <= nu; ++i)
+      for (int j = 0; j <= nv; ++j) out.push_back(v3(S->Value(u0 + (u1 - u0) * i / nu, v0 + (v1 - v0) * j / nv)));
+  } else if (shape.ShapeType() == TopAbs_EDGE) {
+    const TopoDS_Edge& e = TopoDS::Edge(shape);
+    if (BRep_Tool::Degenerated(e)) return out;
+    double a, b;
+    const Handle(Geom_Curve) c = BRep_Tool::Curve(e, a, b);
+    if (c.IsNull()) return out;
+    GProp_GProps props;
+    BRepGProp::LinearProperties(e, props);
+    const int n = std::clamp(static_cast<int>(std::ceil(4 * props.Mass() / spacing)), 2, 20000);
+    for (int i = 0; i <= n; ++i) {
+      gp_Pnt p = c->Value(a + (b - a) * i / n);
+      p.Transform(e.Location().Transformation());
+      out.push_back(v3(p));
+    }
+  }
+  return out;
+}
+
+GridCut recut_by_faces(const PartShape& part, const GridCut& old, const std::vector<Box3>& dirty_boxes,
+                       const std::vector<TopoDS_Shape>& changed, const GridOptions& o, RecutReport& R,
+                       std::string& why_not) {
+  const double h = old.cell_size.maxCoeff();
+  const double tol = 1e-7 * h;
+  const auto& n = old.cells;
+  auto lin = [&](const std::array<int, 3>& c) { return c[0] + n[0] * (c[1] + n[1] * c[2]); };
+  const int ncells = n[0] * n[1] * n[2];
+  detail::FaceRecut fr;
+  fr.dirty.assign(ncells, 0);
+  fr.status.assign(ncells, 0);
+  for (const auto& c : old.interior_cells) fr.status[lin(c)] = 1;
+  for (const auto& c : old.cut_cells) fr.status[lin(c.index)] = 2;
+  // Cells the changed faces and edges (old and new) meet: every sample marks the cells within
+  // `margin` of it (samples are at most a quarter cell apart on the chord estimate).
+  const double spacing = 0.25 * h, margin = 0.5 * spacing + 1e-7 * h;
+  for (const TopoDS_Shape& shape : changed)
+    for (const Vec3& p : shape_samples(shape, spacing)) {
+      std::array<int, 3> lo{}, hi{};
+      for (int a = 0; a < 3; ++a) {
+        const auto& pl = old.planes[a];
+        lo[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), p[a] - margin) - pl.begin());
+        hi[a] = std::min(n[a] - 1, static_cast<int>(std::upper_bound(pl.begin(), pl.end(), p[a] + margin) - pl.begin()));
+      }
+      for (int i = lo[0]; i <= hi[0]; ++i)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int k = lo[2]; k <= hi[2]; ++k) fr.dirty[lin({i, j, k})] = 1;
+    }
+  // Uncut cells inside a change region may have been swept through whole (a face moving more
+  // than a cell): their state is tested again (one point test per connected run).
+  for (int k = 0; k < n[2]; ++k)
+    for (int j = 0; j < n[1]; ++j)
+      for (int i = 0; i < n[0]; ++i) {
+        if (fr.status[lin({i, j, k})] == 2) continue;
+        const Box3 cb = old.cell_box({i, j, k});
+        for (const Box3& d : dirty_boxes)
+          if (boxes_overlap(cb, d, tol)) fr.dirty[lin({i, j, k})] = 1;
+      }
+  for (int i = 0; i < ncells; ++i) R.cells_recut += fr.dirty[i] && fr.status[i] == 2;
+  R.cells = ncells;
+
+  GridCut g;
+  g.grid = old.grid;
+  g.cells = old.cells;
+  g.cell_size = old.cell_size;
+  g.planes = old.planes;
+  g.shifted_planes = old.shifted_planes;
+  g.block_cells = 0;
+  g.method = CutMethod::FaceCut;
+  // Keep the clean cut cells.
+  std::vector<int> new_sv(old.subvolumes.size(), -1);
+  for (const CutCell& c : old.cut_cells) {
+    if (fr.dirty[lin(c.index)]) continue;
+    CutCell kept{c.index, {}};
+    for (int s : c.subvolumes) {
+      new_sv[s] = static_cast<int>(g.subvolumes.size());
+      kept.subvolumes.push_back(new_sv[s]);
+      g.subvolumes.push_back(old.subvolumes[s]);
+      g.patches += static_cast<int>(old.subvolumes[s].patches.size());
+      R.kept_from.push_back(s);
+    }
+    g.cut_cells.push_back(std::move(kept));
+  }
+  R.subvolumes_kept = static_cast<int>(g.subvolumes.size());
+  for (const auto& [a, b] : old.connections)
+    if (new_sv[a] >= 0 && new_sv[b] >= 0) g.connections.push_back({new_sv[a], new_sv[b]});
+  std::vector<std::pair<int, std::array<int, 3>>> to_interior;  // (kept subvolume, interior cell)
+  for (const auto& [s, c] : old.interior_connections)
+    if (new_sv[s] >= 0 && !fr.dirty[lin(old.interior_cells[c])]) to_interior.push_back({new_sv[s], old.interior_cells[c]});
+  for (const CutCurve& c : old.curves)
+    if (new_sv[c.subvolume] >= 0) {
+      g.curves.push_back(c);
+      g.curves.back().subvolume = new_sv[c.subvolume];
+    }
+  if (!detail::cut_by_faces(part, o, g, &fr)) {
+    why_not = g.message;
+    return g;
+  }
+  R.faces_recut = fr.faces_cut;
+  R.cut_cells_recut = fr.cells_cut;
+  std::map<std::array<int, 3>, int> interior_of;
+  for (size_t i = 0; i < g.interior_cells.size(); ++i) interior_of[g.interior_cells[i]] = static_cast<int>(i);
+  for (const auto& [s, c] : to_interior) {
+    auto it = interior_of.find(c);
+    if (it == interior_of.end()) {
+      why_not = "a kept interior cell is no longer interior";
+      return g;
+    }
+    g.interior_connections.push_back({s, it->second});
+  }
+  // Grid-face patches of kept subvolumes facing a re-cut cell: connected to the new interior
+  // cell there, or matched with the new subvolume's patch on that cell face.
+  const size_t new_faces = g.block_faces.size();
+  for (const CutCell& c : g.cut_cells) {
+    if (fr.dirty[lin(c.index)]) continue;
+    for (int s : c.subvolumes)
+      for (const xfem::CutPatch& p : g.subvolumes[s].patches) {
+        const int a = p.grid_axis;
+        if (a < 0) continue;
+        std::array<int, 3> nb = c.index;
+        nb[a] += p.orientation > 0 ? 1 : -1;
+        if (nb[a] < 0 || nb[a] >= n[a] || !fr.dirty[lin(nb)]) continue;
+        auto it = interior_of.find(nb);
+        if (it != interior_of.end()) {
+          g.interior_connections.push_back({s, it->second});
+          continue;
+        }
+        BlockFace bf;
+        bf.owner = s;
+        const int plane = p.orientation > 0 ? c.index[a] + 1 : c.index[a];
+        bf.cell_face = {a, plane, c.index[(a + 1) % 3], c.index[(a + 2) % 3]};
+        bf.upper = p.orientation < 0;
+        detail::grid_patch_area_centroid(p, a, g.planes[a][plane - 1], bf.area, bf.centroid);
+        g.block_faces.push_back(bf);
+      }
+  }
+  const size_t connections_before = g.connections.size();
+  match_block_faces(g, 0);
+  const size_t matched = g.connections.size() - connections_before;
+  if (2 * matched != g.block_faces.size() || new_faces * 2 != g.block_faces.size()) {
+    why_not = "the pieces on the faces between kept and re-cut cells do not match (" + std::to_string(matched) +
+              " pairs of " + std::to_string(new_faces) + " new and " + std::to_string(g.block_faces.size() - new_faces) +
+              " kept)";
+    return g;
+  }
+  g.block_faces.clear();
+  R.subvolumes_new = static_cast<int>(g.subvolumes.size()) - R.subvolumes_kept;
+  R.kept_from.resize(g.subvolumes.size(), -1);
+  g.done = true;
+  return g;
+}
+
+}  // namespace
+
+GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape& old_part,
+                      const GridOptions& o, RecutReport* report) {
+  RecutReport local;
+  RecutReport& R = report ? *report : local;
+  R = RecutReport{};
+  const auto t0 = std::chrono::steady_clock::now();
+  PARAFAB_VERIFY(old.done, "recut: the old cut is not done");
+  const double h = old.cell_size.maxCoeff();
+  const double tol = 1e-7 * h;
+  const Box3 bb = tight_box(part.shape);
+  auto full_cut = [&](const std::string& why) {
+    R.full = true;
+    R.message = why;
+    GridOptions fo = o;
+    fo.anchored = true;
+    fo.origin = old.grid.min;
+    fo.cell_size = h;
+    return cut_by_grid(part, fo);
+  };
+  if (((bb.min - old.grid.min).array() < -tol).any() || ((old.grid.max - bb.max).array() < -tol).any())
+    return full_cut("the changed part leaves the old grid");
+
+  std::vector<TopoDS_Shape> changed_shapes;
+  const std::vector<Box3> dirty = changed_regions(part, old_part, tol, R, &changed_shapes);
+  const bool changed = R.changed_faces + R.changed_edges > 0;
+  auto overlap = [&](const Box3& a, const Box3& b) { return boxes_overlap(a, b, tol); };
+  if (old.method == CutMethod::FaceCut && o.method == CutMethod::FaceCut) {
+    if (o.nurbs) return full_cut("the face route re-cut does not convert to NURBS");
+    std::string why;
+    GridCut g = recut_by_faces(part, old, dirty, changed_shapes, o, R, why);
+    if (!g.done) {
+      const RecutReport counts = R;
+      R = RecutReport{};
+      R.changed_faces = counts.changed_faces, R.changed_edges = counts.changed_edges, R.regions = counts.regions;
+      R.cells = counts.cells, R.cells_recut = counts.cells;
+      return full_cut("face route re-cut failed: " + why);
+    }
+    g.split_seconds = seconds_since(t0);
+    return g;
+  }
+  if (old.block_cells <= 0) return full_cut("the old cut has no blocks (block_cells = 0)");
 
   GridCut g;
   g.grid = old.grid;

@@ -153,6 +153,10 @@ struct RecutReport {
   int changed_edges = 0;       ///< edges without an identical edge in the other part (both ways)
   int regions = 0;             ///< changed regions (boxes of overlapping changes, merged)
   int blocks = 0, blocks_recut = 0;
+  /// Face route: grid cells; old cut cells cut again (a changed face or edge, old or new, meets
+  /// them); cells that came out cut among all re-cut cells (those plus uncut cells in a change
+  /// region, whose state is tested again); B-rep faces cut again (those meeting a re-cut cell).
+  int cells = 0, cells_recut = 0, cut_cells_recut = 0, faces_recut = 0;
   bool verified = true;        ///< rebuild_grid_model: the rules' volume matched OCCT's (else cut again whole)
   int subvolumes_kept = 0, subvolumes_new = 0;
   std::vector<int> kept_from;  ///< for every subvolume of the new cut: its old index, or −1
@@ -164,6 +168,10 @@ struct RecutReport {
 /// (old and new) and edges that moved (a face on the same surface changes only between its
 /// old and new trimming edges); overlapping change boxes merge into one region each. Falls back
 /// to a full cut on the same grid planes when the new part leaves the grid.
+/// Face route (old cut and `options` both FaceCut): the same by cells instead of blocks: the
+/// cells whose boxes meet a changed region are cut again by the face route, all others keep
+/// their subvolumes, curves and connections; pieces meeting across a kept/re-cut cell face are
+/// matched by that face (area, centroid). If that fails, a full cut with the reason.
 GridCut recut_by_grid(const PartShape& new_part, const GridCut& old, const PartShape& old_part,
                       const GridOptions& options, RecutReport* report = nullptr);
 

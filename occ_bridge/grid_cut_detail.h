@@ -9,7 +9,9 @@
 #include <Geom_Surface.hxx>
 #include <TopoDS_Shape.hxx>
 
+#include <cmath>
 #include <string>
+#include <vector>
 
 #include "grid_cut.h"
 
@@ -113,9 +115,39 @@ inline Vec2 refine_uv(const Handle(Geom_Surface)& S, const Vec2& uv0, const gp_P
   return (uv - uv0).norm() <= max_move ? uv : uv0;
 }
 
+/// Re-cutting on the face route (recut_by_grid): only the `dirty` cells are cut again; every
+/// other cell keeps its state (`status`: 0 outside, 1 interior, 2 cut) and its old pieces,
+/// which the caller holds in `g`. Cell index = i + n0·(j + n1·k).
+struct FaceRecut {
+  std::vector<char> dirty;
+  std::vector<signed char> status;
+  int cells_cut = 0;  ///< out: dirty cells that came out cut
+  int faces_cut = 0;  ///< out: B-rep faces cut again (those meeting a dirty cell)
+};
+
+/// The plane area and centroid of a grid-face patch (axis a at coordinate q) from its sampled
+/// loops (points as polygon): how pieces of kept and re-cut cells are matched across a cell face.
+inline void grid_patch_area_centroid(const xfem::CutPatch& p, int a, double q, double& area, Vec3& centroid) {
+  double A = 0, cx = 0, cy = 0;
+  for (const auto& l : p.loops)
+    for (size_t i = 0; i + 1 < l.points.size(); ++i) {
+      const Vec2& u = l.points[i];
+      const Vec2& v = l.points[i + 1];
+      const double c = u.x() * v.y() - v.x() * u.y();
+      A += c, cx += (u.x() + v.x()) * c, cy += (u.y() + v.y()) * c;
+    }
+  area = std::abs(0.5 * A);
+  centroid[a] = q;
+  centroid[(a + 1) % 3] = A != 0 ? cx / (3 * A) : 0;
+  centroid[(a + 2) % 3] = A != 0 ? cy / (3 * A) : 0;
+}
+
 /// The face route (face_cut.cpp): fills the cut cells, subvolumes, connections and curves of
 /// `g`, whose grid (box, cells, planes) is set. False with `g.message` = the reason when the
-/// part has faces it does not handle or its consistency check fails.
-bool cut_by_faces(const PartShape& part, const GridOptions& options, GridCut& g);
+/// part has faces it does not handle or its consistency check fails. With `recut`, only the
+/// dirty cells are cut (appended to what `g` holds), g.interior_cells lists all interior
+/// cells, and the grid-face patches between a re-cut and a kept cut cell become
+/// g.block_faces (owner: the new subvolume) for the caller to match.
+bool cut_by_faces(const PartShape& part, const GridOptions& options, GridCut& g, FaceRecut* recut = nullptr);
 
 }  // namespace parafab::occ::detail

@@ -1,5 +1,5 @@
 """After a parameter change (the L-bracket's bolt holes r = 4 → 5 mm): XFEM re-cutting only the
-grid blocks the change touches (parafab.Simulation.update) against remeshing and re-solving
+grid cells (face route, the default) or blocks (splitter) the change touches (parafab.Simulation.update) against remeshing and re-solving
 with Gmsh + CalculiX tet10, and against a fresh XFEM run. Errors of the probe displacement
 against a fine conforming reference of the changed part; wall times in this process (XFEM) or
 of the reference script (CalculiX, meshing included). Writes DIR/recut.json and recut.png.
@@ -79,9 +79,15 @@ def main():
     print("%-26s %8s %9s %9s %9s  %s" % ("route", "grid", "unknowns", "time [s]", "error", "recut blocks / kept subvolumes"))
     for r in xf:
         rc = r["recut"]
-        print("%-26s %8d %9d %9.2f %9.2e  %d of %d blocks, %d kept / %d new" % (
-            "XFEM update (re-cut)", r["cells"], r["unknowns"], r["update_seconds"], r["error"], rc["blocks_recut"],
-            rc["blocks"], rc["subvolumes_kept"], rc["subvolumes_new"]))
+        if rc.get("method") == "face":  # the face route re-cuts cells, not blocks
+            what = "%s; %d of %d cut cells re-cut, %d kept / %d new" % (
+                "full cut: " + rc["message"] if rc["full"] else "face route", rc["cells_recut"], rc["cut_cells"],
+                rc["subvolumes_kept"], rc["subvolumes_new"])
+        else:
+            what = "%d of %d blocks, %d kept / %d new" % (rc["blocks_recut"], rc["blocks"], rc["subvolumes_kept"],
+                                                          rc["subvolumes_new"])
+        print("%-26s %8d %9d %9.2f %9.2e  %s" % (
+            "XFEM update (re-cut)", r["cells"], r["unknowns"], r["update_seconds"], r["error"], what))
         print("%-26s %8d %9d %9.2f %9.2e  (first run on the old part %.2f s)" % (
             "XFEM fresh", r["cells"], r["unknowns"], r["fresh_seconds"], r["fresh_error"], r["first_seconds"]))
     for r in cx:

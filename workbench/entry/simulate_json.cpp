@@ -510,7 +510,10 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
   const json recut{{"full", rr.full}, {"message", rr.message}, {"changed_faces", rr.changed_faces},
                    {"changed_edges", rr.changed_edges}, {"regions", rr.regions}, {"verified", rr.verified},
                    {"blocks", rr.blocks}, {"blocks_recut", rr.blocks_recut},
-                   {"subvolumes_kept", rr.subvolumes_kept}, {"subvolumes_new", rr.subvolumes_new}};
+                   {"subvolumes_kept", rr.subvolumes_kept}, {"subvolumes_new", rr.subvolumes_new},
+                   {"method", model_->cut->method == occ::CutMethod::FaceCut ? "face" : "splitter"},
+                   {"cells", rr.cells}, {"cells_recut", rr.cells_recut}, {"cut_cells", model_->cut->cut_cells.size()},
+                   {"faces_recut", rr.faces_recut}};
   return solve(out_dir, report, recut);
 }
 
