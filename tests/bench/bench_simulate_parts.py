@@ -41,16 +41,17 @@ def main():
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     rows = []
-    print("%-11s %-11s %5s %5s %7s %7s %7s %8s %7s %8s" % ("part", "grid", "cut", "subv", "dofs", "cut s", "rules s",
-                                                      "assem s", "solve s", "peak MB"))
+    print("%-11s %-11s %5s %5s %7s %7s %7s %8s %7s %8s  %s" % ("part", "grid", "cut", "subv", "dofs", "cut s", "rules s",
+                                                           "assem s", "solve s", "peak MB", "route"))
     for name in ["box", "cylinder", "l_bracket", "wrench", "ring", "half_torus", "wheel", "housing"]:
         d, mb = run(os.path.join(REPO, "samples", "parts", name + ".step"), a.cells)
         if d is None:
             print("%-11s no support face found at the bottom of the bounding box" % name)
             continue
         s, g = d["seconds"], d["grid"]
-        print("%-11s %-11s %5d %5d %7d %7.2f %7.2f %8.2f %7.2f %8.0f" % (name, "x".join(map(str, g["cells"])), g["cut_cells"],
-              g["subvolumes"], d["dofs"], s["cut"], s["rules"], s["assemble"], s["solve"], mb))
+        route = g.get("method", "?") + (" (fell back: %s)" % g["fallback_reason"][:70] if g.get("fallback_reason") else "")
+        print("%-11s %-11s %5d %5d %7d %7.2f %7.2f %8.2f %7.2f %8.0f  %s" % (name, "x".join(map(str, g["cells"])), g["cut_cells"],
+              g["subvolumes"], d["dofs"], s["cut"], s["rules"], s["assemble"], s["solve"], mb, route))
         rows.append({"part": name, "grid": g, "dofs": d["dofs"], "seconds": s, "peak_mb": mb})
     json.dump(rows, open(os.path.join(a.out, "simulate_parts.json"), "w"), indent=2)
 
