@@ -220,9 +220,8 @@ struct Case {
   int solid = -1;
 };
 
-void expect_face_route_matches(const Case& c, double degrees, double shift, double moment_tol) {
+void expect_face_route_matches(const Case& c, double degrees, double shift, double moment_tol, GridOptions o = {}) {
   const auto part = posed(c.part, degrees, shift, c.solid);
-  GridOptions o;
   o.cells_longest = c.cells;
   const GridCut ref = cut_by_grid(*part, o);
   o.method = CutMethod::FaceCut;
@@ -293,6 +292,21 @@ TEST(FaceCut, CurvedPartsMatchTheSplitter) {
 TEST(FaceCut, AlignedBracketWithFacesOnTheGridBoxMatchesTheSplitter) {
   for (const Case c : {Case{"l_bracket", 18}, Case{"l_bracket", 24}, Case{"l_bracket", 30}})
     expect_face_route_matches(c, 0.0, 0.0, kCurved);
+}
+
+// A grid line on a cylinder (a ruling): the bracket's r = 5 fillet about (x, z) = (13, 13) holds
+// the line x = 9, z = 10 of a 5 mm grid anchored there (also the 40-cell grid of the un-turned
+// bracket). Without shifting a plane off it the face route met "a grid vertex on the surface"
+// and fell back; the planes are shifted (GridCut::shifted_planes) and the cut matches the splitter.
+TEST(FaceCut, GridLineOnACylinderIsShiftedOff) {
+  GridOptions o;
+  o.cell_size = 5;
+  o.anchored = true;
+  o.origin = xfem::Vec3(9, 0, 10);
+  expect_face_route_matches(Case{"l_bracket", 12}, 0.0, 0.0, kCurved, o);  // cell_size overrides the 12
+  o.method = CutMethod::FaceCut;
+  const GridCut g = cut_by_grid(*read_part(sample("l_bracket")), o);
+  EXPECT_GE(g.shifted_planes, 1);
 }
 
 // Tori (the half torus; the housing's boss fillet) and, built here, a cone frustum, a notched
