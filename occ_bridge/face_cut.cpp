@@ -1100,6 +1100,11 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
                              std::abs(p.x() - lo.x()) / w1};
         const int side = static_cast<int>(std::min_element(d, d + 4) - d);
         if (d[side] > 1e-7) throw FaceFailure{"a cut curve ends inside a cell face"};
+        // A curve ending at a corner (a face lying in a grid plane or on the grid's box, e.g. an
+        // aligned part whose side equals the grid's): the corner's exact τ, so the closing side
+        // pieces neither repeat the corner nor take a zero-length piece to it.
+        for (int c = 0; c < 4; ++c)
+          if (std::abs(p.x() - corners[c].x()) <= 1e-9 * w1 && std::abs(p.y() - corners[c].y()) <= 1e-9 * w2) return double(c);
         switch (side) {
           case 0: return std::clamp((p.x() - lo.x()) / w1, 0.0, 1.0);
           case 1: return 1 + std::clamp((p.y() - lo.y()) / w2, 0.0, 1.0);

@@ -25,6 +25,8 @@
 #include <TopoDS.hxx>
 #include <TopoDS_Face.hxx>
 #include <TopoDS_Wire.hxx>
+#include <BRepAdaptor_Surface.hxx>
+#include <gp_Cylinder.hxx>
 #include <gp_Pln.hxx>
 
 #include <algorithm>
@@ -130,6 +132,37 @@ std::vector<double> grid_planes(double lo, double h, int n, const std::vector<do
     planes.push_back(x);
   }
   return planes;
+}
+
+// Grid lines (two planes of the other axes) lying on a cylinder whose axis is parallel to a grid
+// axis (a ruling: e.g. x = 9, z = 10 on the bracket's r = 5 fillet about (13, 13) at 40 cells; the
+// face route then meets a grid vertex on the surface): the second plane is shifted like a plane
+// near a vertex (also clear of `avoid`), until no such line is left.
+void shift_off_rulings(const PartShape& part, const std::array<std::vector<double>, 3>& avoid, double shift, double h,
+                       std::array<std::vector<double>, 3>& planes, int& shifted) {
+  if (shift <= 0) return;
+  for (int f = 0; f < part.face_count(); ++f) {
+    BRepAdaptor_Surface s(part.face(f), false);
+    if (s.GetType() != GeomAbs_Cylinder) continue;
+    const gp_Cylinder cyl = s.Cylinder();
+    const gp_Dir d = cyl.Axis().Direction();
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(d.Coord(a + 1)) < 1 - 1e-12) continue;
+      const int b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+      const double c1 = cyl.Location().Coord(b1 + 1), c2 = cyl.Location().Coord(b2 + 1), r = cyl.Radius();
+      for (double& z : planes[b2]) {
+        auto clash = [&] {
+          for (double x : planes[b1])
+            if (std::abs(std::hypot(x - c1, z - c2) - r) <= shift * h) return true;
+          return std::any_of(avoid[b2].begin(), avoid[b2].end(), [&](double v) { return std::abs(v - z) <= shift * h; });
+        };
+        for (int attempt = 0; attempt < 16 && clash(); ++attempt) {
+          z += (attempt % 2 == 0 ? 1.0 : -2.0) * 1.5 * shift * h;
+          if (attempt == 0) ++shifted;
+        }
+      }
+    }
+  }
 }
 
 // A point inside the closed box of a piece (cheap, unlike an optimal bounding box): the mean
@@ -488,6 +521,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     g.cell_size[a] = h;
     g.planes[a] = grid_planes(lo, h, g.cells[a], avoid[a], o.perturbation, g.shifted_planes);
   }
+  shift_off_rulings(part, avoid, o.perturbation, h, g.planes, g.shifted_planes);
   g.block_cells = o.block_cells;
   if (o.method == CutMethod::FaceCut) {
     GridCut f = g;

@@ -39,8 +39,9 @@ struct GridOptions {
   bool anchored = false;
   xfem::Vec3 origin{0, 0, 0};
   /// Grid planes within this distance (× cell size) of a vertex, or of a face's extreme
-  /// coordinate (tangent or coincident face), are shifted deterministically by the same
-  /// amount until clear (the thesis perturbs grid planes to avoid these corner cases).
+  /// coordinate (tangent or coincident face), or forming with a plane of another axis a grid
+  /// line on a cylinder parallel to a grid axis (a ruling), are shifted deterministically by
+  /// the same amount until clear (the thesis perturbs grid planes to avoid these corner cases).
   /// 0 turns the shift off (planes may then pass through vertices or along faces).
   double perturbation = 1e-4;
   /// Boundary loops: parabolic (2) or linear (1) segments, refined until the deviation from
