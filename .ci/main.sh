@@ -75,7 +75,8 @@ mkdir -p "$out/sections"
 for f in "$repo"/samples/sections/*.json; do
   name=$(basename "$f" .json)
   part=$(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['part'])" "$f")
-  "$build/workbench/entry/parafab" sections "$repo/samples/parts/$part" "$f" -o "$out/sections/$name.result.json"
+  src="$repo/samples/parts/$part"; [ -f "$src" ] || src="$repo/samples/surfaces/$part"
+  "$build/workbench/entry/parafab" sections "$src" "$f" -o "$out/sections/$name.result.json"
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1]))
 print('sections %-10s %d curves: %d designed, %d infeasible, %d failed; R %s' % (sys.argv[2], len(d['curves']), d['designed'], d['infeasible'], d['failed'], ['%.4f' % c['strip']['R'] for c in d['curves'] if c['strip'].get('feasible')]))" "$out/sections/$name.result.json" "$name"
 done

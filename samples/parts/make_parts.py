@@ -174,5 +174,8 @@ def noisy_sheet():
 sheet = noisy_sheet()
 if not sheet.isValid():
     raise RuntimeError("noisy_sheet: invalid face")
-sheet.exportStep(os.path.join(out_dir, "noisy_sheet.step"))
+# Surfaces (not solids) go beside the parts, in samples/surfaces: the parts are solids.
+surf_dir = os.path.join(os.path.dirname(os.path.abspath(out_dir)), "surfaces")
+os.makedirs(surf_dir, exist_ok=True)
+sheet.exportStep(os.path.join(surf_dir, "noisy_sheet.step"))
 print("noisy_sheet: one B-spline face, %.1f mm^2" % sheet.Area)

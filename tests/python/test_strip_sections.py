@@ -40,13 +40,13 @@ class StripSections(unittest.TestCase):
             self.assertIsNone(c["fair"])  # exact arcs: the interpolation is designed, no fairing
 
     def test_noisy_sections_are_faired_only_when_interpolation_fails(self):
-        """samples/parts/noisy_sheet.step: the B-spline surface through z = 30 sin(pi x / 100)
+        """samples/surfaces/noisy_sheet.step: the B-spline surface through z = 30 sin(pi x / 100)
         mm on a 5 mm grid with up to 0.15 mm of noise (make_parts.py). Sections y = const are
         noisy arcs: their quartic interpolation has 6-12 spurious inflections and no strip
         ("fair": false); the default ("auto") fits a fair B-spline (§4.8.2) and designs all
         four. Independent references: the noise-free sine and its arc length (scipy quad)."""
         from scipy.integrate import quad
-        sheet = os.path.join(REPO, "samples", "parts", "noisy_sheet.step")
+        sheet = os.path.join(REPO, "samples", "surfaces", "noisy_sheet.step")
         length = 1e-3 * quad(lambda x: math.sqrt(1 + (0.3 * math.pi * math.cos(math.pi * x / 100)) ** 2), 0, 100)[0]
         job = {"planes": {"normal": [0, 1, 0], "offsets": [7.5, 22.5, 37.5, 52.5]}, "strip": STRIP}
         plain = parafab.strip_sections(sheet, dict(job, fair=False))
