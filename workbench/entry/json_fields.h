@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <initializer_list>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -32,6 +33,27 @@ inline double number(const nlohmann::json& v, const std::string& path) {
 inline Eigen::Vector3d vec3(const nlohmann::json& v, const std::string& path) {
   if (!v.is_array() || v.size() != 3) PARAFAB_INPUT_ERROR(path << " must be [x, y, z], got " << v.dump());
   return Eigen::Vector3d(number(v[0], path + "[0]"), number(v[1], path + "[1]"), number(v[2], path + "[2]"));
+}
+
+/// An integer in [lo, hi].
+inline int integer(const nlohmann::json& v, const std::string& path, int lo, int hi) {
+  if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi)
+    PARAFAB_INPUT_ERROR(path << " must be an integer " << lo << ".." << hi << ", got " << v.dump());
+  return v.get<int>();
+}
+
+/// `obj` is an object whose keys are all among `keys` (an unknown key names the known ones).
+inline void only(const nlohmann::json& obj, const std::string& path, std::initializer_list<const char*> keys) {
+  if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.dump());
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool ok = false;
+    for (const char* k : keys) ok |= it.key() == k;
+    if (!ok) {
+      std::string list;
+      for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
+      PARAFAB_INPUT_ERROR(path << "." << it.key() << " is not a known field (known: " << list << ")");
+    }
+  }
 }
 
 }  // namespace parafab::entry::fields

@@ -12,29 +12,14 @@
 namespace parafab::entry {
 
 using nlohmann::json;
+using fields::integer;
+using fields::only;
 using fields::number;
 using fields::require;
 
 namespace {
 json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json vec(const Vec2& v) { return json::array({v.x(), v.y()}); }
-int integer(const json& v, const std::string& path, int lo, int hi) {
-  if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi)
-    PARAFAB_INPUT_ERROR(path << " must be an integer " << lo << ".." << hi << ", got " << v.dump());
-  return v.get<int>();
-}
-void only(const json& obj, const std::string& path, std::initializer_list<const char*> keys) {
-  if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.dump());
-  for (auto it = obj.begin(); it != obj.end(); ++it) {
-    bool ok = false;
-    for (const char* k : keys) ok |= it.key() == k;
-    if (!ok) {
-      std::string list;
-      for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
-      PARAFAB_INPUT_ERROR(path << "." << it.key() << " is not a known field (known: " << list << ")");
-    }
-  }
-}
 std::vector<Vec2> points(const json& v) {
   if (!v.is_array()) PARAFAB_INPUT_ERROR("curve.points must be an array of [x, y] pairs");
   std::vector<Vec2> out;

@@ -4,38 +4,19 @@
 
 #include "common/error.h"
 #include "json_fields.h"
+#include "strip_improve_json.h"
 #include "strip_json.h"
 #include "strips/strip_stabilize.h"
 
 namespace parafab::entry {
 
 using nlohmann::json;
+using fields::integer;
+using fields::only;
 using fields::number;
 
 namespace {
 json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
-json bspline_json(const BSplineCurve2& c) {
-  json poles = json::array();
-  for (const auto& p : c.poles()) poles.push_back(json::array({p.x(), p.y()}));
-  return {{"degree", c.degree()}, {"knots", c.knots()}, {"poles", poles}};
-}
-int integer(const json& v, const std::string& path, int lo, int hi) {
-  if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi)
-    PARAFAB_INPUT_ERROR(path << " must be an integer " << lo << ".." << hi << ", got " << v.dump());
-  return v.get<int>();
-}
-void only(const json& obj, const std::string& path, std::initializer_list<const char*> keys) {
-  if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be a JSON object, got " << obj.dump());
-  for (auto it = obj.begin(); it != obj.end(); ++it) {
-    bool ok = false;
-    for (const char* k : keys) ok |= it.key() == k;
-    if (!ok) {
-      std::string list;
-      for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
-      PARAFAB_INPUT_ERROR(path << "." << it.key() << " is not a known field (known: " << list << ")");
-    }
-  }
-}
 }  // namespace
 
 json stabilize_strip_json(const json& request, double R_max) {

@@ -4,6 +4,8 @@
 // finite differences of σ.
 #include <gtest/gtest.h>
 
+#include "strips/strip_stabilize.h"
+
 #include <cmath>
 
 #include "common/error.h"
@@ -108,44 +110,6 @@ TEST(StripStability, JacobiVerdictAgreesWithConstrainedHessianInertia) {
 namespace parafab {
 namespace {
 
-// The simulator problem of a design, as validate_strip builds it (target chord angles as the
-// initial state), with `edges` edges.
-PlaneRodProblem rod_problem(const BSplineCurve2& bspline, const StripDesign& d, const StripDesignOptions& o,
-                            int N, std::vector<Vec2>* target) {
-  const PlaneCurve curve(bspline);
-  const double l = curve.length();
-  PlaneRodProblem p;
-  p.length = l;
-  for (const auto& s : d.samples) p.stiffness_s.push_back(s.s), p.stiffness.push_back(s.K);
-  const CurvePoint a = curve.at_arc_length(0), b = curve.at_arc_length(l);
-  p.start_point = a.point;
-  p.end_point = b.point;
-  p.boundary = o.boundary;
-  p.load = o.gravity.load();
-  p.law = o.law;
-  p.natural_curvature = o.natural_curvature;
-  target->resize(N + 1);
-  for (int k = 0; k <= N; ++k) (*target)[k] = curve.at_arc_length(l * k / N).point;
-  double prev = std::atan2(a.tangent.y(), a.tangent.x());
-  p.start_angle = prev;
-  p.initial_angles.resize(N);
-  for (int j = 0; j < N; ++j) {
-    const Vec2 dd = (*target)[j + 1] - (*target)[j];
-    double ang = std::atan2(dd.y(), dd.x());
-    ang += 2 * M_PI * std::round((prev - ang) / (2 * M_PI));
-    p.initial_angles[j] = prev = ang;
-  }
-  double end = std::atan2(b.tangent.y(), b.tangent.x());
-  p.end_angle = end + 2 * M_PI * std::round((prev - end) / (2 * M_PI));
-  return p;
-}
-
-}  // namespace
-}  // namespace parafab
-
-namespace parafab {
-namespace {
-
 double max_deviation(const std::vector<Vec2>& a, const std::vector<Vec2>& b) {
   double m = 0;
   for (size_t k = 0; k < a.size(); ++k) m = std::max(m, (a[k] - b[k]).norm());
@@ -165,7 +129,7 @@ TEST(StripStability, ReleasedByEnergyDescentUnstableDesignsLeaveAndStableOnesRet
     ASSERT_TRUE(d.feasible) << c.name;
     const StripStability st = strip_stability(c.curve, d, c.options);
     std::vector<Vec2> target;
-    PlaneRodProblem p = rod_problem(c.curve, d, c.options, N, &target);
+    PlaneRodProblem p = strip_rod_problem(c.curve, d, c.options, N, &target);
     const PlaneRodResult eq = simulate_plane_rod(p, PlaneRodOptions{N});
     ASSERT_TRUE(eq.converged) << c.name << ": " << eq.message;
     for (int j = 0; j < N; ++j) {
@@ -210,7 +174,7 @@ TEST(StripStability, ConjugatePointDerivativeMatchesFiniteDifferences) {
   ASSERT_TRUE(d.feasible);
   for (const Vec2 load : {Vec2(0, 0), Vec2(3, -20)}) {
     std::vector<Vec2> target;
-    PlaneRodProblem p = rod_problem(curve, d, StripDesignOptions{}, N, &target);
+    PlaneRodProblem p = strip_rod_problem(curve, d, StripDesignOptions{}, N, &target);
     p.load = load;
     p.stiffness_s.clear();
     p.stiffness.clear();
