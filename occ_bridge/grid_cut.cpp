@@ -915,9 +915,11 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   const double h = old.cell_size.maxCoeff();
   const double tol = 1e-7 * h;
   const Box3 bb = tight_box(part.shape);
+  R.old_cut_cells = static_cast<int>(old.cut_cells.size());
   auto full_cut = [&](const std::string& why) {
     R.full = true;
     R.message = why;
+    R.cells_recut = R.old_cut_cells;  // all of them
     GridOptions fo = o;
     fo.anchored = true;
     fo.origin = old.grid.min;
@@ -931,7 +933,6 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   const std::vector<Box3> dirty = changed_regions(part, old_part, tol, R, &changed_shapes);
   const bool changed = R.changed_faces + R.changed_edges > 0;
   auto overlap = [&](const Box3& a, const Box3& b) { return boxes_overlap(a, b, tol); };
-  R.old_cut_cells = static_cast<int>(old.cut_cells.size());
   if (old.method == CutMethod::FaceCut && o.method == CutMethod::FaceCut) {
     if (o.nurbs) return full_cut("the face route re-cut does not convert to NURBS");
     std::string why;
@@ -940,7 +941,7 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
       const RecutReport counts = R;
       R = RecutReport{};
       R.changed_faces = counts.changed_faces, R.changed_edges = counts.changed_edges, R.regions = counts.regions;
-      R.cells = counts.cells, R.old_cut_cells = counts.old_cut_cells, R.cells_recut = counts.old_cut_cells;
+      R.cells = counts.cells, R.old_cut_cells = counts.old_cut_cells;
       return full_cut("face route re-cut failed: " + why);
     }
     g.split_seconds = seconds_since(t0);

@@ -242,6 +242,8 @@ TEST(FaceRecut, AMissedChangeIsCaughtByTheVolumeCheck) {
   EXPECT_FALSE(r.verified);
   EXPECT_TRUE(r.full);
   EXPECT_NE(r.message.find("missed the new volume"), std::string::npos) << r.message;
+  EXPECT_EQ(r.old_cut_cells, static_cast<int>(old_model.cut->cut_cells.size()));
+  EXPECT_EQ(r.cells_recut, r.old_cut_cells);  // all old cut cells, not the grid's cells
   double volume = 0;
   for (const auto& e : m.elements)
     for (double w : e.rule.weights) volume += w;
