@@ -134,6 +134,20 @@ std::vector<double> grid_planes(double lo, double h, int n, const std::vector<do
   return planes;
 }
 
+// What the grid planes must avoid: vertex coordinates and every face's extreme coordinates.
+std::array<std::vector<double>, 3> plane_avoid(const PartShape& part) {
+  std::array<std::vector<double>, 3> avoid;
+  for (TopExp_Explorer ex(part.shape, TopAbs_VERTEX); ex.More(); ex.Next()) {
+    const gp_Pnt p = BRep_Tool::Pnt(TopoDS::Vertex(ex.Current()));
+    for (int a = 0; a < 3; ++a) avoid[a].push_back(p.Coord(a + 1));
+  }
+  for (int i = 1; i <= part.faces.Extent(); ++i) {
+    const Box3 fb = tight_box(part.faces(i));
+    for (int a = 0; a < 3; ++a) avoid[a].push_back(fb.min[a]), avoid[a].push_back(fb.max[a]);
+  }
+  return avoid;
+}
+
 // Grid lines (two planes of the other axes) lying on a cylinder whose axis is parallel to a grid
 // axis (a ruling: e.g. x = 9, z = 10 on the bracket's r = 5 fillet about (13, 13) at 40 cells; the
 // face route then meets a grid vertex on the surface): the second plane is shifted like a plane
@@ -496,16 +510,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
   const Box3 bb = tight_box(part.shape);
   const Vec3 ext = bb.size();
   const double h = o.cell_size > 0 ? o.cell_size : ext.maxCoeff() / o.cells_longest;
-  // What the planes must avoid: vertex coordinates and every face's extreme coordinates.
-  std::array<std::vector<double>, 3> avoid;
-  for (TopExp_Explorer ex(part.shape, TopAbs_VERTEX); ex.More(); ex.Next()) {
-    const gp_Pnt p = BRep_Tool::Pnt(TopoDS::Vertex(ex.Current()));
-    for (int a = 0; a < 3; ++a) avoid[a].push_back(p.Coord(a + 1));
-  }
-  for (int i = 1; i <= part.faces.Extent(); ++i) {
-    const Box3 fb = tight_box(part.faces(i));
-    for (int a = 0; a < 3; ++a) avoid[a].push_back(fb.min[a]), avoid[a].push_back(fb.max[a]);
-  }
+  const std::array<std::vector<double>, 3> avoid = plane_avoid(part);
   for (int a = 0; a < 3; ++a) {
     double lo;
     if (o.anchored) {
@@ -779,6 +784,31 @@ GridCut recut_by_faces(const PartShape& part, const GridCut& old, const std::vec
         for (const Box3& d : dirty_boxes)
           if (boxes_overlap(cb, d, tol)) fr.dirty[lin({i, j, k})] = 1;
       }
+  // The planes a fresh cut of the new part would pick on this grid: a plane the old part let
+  // stand may now pass through a new vertex or face extreme (l_bracket r 4 → 5 at 24 cells: x = 35
+  // touches the hole, a tangent crossing), so it is shifted as cut_by_grid does, and the cells on
+  // both sides of every moved plane are cut again (their boxes changed).
+  std::array<std::vector<double>, 3> planes;
+  int shifted = 0;
+  const auto avoid = plane_avoid(part);
+  for (int a = 0; a < 3; ++a)
+    planes[a] = grid_planes(old.grid.min[a], old.cell_size[a], n[a], avoid[a], o.perturbation, shifted);
+  shift_off_rulings(part, avoid, o.perturbation, h, planes, shifted);
+  for (int a = 0; a < 3; ++a)
+    for (size_t j = 0; j < planes[a].size(); ++j) {
+      if (std::abs(planes[a][j] - old.planes[a][j]) <= 1e-9 * h) {
+        planes[a][j] = old.planes[a][j];  // unchanged: kept cells keep their exact boxes
+        continue;
+      }
+      ++R.planes_moved;
+      for (int k = 0; k < n[(a + 2) % 3]; ++k)
+        for (int i = 0; i < n[(a + 1) % 3]; ++i)
+          for (int side = 0; side < 2; ++side) {
+            std::array<int, 3> c{};
+            c[a] = static_cast<int>(j) + side, c[(a + 1) % 3] = i, c[(a + 2) % 3] = k;
+            fr.dirty[lin(c)] = 1;
+          }
+    }
   for (int i = 0; i < ncells; ++i) R.cells_recut += fr.dirty[i] && fr.status[i] == 2;
   R.cells = ncells;
 
@@ -786,8 +816,8 @@ GridCut recut_by_faces(const PartShape& part, const GridCut& old, const std::vec
   g.grid = old.grid;
   g.cells = old.cells;
   g.cell_size = old.cell_size;
-  g.planes = old.planes;
-  g.shifted_planes = old.shifted_planes;
+  g.planes = planes;
+  g.shifted_planes = shifted;
   g.block_cells = 0;
   g.method = CutMethod::FaceCut;
   // Keep the clean cut cells.
@@ -885,9 +915,11 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
   const double h = old.cell_size.maxCoeff();
   const double tol = 1e-7 * h;
   const Box3 bb = tight_box(part.shape);
+  R.old_cut_cells = static_cast<int>(old.cut_cells.size());
   auto full_cut = [&](const std::string& why) {
     R.full = true;
     R.message = why;
+    R.cells_recut = R.old_cut_cells;  // all of them
     GridOptions fo = o;
     fo.anchored = true;
     fo.origin = old.grid.min;
@@ -909,7 +941,7 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
       const RecutReport counts = R;
       R = RecutReport{};
       R.changed_faces = counts.changed_faces, R.changed_edges = counts.changed_edges, R.regions = counts.regions;
-      R.cells = counts.cells, R.cells_recut = counts.cells;
+      R.cells = counts.cells, R.old_cut_cells = counts.old_cut_cells;
       return full_cut("face route re-cut failed: " + why);
     }
     g.split_seconds = seconds_since(t0);

@@ -157,7 +157,12 @@ struct RecutReport {
   /// Face route: grid cells; old cut cells cut again (a changed face or edge, old or new, meets
   /// them); cells that came out cut among all re-cut cells (those plus uncut cells in a change
   /// region, whose state is tested again); B-rep faces cut again (those meeting a re-cut cell).
+  /// A full cut counts all old cut cells as cut again (cells_recut = old_cut_cells).
   int cells = 0, cells_recut = 0, cut_cells_recut = 0, faces_recut = 0;
+  int old_cut_cells = 0;       ///< cut cells of the old cut
+  /// Face route: grid planes moved because a fresh cut of the new part would shift them off a
+  /// new vertex or face extreme (GridOptions::perturbation); the cells on both sides are re-cut.
+  int planes_moved = 0;
   bool verified = true;        ///< rebuild_grid_model: the rules' volume matched OCCT's (else cut again whole)
   int subvolumes_kept = 0, subvolumes_new = 0;
   std::vector<int> kept_from;  ///< for every subvolume of the new cut: its old index, or −1
@@ -172,7 +177,9 @@ struct RecutReport {
 /// Face route (old cut and `options` both FaceCut): the same by cells instead of blocks: the
 /// cells whose boxes meet a changed region are cut again by the face route, all others keep
 /// their subvolumes, curves and connections; pieces meeting across a kept/re-cut cell face are
-/// matched by that face (area, centroid). If that fails, a full cut with the reason.
+/// matched by that face (area, centroid). Grid planes that a fresh cut of the new part would
+/// shift (a new vertex or face extreme on them) are moved the same way and the cells on both
+/// sides re-cut, so the result is that fresh cut. If that fails, a full cut with the reason.
 GridCut recut_by_grid(const PartShape& new_part, const GridCut& old, const PartShape& old_part,
                       const GridOptions& options, RecutReport* report = nullptr);
 

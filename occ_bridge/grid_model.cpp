@@ -177,6 +177,7 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
   if (std::abs(volume - props.Mass()) > 1e-6 * std::abs(props.Mass())) {
     r.verified = false;
     r.full = true;
+    r.cells_recut = r.old_cut_cells;  // all of them
     r.message = "the re-cut rules missed the new volume by " + std::to_string(volume - props.Mass()) +
                 "; cut again whole";
     GridModelOptions fo = o;

@@ -80,9 +80,9 @@ def main():
     for r in xf:
         rc = r["recut"]
         if rc.get("method") == "face":  # the face route re-cuts cells, not blocks
-            what = "%s; %d of %d cut cells re-cut, %d kept / %d new" % (
-                "full cut: " + rc["message"] if rc["full"] else "face route", rc["cells_recut"], rc["cut_cells"],
-                rc["subvolumes_kept"], rc["subvolumes_new"])
+            what = "%s; %d of %d old cut cells re-cut (%d planes moved), %d kept / %d new" % (
+                "full cut: " + rc["message"] if rc["full"] else "face route", rc["cells_recut"], rc["old_cut_cells"],
+                rc["planes_moved"], rc["subvolumes_kept"], rc["subvolumes_new"])
         else:
             what = "%d of %d blocks, %d kept / %d new" % (rc["blocks_recut"], rc["blocks"], rc["subvolumes_kept"],
                                                           rc["subvolumes_new"])

@@ -513,6 +513,7 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
                    {"subvolumes_kept", rr.subvolumes_kept}, {"subvolumes_new", rr.subvolumes_new},
                    {"method", model_->cut->method == occ::CutMethod::FaceCut ? "face" : "splitter"},
                    {"cells", rr.cells}, {"cells_recut", rr.cells_recut}, {"cut_cells", model_->cut->cut_cells.size()},
+                   {"old_cut_cells", rr.old_cut_cells}, {"planes_moved", rr.planes_moved},
                    {"faces_recut", rr.faces_recut}};
   return solve(out_dir, report, recut);
 }
