@@ -48,8 +48,19 @@ RodStability rod_stability(const DiscreteRodModel& m, const RodStabilityOptions&
 
 RodStability rod_stability_at_equilibrium(const DiscreteRodModel& m, const RodEquilibriumStabilityOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
-  PARAFAB_VERIFY(o.max_distance > 0, "rod_stability_at_equilibrium: max_distance must be > 0, got " << o.max_distance);
   const DiscreteRodResult r = simulate_discrete_rod(m, o.simulation);
+  RodStability out = rod_stability_at_equilibrium(m, r, o);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+RodStability rod_stability_at_equilibrium(const DiscreteRodModel& m, const DiscreteRodResult& r,
+                                          const RodEquilibriumStabilityOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PARAFAB_VERIFY(o.max_distance > 0, "rod_stability_at_equilibrium: max_distance must be > 0, got " << o.max_distance);
+  PARAFAB_VERIFY(r.nodes.size() == m.nodes.size() && r.material_normal.size() == m.material_normal.size(),
+                 "rod_stability_at_equilibrium: the equilibrium has " << r.nodes.size() << " nodes, the model "
+                                                                     << m.nodes.size());
   double length = 0;
   for (size_t i = 1; i < m.nodes.size(); ++i) length += (m.nodes[i] - m.nodes[i - 1]).norm();
   const double distance = max_node_distance(r.nodes, m.nodes) / length;

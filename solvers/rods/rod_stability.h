@@ -53,4 +53,9 @@ RodStability rod_stability(const DiscreteRodModel& model, const RodStabilityOpti
 RodStability rod_stability_at_equilibrium(const DiscreteRodModel& model,
                                           const RodEquilibriumStabilityOptions& options = {});
 
+/// The same with the forward simulation of `model` already done (e.g. by a validation run on
+/// the same discretization): `equilibrium` = simulate_discrete_rod(model, options.simulation).
+RodStability rod_stability_at_equilibrium(const DiscreteRodModel& model, const DiscreteRodResult& equilibrium,
+                                          const RodEquilibriumStabilityOptions& options = {});
+
 }  // namespace parafab

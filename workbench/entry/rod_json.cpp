@@ -1,5 +1,7 @@
 #include "rod_json.h"
 
+#include <optional>
+
 #include <cmath>
 
 #include "common/error.h"
@@ -255,9 +257,10 @@ json design_rod_json(const json& request) {
                             {"history", d.fixed_point_history},
                             {"tolerance", o.dead_load.tolerance},
                             {"loads", o.loads.any()}};
+  std::optional<DiscreteRodResult> validation;  // reused by the stability verdict on the same rod
   if (validate && d.ok()) {
     const DiscreteRodModel m = discrete_rod_model(d, curve, edges, o.material, o.loads, true);
-    const DiscreteRodResult r = simulate_discrete_rod(m);
+    const DiscreteRodResult& r = validation.emplace(simulate_discrete_rod(m));
     const double dist = max_node_distance(r.nodes, m.nodes);
     out["simulation"] = {{"deviation", dist / L},      {"max_distance", dist},
                          {"iterations", r.iterations}, {"converged", r.ok()},
@@ -268,7 +271,9 @@ json design_rod_json(const json& request) {
   }
   if (stability && d.ok()) {
     const DiscreteRodModel m = discrete_rod_model(d, curve, stability_edges, o.material, o.loads, true);
-    const RodStability st = stability_at_equilibrium ? rod_stability_at_equilibrium(m) : rod_stability(m);
+    const RodStability st = !stability_at_equilibrium ? rod_stability(m)
+                            : validation && edges == stability_edges ? rod_stability_at_equilibrium(m, *validation)
+                                                                     : rod_stability_at_equilibrium(m);
     out["stability"] = {{"stable", st.stable},          {"method", st.method},
                         {"equilibrium_distance", num(st.equilibrium_distance)},
                         {"negative", st.negative},      {"zero", st.zero},

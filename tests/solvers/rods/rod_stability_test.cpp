@@ -71,6 +71,11 @@ TEST(RodStability, VerdictAtTheDiscreteEquilibriumCatchesTheNearBifurcationCase)
                 1e3 * st.seconds);
     EXPECT_EQ(st.method, "hessian_at_equilibrium");
     EXPECT_TRUE(std::isfinite(st.equilibrium_distance));
+    // With the simulation given (as the JSON entry reuses its validation run): the same verdict.
+    const RodStability reused = rod_stability_at_equilibrium(m, simulate_discrete_rod(m));
+    EXPECT_EQ(reused.stable, st.stable);
+    EXPECT_EQ(reused.negative, st.negative);
+    EXPECT_EQ(reused.equilibrium_distance, st.equilibrium_distance);
     if (factor == 1.5) {
       EXPECT_TRUE(at_target.stable);  // the known blind spot of the target verdict
       EXPECT_FALSE(st.stable);
