@@ -80,6 +80,9 @@ def scipy_line_complex_lp(result, w_reg=0.0):
                    options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
 
 
+LP_TOLERANCE = 1e-10  # the primal/dual feasibility tolerance given to HiGHS above
+
+
 class LineComplexLpAgainstScipy(unittest.TestCase):
     def check(self, request, w_reg, second_stage=False):
         request = dict(request, w_reg=w_reg, validate=False, stiffness_ratio_stage=second_stage)
@@ -103,7 +106,9 @@ class LineComplexLpAgainstScipy(unittest.TestCase):
             self.assertGreaterEqual(r["R"], R * (1 - 1e-9) - 1e-12)
             self.assertLessEqual(r["R"], R * (1 + slack + 1e-9) + 1e-11)
         else:
-            self.assertAlmostEqual(r["R"], R, delta=1e-9 * max(R, 1e-3))
+            # Near R = 0 (parallel curves) both optima are known only to the LPs' feasibility
+            # tolerance (1e-10 here): they differed by 4e-11 at R = 1.4e-8 on one CPU.
+            self.assertAlmostEqual(r["R"], R, delta=1e-9 * R + LP_TOLERANCE)
         # ParaFab's normalized complex satisfies the same rows: min ⟨κB, h⟩ = 1 and the
         # twist objective within the second stage's slack of the optimum.
         c, cb = np.array(r["lp"]["c"]), np.array(r["lp"]["c_bar"])
