@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include "common/error.h"
 
@@ -37,8 +38,10 @@ PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::V
     Ap.noalias() = K * p;
     const double pAp = p.dot(Ap);
     if (!(pAp > 0) || !(rz > 0)) {
-      res.message = "the matrix or the preconditioner is not positive definite (pᵀKp = " + std::to_string(pAp) +
-                    ", rᵀz = " + std::to_string(rz) + ")";
+      char msg[160];
+      std::snprintf(msg, sizeof msg, "the matrix or the preconditioner is not positive definite (pᵀKp = %.3g, rᵀz = %.3g)",
+                    pAp, rz);
+      res.message = msg;
       break;
     }
     const double alpha = rz / pAp;
@@ -59,9 +62,12 @@ PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::V
   // The true residual (the recurrence drifts by round-off).
   res.residual = (b - K * res.x).norm() / bnorm;
   res.converged = res.message.empty() && res.residual <= o.tolerance;
-  if (res.message.empty() && !res.converged)
-    res.message = "relative residual " + std::to_string(res.residual) + " after " + std::to_string(res.iterations) +
-                  " iterations (tolerance " + std::to_string(o.tolerance) + ")";
+  if (res.message.empty() && !res.converged) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, "relative residual %.3g after %d iterations (tolerance %.3g)", res.residual,
+                  res.iterations, o.tolerance);
+    res.message = msg;
+  }
   return res;
 }
 
