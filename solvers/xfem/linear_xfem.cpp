@@ -6,8 +6,11 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
+#include <cstring>
 #include <numeric>
 #include <string>
+#include <unordered_map>
 
 #include "common/error.h"
 #include "xfem/area_rules.h"
@@ -356,6 +359,16 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
                              const LinearXfemOptions& options, bool include_bulk) {
+  return assemble_linear(elements, node, node_count, material, dirichlet, tractions, options, include_bulk, ElementSource{});
+}
+
+LinearSystem assemble_linear(const std::vector<GridElement>& elements,
+                             const std::vector<std::vector<int>>& node, int node_count,
+                             const ElasticMaterial& material,
+                             const std::vector<DirichletCondition>& dirichlet,
+                             const std::vector<TractionCondition>& tractions,
+                             const LinearXfemOptions& options, bool include_bulk, const ElementSource& source,
+                             double* integrate_seconds, double* scatter_seconds) {
   PARAFAB_VERIFY(material.youngs_modulus > 0, "material: E must be positive, got " << material.youngs_modulus);
   PARAFAB_VERIFY(material.poisson_ratio > -1 && material.poisson_ratio < 0.5,
                  "material: Poisson ratio must be in (-1, 0.5), got " << material.poisson_ratio);
@@ -380,7 +393,13 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
       es = reference_system;
       return static_cast<int>(e) != reference;  // counts copies, not the integrated one
     }
+    if (source.known)
+      if (const ElementSystem* k = source.known(e)) {
+        es = *k;
+        return false;
+      }
     es = element_system(elements[e], material, dirichlet, tractions, options, include_bulk);
+    if (source.made) source.made(e, es);
     return false;
   };
   auto scatter = [&](size_t e, const ElementSystem& es) {
@@ -400,19 +419,28 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
   const size_t n = elements.size(), chunk = nn == 8 ? 4096 : 512;
   std::vector<ElementSystem> systems(std::min(n, chunk));
   std::atomic<int> copies{0};
+  double t_integrate = 0, t_scatter = 0;
   for (size_t begin = 0; begin < n; begin += chunk) {
     const size_t end = std::min(n, begin + chunk);
+    auto t = std::chrono::steady_clock::now();
     tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 16), [&](const tbb::blocked_range<size_t>& r) {
       int c = 0;
       for (size_t e = r.begin(); e != r.end(); ++e) c += element_or_copy(e, systems[e - begin]);
       copies += c;
     });
+    t_integrate += seconds_since(t);
+    t = std::chrono::steady_clock::now();
     for (size_t e = begin; e < end; ++e) scatter(e, systems[e - begin]);
+    t_scatter += seconds_since(t);
   }
   LinearSystem sys;
+  auto t = std::chrono::steady_clock::now();
   sys.K = K.finish();
+  t_scatter += seconds_since(t);
   sys.f = std::move(f);
   sys.reused_element_matrices = copies;
+  if (integrate_seconds) *integrate_seconds = t_integrate;
+  if (scatter_seconds) *scatter_seconds = t_scatter;
   return sys;
 }
 
@@ -436,6 +464,118 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
   return solver.solve(elements, adjacent, material, dirichlet, tractions, options);
 }
 
+namespace {
+
+// Identity of an element across solves: its cell and two independent 64-bit hashes of every
+// input of element_system but the material and options (box, rule, and for boundary terms the
+// patches, their surfaces and the conditions on their faces).
+struct ElementKey {
+  std::array<int, 3> cell{0, 0, 0};
+  uint64_t h1 = 0, h2 = 0;
+  bool usable = true;  ///< false: a Dirichlet condition given by a function (not comparable)
+  bool operator==(const ElementKey& o) const { return cell == o.cell && h1 == o.h1 && h2 == o.h2; }
+};
+struct ElementKeyHash {
+  size_t operator()(const ElementKey& k) const { return static_cast<size_t>(k.h1 ^ (k.h2 << 1)); }
+};
+
+uint64_t mix64(uint64_t x) {  // splitmix64 finalizer
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+struct KeyHasher {
+  uint64_t h1 = 0x243f6a8885a308d3ULL, h2 = 0x13198a2e03707344ULL;
+  void add(uint64_t v) {
+    h1 = mix64(h1 ^ v);
+    h2 = mix64(h2 + 0x632be59bd9b4e019ULL * (v + 1));
+  }
+  void add(double d) {
+    uint64_t v;
+    std::memcpy(&v, &d, sizeof v);
+    add(v);
+  }
+  void add(const Vec3& v) { add(v.x()), add(v.y()), add(v.z()); }
+};
+
+ElementKey element_key(const GridElement& el, const std::vector<DirichletCondition>& dirichlet,
+                       const std::vector<TractionCondition>& tractions) {
+  ElementKey k;
+  k.cell = el.cell;
+  KeyHasher h;
+  h.add(el.box.min), h.add(el.box.max);
+  h.add(static_cast<uint64_t>(el.rule.points.size()));
+  for (const Vec3& p : el.rule.points) h.add(p);
+  for (double w : el.rule.weights) h.add(w);
+  h.add(static_cast<uint64_t>(el.subvolume != nullptr));
+  if (el.subvolume)
+    for (const CutPatch& patch : el.subvolume->patches) {
+      if (patch.source_face < 0) continue;
+      // The conditions element_system applies on this patch (the last one given per face).
+      const DirichletCondition* dc = nullptr;
+      for (const auto& d : dirichlet) if (d.face == patch.source_face) dc = &d;
+      const TractionCondition* tc = nullptr;
+      for (const auto& t : tractions) if (t.face == patch.source_face) tc = &t;
+      if (!dc && !tc) continue;
+      h.add(static_cast<uint64_t>(patch.source_face));
+      h.add(static_cast<uint64_t>(static_cast<int64_t>(patch.orientation)));
+      h.add(static_cast<uint64_t>(reinterpret_cast<uintptr_t>(patch.surface.get())));
+      for (const BoundaryLoop& loop : patch.loops) {
+        h.add(static_cast<uint64_t>(loop.order));
+        h.add(static_cast<uint64_t>(loop.points.size()));
+        for (const Vec2& p : loop.points) h.add(p.x()), h.add(p.y());
+      }
+      if (dc) {
+        if (dc->field) k.usable = false;
+        for (int i = 0; i < 9; ++i) h.add(dc->gradient(i));
+        h.add(dc->offset), h.add(dc->components);
+      } else {
+        h.add(uint64_t(0xd1));
+      }
+      if (tc) h.add(tc->traction);
+      else h.add(uint64_t(0x7c));
+    }
+  k.h1 = h.h1, k.h2 = h.h2;
+  return k;
+}
+
+// The inputs of element_system besides the element and its conditions.
+bool same_element_inputs(const ElasticMaterial& a, const LinearXfemOptions& x, const ElasticMaterial& b,
+                         const LinearXfemOptions& y) {
+  return a.youngs_modulus == b.youngs_modulus && a.poisson_ratio == b.poisson_ratio && a.density == b.density &&
+         x.element == y.element && x.nitsche_beta == y.nitsche_beta && x.gravity == y.gravity &&
+         x.surface_degree == y.surface_degree && x.incompatible_modes == y.incompatible_modes &&
+         x.incompatible_min_fraction == y.incompatible_min_fraction;
+}
+
+}  // namespace
+
+// What the last solve leaves for the next one.
+struct LinearXfemSolver::Previous {
+  ElasticMaterial material;
+  LinearXfemOptions options;
+  std::unordered_map<ElementKey, int, ElementKeyHash> element_of;  ///< key → element (unique keys only)
+  std::vector<std::shared_ptr<const ElementSystem>> systems;       ///< per element; null for interior copies
+  std::vector<std::shared_ptr<const SurfaceMap>> surfaces;          ///< kept alive: their addresses are in keys
+  std::vector<std::vector<int>> node;  ///< DOF nodes per element
+  std::vector<int> reduced;            ///< DOF node → reduced node (−1: aggregated)
+  std::vector<int> factor_of;          ///< reduced DOF → DOF of the factorized system (−1: none)
+  Eigen::VectorXd u_reduced;           ///< the reduced solution
+  std::shared_ptr<const Eigen::SparseMatrix<double>> factored;  ///< the matrix cholesky_ factorized
+};
+
+LinearXfemSolver::LinearXfemSolver() : cholesky_(std::make_shared<SparseCholesky>()) {}
+LinearXfemSolver::~LinearXfemSolver() = default;
+
+void LinearXfemSolver::clear() { previous_.reset(); }
+
+const ElementSystem* LinearXfemSolver::element_system(int e) const {
+  if (!previous_ || e < 0 || e >= static_cast<int>(previous_->systems.size())) return nullptr;
+  return previous_->systems[e].get();
+}
+
 LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& elements,
                                          const std::vector<std::array<int, 2>>& adjacent,
                                          const ElasticMaterial& material,
@@ -443,45 +583,196 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
                                          const std::vector<TractionCondition>& tractions,
                                          const LinearXfemOptions& options) {
   LinearXfemResult r;
-  auto t0 = std::chrono::steady_clock::now();
+  const auto t_start = std::chrono::steady_clock::now();
+  auto t0 = t_start;
   int count = 0;
   r.node = number_dof_nodes(elements, adjacent, count, options.element);
   r.dofs = 3 * count;
   r.elements = static_cast<int>(elements.size());
   for (const auto& e : elements) r.cut_elements += e.subvolume != nullptr;
-  LinearSystem sys = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options);
+  const int n = static_cast<int>(elements.size());
+  // Elements of the previous solve equal to these (by key).
+  auto next = std::make_unique<Previous>();
+  next->material = material;
+  next->options = options;
+  std::vector<ElementKey> keys(n);
+  tbb::parallel_for(tbb::blocked_range<int>(0, n, 256), [&](const tbb::blocked_range<int>& b) {
+    for (int e = b.begin(); e != b.end(); ++e) keys[e] = element_key(elements[e], dirichlet, tractions);
+  });
+  std::vector<int> matched(n, -1);
+  if (previous_)
+    for (int e = 0; e < n; ++e) {
+      auto it = previous_->element_of.find(keys[e]);
+      if (it != previous_->element_of.end() && previous_->node[it->second].size() == r.node[e].size()) matched[e] = it->second;
+    }
+  {
+    std::unordered_map<ElementKey, int, ElementKeyHash> of;
+    std::vector<char> duplicate(n, 0);
+    for (int e = 0; e < n; ++e) {
+      auto [it, fresh] = of.emplace(keys[e], e);
+      if (!fresh) duplicate[e] = duplicate[it->second] = 1;
+    }
+    for (int e = 0; e < n; ++e)
+      if (duplicate[e]) of.erase(keys[e]), matched[e] = -1;
+    next->element_of = std::move(of);
+  }
+  r.number_seconds = seconds_since(t0);
+  const bool cache = options.reuse.elements;
+  const bool same_inputs = previous_ && same_element_inputs(material, options, previous_->material, previous_->options);
+  next->systems.resize(n);
+  std::atomic<int> cached{0};
+  ElementSource source;
+  if (cache) {
+    source.known = [&](size_t e) -> const ElementSystem* {
+      if (!same_inputs || matched[e] < 0 || !keys[e].usable) return nullptr;
+      const auto& s = previous_->systems[matched[e]];
+      if (!s) return nullptr;
+      next->systems[e] = s;
+      ++cached;
+      return s.get();
+    };
+    source.made = [&](size_t e, const ElementSystem& es) {
+      if (keys[e].usable) next->systems[e] = std::make_shared<const ElementSystem>(es);
+    };
+  }
+  LinearSystem sys = assemble_linear(elements, r.node, count, material, dirichlet, tractions, options, true, source,
+                                     &r.integrate_seconds, &r.scatter_seconds);
   r.reused_element_matrices = sys.reused_element_matrices;
+  r.cached_element_matrices = cached;
+  if (cache)
+    for (const auto& el : elements)
+      if (el.subvolume)
+        for (const CutPatch& p : el.subvolume->patches)
+          if (p.source_face >= 0 && p.surface) next->surfaces.push_back(p.surface);
+  t0 = std::chrono::steady_clock::now();
   Eigen::SparseMatrix<double> T = aggregation_map(elements, adjacent, r.node, count, options.aggregation_fraction,
-                                                  &r.aggregated_nodes);
+                                                  &r.aggregated_nodes, &next->reduced);
   if (r.aggregated_nodes > 0) {  // otherwise T = I: no TᵀKT
     sys.K = Eigen::SparseMatrix<double>(T.transpose() * sys.K * T);
     sys.f = T.transpose() * sys.f;
     r.aggregation = std::move(T);
   }
-  r.assemble_seconds = seconds_since(t0);
+  sys.K.makeCompressed();
+  r.aggregate_seconds = seconds_since(t0);
+  r.assemble_seconds = seconds_since(t_start);
   t0 = std::chrono::steady_clock::now();
-  SparseCholesky& chol = *cholesky_;
-  chol.factorize(sys.K);
-  if (chol.IsDone()) {
-    // Cholesky: two steps of iterative refinement; the LU fallback solves once, as before.
-    r.u = chol.solve(sys.f, chol.status() == SparseCholesky::Status::Factorized ? 2 : 0);
-    r.solved = r.u.allFinite();
-    if (chol.status() == SparseCholesky::Status::FactorizedByLU)
-      r.message = "stiffness matrix not positive definite (Nitsche β too small, or too few supports); solved by LU";
+  const int nr = static_cast<int>(sys.K.rows());
+  SolveInfo& info = r.solve_info;
+  // CG preconditioned by the last factorization, DOFs matched through equal elements.
+  bool tried = false;
+  if (options.reuse.factorization && previous_ && previous_->factored &&
+      cholesky_->status() == SparseCholesky::Status::Factorized) {
+    const Previous& p = *previous_;
+    std::vector<int> prev_node(count, -1);  // DOF node → DOF node of the previous solve (−2: ambiguous)
+    for (int e = 0; e < n; ++e) {
+      if (matched[e] < 0) continue;
+      const auto& pn = p.node[matched[e]];
+      for (size_t k = 0; k < pn.size(); ++k) {
+        int& m = prev_node[r.node[e][k]];
+        if (m == -1) m = pn[k];
+        else if (m != pn[k]) m = -2;
+      }
+    }
+    std::vector<int> old_of(nr, -1);
+    std::vector<char> taken(p.factored->rows(), 0);
+    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nr);
+    for (int i = 0; i < count; ++i) {
+      const int j = next->reduced[i], pi = prev_node[i];
+      if (j < 0 || pi < 0) continue;
+      const int pj = p.reduced[pi];
+      if (pj < 0) continue;
+      for (int d = 0; d < 3; ++d) {
+        x0(3 * j + d) = p.u_reduced(3 * pj + d);
+        const int f = p.factor_of[3 * pj + d];
+        if (f < 0 || taken[f]) continue;
+        taken[f] = 1;
+        old_of[3 * j + d] = f;
+      }
+    }
+    int mapped = 0;
+    for (int f : old_of) mapped += f >= 0;
+    if (mapped < options.reuse.min_mapped * nr) {
+      info.fallback = std::to_string(mapped) + " of " + std::to_string(nr) +
+                      " unknowns are unknowns of the factorized system (fewer than " +
+                      std::to_string(options.reuse.min_mapped) + " of them)";
+    } else {
+      try {
+        auto rf = std::make_shared<ReusedFactorization>(cholesky_, *p.factored, sys.K, old_of, options.reuse.preconditioner);
+        info.mapped_dofs = rf->mapped_dofs(), info.changed_dofs = rf->changed_dofs(), info.local_dofs = rf->local_dofs();
+        tried = true;
+        PcgResult pcg = rf->solve(sys.f, x0, options.reuse.pcg);
+        info.iterations = pcg.iterations;
+        info.residual = pcg.residual;
+        if (pcg.converged) {
+          info.method = "pcg";
+          r.u = std::move(pcg.x);
+          r.solved = r.u.allFinite();
+          r.preconditioned = rf;
+          r.pcg = options.reuse.pcg;
+          next->factor_of = old_of;
+          next->factored = p.factored;
+        } else {
+          info.fallback = "CG did not converge: " + pcg.message;
+        }
+      } catch (const Error& e) {
+        info.fallback = std::string("no preconditioner: ") + e.what();
+      }
+    }
+    info.pcg_seconds = seconds_since(t0);
   }
-  if (!r.solved) r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
+  if (!r.solved) {
+    const auto tf = std::chrono::steady_clock::now();
+    if (tried) info.method = "cholesky after pcg";
+    // Another pattern: a new factorization object (results and preconditioners sharing the old
+    // one keep it); the same pattern: factorized again in place, reusing the analysis.
+    if (cholesky_->status() != SparseCholesky::Status::Empty && !cholesky_->same_pattern(sys.K)) {
+      auto fresh = std::make_shared<SparseCholesky>();
+      fresh->analyses = cholesky_->analyses, fresh->factorizations = cholesky_->factorizations;
+      fresh->analyze_seconds = cholesky_->analyze_seconds, fresh->factorize_seconds = cholesky_->factorize_seconds;
+      cholesky_ = std::move(fresh);
+    }
+    SparseCholesky& chol = *cholesky_;
+    chol.factorize(sys.K);
+    if (chol.IsDone()) {
+      // Cholesky: two steps of iterative refinement; the LU fallback solves once, as before.
+      r.u = chol.solve(sys.f, chol.status() == SparseCholesky::Status::Factorized ? 2 : 0);
+      r.solved = r.u.allFinite();
+      if (chol.status() == SparseCholesky::Status::FactorizedByLU)
+        r.message = "stiffness matrix not positive definite (Nitsche β too small, or too few supports); solved by LU";
+    }
+    if (!r.solved) r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
+    if (r.solved) {
+      r.factorization = cholesky_;
+      const double fn = sys.f.norm();
+      info.residual = fn > 0 ? (sys.f - sys.K * r.u).norm() / fn : 0.0;
+      next->factor_of.resize(nr);
+      std::iota(next->factor_of.begin(), next->factor_of.end(), 0);
+      next->factored = std::make_shared<const Eigen::SparseMatrix<double>>(sys.K);
+    }
+    info.factorize_seconds = seconds_since(tf);
+  }
   r.solve_seconds = seconds_since(t0);
   if (r.solved) {
     r.energy = 0.5 * r.u.dot(sys.K * r.u) - sys.f.dot(r.u);
+    next->u_reduced = r.u;
     if (r.aggregated_nodes > 0) r.u = r.aggregation * r.u;  // back to every DOF node (aggregated ones extrapolated)
-    r.factorization = cholesky_;
+    next->node = r.node;
+    previous_ = std::move(next);
+  } else {
+    previous_.reset();
   }
   return r;
 }
 
 Eigen::VectorXd LinearXfemResult::solve_again(const Eigen::VectorXd& f) const {
-  PARAFAB_VERIFY(factorization && factorization->IsDone(), "solve_again: the linear solve kept no factorization");
   PARAFAB_VERIFY(f.size() == dofs, "solve_again: load vector of size " << f.size() << ", expected " << dofs);
+  if (preconditioned) {
+    const Eigen::VectorXd fr = aggregation.size() == 0 ? f : Eigen::VectorXd(aggregation.transpose() * f);
+    const PcgResult res = preconditioned->solve(fr, Eigen::VectorXd(), pcg);
+    PARAFAB_VERIFY(res.converged, "solve_again: CG with the reused factorization did not converge: " << res.message);
+    return aggregation.size() == 0 ? res.x : Eigen::VectorXd(aggregation * res.x);
+  }
+  PARAFAB_VERIFY(factorization && factorization->IsDone(), "solve_again: the linear solve kept no factorization");
   const int refine = factorization->status() == SparseCholesky::Status::Factorized ? 2 : 0;
   if (aggregation.size() == 0) return factorization->solve(f, refine);
   return aggregation * factorization->solve(aggregation.transpose() * f, refine);
@@ -490,7 +781,7 @@ Eigen::VectorXd LinearXfemResult::solve_again(const Eigen::VectorXd& f) const {
 Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
                                             const std::vector<std::array<int, 2>>& adjacent,
                                             const std::vector<std::vector<int>>& node, int count,
-                                            double fraction, int* aggregated) {
+                                            double fraction, int* aggregated, std::vector<int>* reduced_out) {
   // Small elements: volume fraction below `fraction`. A DOF node all of whose elements are
   // small is "floating" (barely stiff): it follows the field of a normal neighbour.
   const int n = static_cast<int>(elements.size());
@@ -556,6 +847,7 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
       for (int d = 0; d < 3; ++d) trip.emplace_back(3 * i + d, 3 * reduced[node[h][j]] + d, N(j));
   }
   if (aggregated) *aggregated = agg;
+  if (reduced_out) *reduced_out = reduced;
   Eigen::SparseMatrix<double> T(3 * count, 3 * m);
   T.setFromTriplets(trip.begin(), trip.end());
   return T;

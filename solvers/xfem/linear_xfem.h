@@ -16,6 +16,7 @@
 
 #include "xfem/cut_geometry.h"
 #include "xfem/quadrature_rule.h"
+#include "xfem/reuse_solve.h"
 #include "xfem/sparse_cholesky.h"
 
 namespace parafab::xfem {
@@ -83,6 +84,33 @@ struct LinearXfemOptions {
   /// the node's position), so conditioning stays bounded
   /// as fractions go to 0. 0 turns it off.
   double aggregation_fraction = 0.05;
+  /// What a LinearXfemSolver carries from one solve to the next (a re-solve after a re-cut):
+  struct Reuse {
+    /// Elements equal to one of the previous solve (same cell, box and rule bit for bit, and for
+    /// boundary terms the same patches, surfaces and conditions; same material and options)
+    /// take its element matrix and load instead of being integrated again.
+    bool elements = true;
+    /// A changed system is solved by CG preconditioned with the previous factorization (see
+    /// ReusedFactorization) from the previous solution; a fresh factorization when fewer than
+    /// min_mapped of its DOFs are DOFs of the factorized system, or CG does not converge in
+    /// pcg.max_iterations (reported in LinearXfemResult::solve_info).
+    bool factorization = true;
+    PcgOptions pcg{1e-10, 100};
+    double min_mapped = 0.5;
+    ReusedFactorizationOptions preconditioner;
+  } reuse;
+};
+
+/// How LinearXfemSolver solved the system.
+struct SolveInfo {
+  /// "cholesky" (factorized), "pcg" (CG preconditioned by an earlier factorization), or
+  /// "cholesky after pcg" (CG did not converge: factorized; `fallback` says why).
+  std::string method = "cholesky";
+  std::string fallback;      ///< why CG was not used or failed ("" when it was not tried)
+  int iterations = 0;        ///< CG iterations
+  double residual = 0;       ///< ‖f − K u‖ / ‖f‖ of the reduced system
+  int mapped_dofs = 0, changed_dofs = 0, local_dofs = 0;  ///< see ReusedFactorization
+  double pcg_seconds = 0, factorize_seconds = 0;
 };
 
 struct LinearXfemResult {
@@ -99,15 +127,26 @@ struct LinearXfemResult {
   /// Elements whose stiffness was copied from the one uncut interior cell integrated (all
   /// interior cells of a grid have the same box size and rule, hence the same matrix).
   int reused_element_matrices = 0;
+  /// Elements whose system was taken from the previous solve of the same LinearXfemSolver.
+  int cached_element_matrices = 0;
+  SolveInfo solve_info;
+  /// Phases of assemble_seconds: DOF numbering, element matrices (integration or copies),
+  /// scatter into the sparse matrix, aggregation (TᵀKT).
+  double number_seconds = 0, integrate_seconds = 0, scatter_seconds = 0, aggregate_seconds = 0;
   /// The factorization of the reduced stiffness TᵀKT (null if the solve failed). Shared with
   /// the LinearXfemSolver that made it: its next solve factorizes again in place.
   std::shared_ptr<const SparseCholesky> factorization;
   /// The aggregation map T (u = T u_reduced); empty (0 × 0) when nothing is aggregated (T = I).
   Eigen::SparseMatrix<double> aggregation;
+  /// Method "pcg": the reduced system and its preconditioner (factorization is then null);
+  /// solve_again runs CG on it.
+  std::shared_ptr<const ReusedFactorization> preconditioned;
+  PcgOptions pcg;
 
   /// The displacement (every DOF node) under another load vector f (size dofs, e.g. an adjoint
-  /// right-hand side) with the kept factorization: T (TᵀKT)⁻¹ Tᵀ f. Throws parafab::Error when
-  /// there is no factorization or f has the wrong size.
+  /// right-hand side) with the kept factorization: T (TᵀKT)⁻¹ Tᵀ f (by CG with the same
+  /// preconditioner and tolerance when the solve was "pcg"). Throws parafab::Error when there is
+  /// no factorization, CG does not converge, or f has the wrong size.
   Eigen::VectorXd solve_again(const Eigen::VectorXd& f) const;
 
   /// Displacement at X inside element e (interpolation of its DOF nodes).
@@ -187,13 +226,31 @@ LinearSystem assemble_linear(const std::vector<GridElement>& elements,
                              const std::vector<TractionCondition>& tractions,
                              const LinearXfemOptions& options, bool include_bulk = true);
 
+/// Element systems from elsewhere (a cache): known(e) returns element e's system or null (then
+/// it is integrated); made(e, system) is called for every element integrated or copied from
+/// the interior matrix, from several threads at once (for different e).
+struct ElementSource {
+  std::function<const ElementSystem*(size_t)> known;
+  std::function<void(size_t, const ElementSystem&)> made;
+};
+/// assemble_linear with `source`; also times the element matrices and the scatter.
+LinearSystem assemble_linear(const std::vector<GridElement>& elements,
+                             const std::vector<std::vector<int>>& node, int node_count,
+                             const ElasticMaterial& material,
+                             const std::vector<DirichletCondition>& dirichlet,
+                             const std::vector<TractionCondition>& tractions,
+                             const LinearXfemOptions& options, bool include_bulk, const ElementSource& source,
+                             double* integrate_seconds = nullptr, double* scatter_seconds = nullptr);
+
 /// The map u = T u_reduced of cell aggregation (see LinearXfemOptions::aggregation_fraction):
 /// identity rows for ordinary DOF nodes, extrapolation rows for floating ones (the element
-/// type follows from the node count per element).
+/// type follows from the node count per element). `reduced`: per DOF node its reduced node
+/// (column block of T), −1 for floating ones.
 Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
                                             const std::vector<std::array<int, 2>>& adjacent,
                                             const std::vector<std::vector<int>>& node, int count,
-                                            double fraction, int* aggregated = nullptr);
+                                            double fraction, int* aggregated = nullptr,
+                                            std::vector<int>* reduced = nullptr);
 
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<std::array<int, 2>>& adjacent,
@@ -202,19 +259,35 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<TractionCondition>& tractions,
                               const LinearXfemOptions& options = {});
 
-/// solve_linear with a kept sparse Cholesky: a later solve whose reduced stiffness has the
-/// same pattern (the same grid: a re-solve after a load or material change, an unchanged
-/// re-cut) reuses the symbolic analysis; every result shares the factorization.
+/// solve_linear with state kept between solves (options.reuse), for a re-solve after a
+/// re-cut or a load change:
+/// - element matrices: elements equal to ones of the previous solve are not integrated again
+///   (the uncut cells of a grid share one matrix in any case);
+/// - the factorization: a changed system is solved by CG preconditioned with the last
+///   factorization (ReusedFactorization), DOFs matched through the equal elements; a system
+///   with the factorized pattern but other values is factorized again reusing the symbolic
+///   analysis (in place: earlier results sharing it see the new factors); another pattern gets
+///   a new factorization object (earlier results keep theirs).
 class LinearXfemSolver {
  public:
-  LinearXfemSolver() : cholesky_(std::make_shared<SparseCholesky>()) {}
+  LinearXfemSolver();
+  ~LinearXfemSolver();
   LinearXfemResult solve(const std::vector<GridElement>& elements, const std::vector<std::array<int, 2>>& adjacent,
                          const ElasticMaterial& material, const std::vector<DirichletCondition>& dirichlet,
                          const std::vector<TractionCondition>& tractions, const LinearXfemOptions& options = {});
+  /// The factorization of the last factorized system; analyses and factorizations count over
+  /// the solver's life.
   const SparseCholesky& cholesky() const { return *cholesky_; }
+  /// Element e's system as the last solve assembled it (copied or integrated); null when e is
+  /// out of range or its system was not kept (uncut cells share one, returned for each).
+  const ElementSystem* element_system(int e) const;
+  /// Forget everything but the counters (the next solve integrates and factorizes afresh).
+  void clear();
 
  private:
+  struct Previous;
   std::shared_ptr<SparseCholesky> cholesky_;
+  std::unique_ptr<Previous> previous_;
 };
 
 }  // namespace parafab::xfem

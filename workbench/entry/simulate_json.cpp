@@ -355,6 +355,25 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();
   }
+  // What an update (a re-solve after a re-cut) reuses of the previous solve: element matrices
+  // of unchanged elements, and the factorization as CG preconditioner (xfem::LinearXfemOptions::Reuse).
+  if (job.contains("reuse")) {
+    const json& ru = job["reuse"];
+    if (!ru.is_object()) PARAFAB_INPUT_ERROR("reuse must be an object {elements, factorization, tolerance, max_iterations}, got " << ru.dump());
+    auto flag = [&](const char* key, bool& out) {
+      if (!ru.contains(key)) return;
+      if (!ru[key].is_boolean()) PARAFAB_INPUT_ERROR("reuse." << key << " must be true or false, got " << ru[key].dump());
+      out = ru[key].get<bool>();
+    };
+    flag("elements", S->fo.reuse.elements);
+    flag("factorization", S->fo.reuse.factorization);
+    S->fo.reuse.pcg.tolerance = number(ru.value("tolerance", json(S->fo.reuse.pcg.tolerance)), "reuse.tolerance");
+    if (!(S->fo.reuse.pcg.tolerance > 0 && S->fo.reuse.pcg.tolerance < 1))
+      PARAFAB_INPUT_ERROR("reuse.tolerance must be in (0, 1) (a relative residual), got " << S->fo.reuse.pcg.tolerance);
+    const double it = number(ru.value("max_iterations", json(S->fo.reuse.pcg.max_iterations)), "reuse.max_iterations");
+    if (!(it >= 0) || it != std::floor(it)) PARAFAB_INPUT_ERROR("reuse.max_iterations must be an integer >= 0, got " << it);
+    S->fo.reuse.pcg.max_iterations = static_cast<int>(it);
+  }
   S->threads = static_cast<int>(number(job.value("threads", json(0)), "threads"));
   if (S->threads < 0) PARAFAB_INPUT_ERROR("threads must be >= 1 (or 0: all cores), got " << S->threads);
   S->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
@@ -646,10 +665,19 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"units", "those of the part and material (e.g. mm, N, MPa)"}};
   out["seconds"]["results"] = seconds_since(t_results);
   out["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
-  if (linear_solver_ && model_name_is_linear(S.model))
+  if (linear_solver_ && model_name_is_linear(S.model)) {
+    const xfem::SolveInfo& si = r.solve_info;
     out["solver"] = {{"analyses", linear_solver_->cholesky().analyses},
                      {"factorizations", linear_solver_->cholesky().factorizations},
-                     {"reused_element_matrices", r.reused_element_matrices}};
+                     {"reused_element_matrices", r.reused_element_matrices},
+                     {"cached_element_matrices", r.cached_element_matrices},
+                     {"method", si.method}, {"fallback", si.fallback}, {"iterations", si.iterations},
+                     {"residual", si.residual}, {"mapped_dofs", si.mapped_dofs}, {"changed_dofs", si.changed_dofs},
+                     {"local_dofs", si.local_dofs}};
+    out["seconds"]["assemble_parts"] = {{"number", r.number_seconds}, {"integrate", r.integrate_seconds},
+                                        {"scatter", r.scatter_seconds}, {"aggregate", r.aggregate_seconds}};
+    out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"factorize", si.factorize_seconds}};
+  }
   if (!out_dir.empty()) {
     const auto t_write = std::chrono::steady_clock::now();
     std::filesystem::create_directories(out_dir);

@@ -1,0 +1,194 @@
+// A changed XFEM system (thesis §6.4, Eq. 6.22) solved with an earlier factorization (issue 11 §3).
+#include "xfem/reuse_solve.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "common/error.h"
+
+namespace parafab::xfem {
+
+PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& b,
+                            const std::function<void(const Eigen::VectorXd&, Eigen::VectorXd&)>& apply,
+                            const Eigen::VectorXd& x0, const PcgOptions& o) {
+  PARAFAB_VERIFY(K.rows() == K.cols() && K.rows() == b.size(),
+                 "preconditioned_cg: matrix " << K.rows() << " × " << K.cols() << ", right-hand side " << b.size());
+  PARAFAB_VERIFY(x0.size() == 0 || x0.size() == b.size(), "preconditioned_cg: start of size " << x0.size() << ", expected " << b.size());
+  PcgResult res;
+  res.x = x0.size() ? x0 : Eigen::VectorXd::Zero(b.size());
+  const double bnorm = b.norm();
+  if (bnorm == 0) {
+    res.x.setZero();
+    res.converged = true;
+    return res;
+  }
+  const double stop = o.tolerance * bnorm;
+  Eigen::VectorXd r = b - K * res.x, z(b.size()), p, Ap;
+  double rnorm = r.norm();
+  if (rnorm <= stop) {
+    res.converged = true;
+    res.residual = rnorm / bnorm;
+    return res;
+  }
+  apply(r, z);
+  p = z;
+  double rz = r.dot(z);
+  for (res.iterations = 1; res.iterations <= o.max_iterations; ++res.iterations) {
+    Ap.noalias() = K * p;
+    const double pAp = p.dot(Ap);
+    if (!(pAp > 0) || !(rz > 0)) {
+      char msg[160];
+      std::snprintf(msg, sizeof msg, "the matrix or the preconditioner is not positive definite (pᵀKp = %.3g, rᵀz = %.3g)",
+                    pAp, rz);
+      res.message = msg;
+      break;
+    }
+    const double alpha = rz / pAp;
+    res.x.noalias() += alpha * p;
+    r.noalias() -= alpha * Ap;
+    rnorm = r.norm();
+    if (!std::isfinite(rnorm)) {
+      res.message = "the residual is not finite";
+      break;
+    }
+    if (rnorm <= stop) break;
+    apply(r, z);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  res.iterations = std::min(res.iterations, o.max_iterations);
+  // The true residual (the recurrence drifts by round-off).
+  res.residual = (b - K * res.x).norm() / bnorm;
+  res.converged = res.message.empty() && res.residual <= o.tolerance;
+  if (res.message.empty() && !res.converged) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, "relative residual %.3g after %d iterations (tolerance %.3g)", res.residual,
+                  res.iterations, o.tolerance);
+    res.message = msg;
+  }
+  return res;
+}
+
+ReusedFactorization::ReusedFactorization(std::shared_ptr<const SparseCholesky> old, const Eigen::SparseMatrix<double>& K_old,
+                                         Eigen::SparseMatrix<double> K, std::vector<int> old_of,
+                                         const ReusedFactorizationOptions& o)
+    : old_(std::move(old)), K_(std::move(K)), old_of_(std::move(old_of)) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PARAFAB_VERIFY(old_ && old_->status() == SparseCholesky::Status::Factorized,
+                 "reused factorization: the old system holds no Cholesky factorization");
+  PARAFAB_VERIFY(K_old.rows() == old_->rows() && K_old.cols() == old_->rows(),
+                 "reused factorization: old matrix " << K_old.rows() << " × " << K_old.cols() << ", factorization of " << old_->rows());
+  PARAFAB_VERIFY(K_.rows() == K_.cols() && static_cast<size_t>(K_.rows()) == old_of_.size(),
+                 "reused factorization: matrix " << K_.rows() << " × " << K_.cols() << ", DOF map of " << old_of_.size());
+  old_factorizations_ = old_->factorizations;
+  K_.makeCompressed();
+  const int n = static_cast<int>(K_.rows()), n_old = static_cast<int>(K_old.rows());
+  // Changed rows: unmapped DOFs, and mapped ones whose row differs from the old row (another
+  // pattern or other values). K and K_old are symmetric: column j is row j.
+  std::vector<char> changed(n, 0);
+  std::vector<double> old_value(n_old, 0.0);
+  std::vector<int> stamp(n_old, -1);
+  for (int i = 0; i < n; ++i) {
+    const int oi = old_of_[i];
+    PARAFAB_VERIFY(oi < n_old, "reused factorization: DOF " << i << " mapped to " << oi << " of " << n_old);
+    if (oi < 0) {
+      changed[i] = 1;
+      continue;
+    }
+    ++mapped_;
+    int old_count = 0;
+    double scale = 0;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K_old, oi); it; ++it) {
+      stamp[it.index()] = i, old_value[it.index()] = it.value(), ++old_count;
+      scale = std::max(scale, std::abs(it.value()));
+    }
+    int count = 0;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, i); it; ++it) {
+      ++count;
+      const int oj = old_of_[it.index()];
+      if (oj < 0 || stamp[oj] != i || std::abs(old_value[oj] - it.value()) > o.row_tolerance * scale) {
+        changed[i] = 1;
+        break;
+      }
+    }
+    if (count != old_count) changed[i] = 1;
+  }
+  for (char c : changed) changed_ += c;
+  // The old factorization serves only the unchanged DOFs: on a changed row the old stiffness can
+  // be far from the new one (a sliver that grew, material that went), and its inverse there
+  // would spoil the preconditioner; those rows are the local solve's.
+  for (int i = 0; i < n; ++i)
+    if (changed[i]) old_of_[i] = -1;
+  // The local set: changed DOFs and `overlap` layers of neighbours.
+  std::vector<char> in = changed;
+  for (int layer = 0; layer < o.overlap; ++layer) {
+    std::vector<char> next = in;
+    for (int j = 0; j < n; ++j)
+      if (in[j])
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) next[it.index()] = 1;
+    in = std::move(next);
+  }
+  std::vector<int> local_of(n, -1);
+  for (int i = 0; i < n; ++i)
+    if (in[i]) local_of[i] = static_cast<int>(local_.size()), local_.push_back(i);
+  if (!local_.empty()) {
+    std::vector<Eigen::Triplet<double>> trip;
+    for (int j : local_)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it)
+        if (local_of[it.index()] >= 0) trip.emplace_back(local_of[it.index()], local_of[j], it.value());
+    Eigen::SparseMatrix<double> KLL(static_cast<int>(local_.size()), static_cast<int>(local_.size()));
+    KLL.setFromTriplets(trip.begin(), trip.end());
+    local_factor_.factorize(KLL);
+    PARAFAB_VERIFY(local_factor_.status() == SparseCholesky::Status::Factorized,
+                   "reused factorization: the changed block (" << local_.size() << " DOFs) is not positive definite");
+  }
+  setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void ReusedFactorization::apply_old(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  PARAFAB_VERIFY(old_->factorizations == old_factorizations_ && old_->status() == SparseCholesky::Status::Factorized,
+                 "reused factorization: the old factorization was replaced since this preconditioner was built");
+  const int n = static_cast<int>(r.size());
+  Eigen::VectorXd ro = Eigen::VectorXd::Zero(old_->rows());
+  for (int i = 0; i < n; ++i)
+    if (old_of_[i] >= 0) ro(old_of_[i]) = r(i);
+  const Eigen::VectorXd zo = old_->solve(ro, 0);
+  for (int i = 0; i < n; ++i)
+    if (old_of_[i] >= 0) z(i) += zo(old_of_[i]);
+}
+
+void ReusedFactorization::apply_local(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  if (local_.empty()) return;
+  Eigen::VectorXd rl(local_.size());
+  for (size_t k = 0; k < local_.size(); ++k) rl(k) = r(local_[k]);
+  const Eigen::VectorXd zl = local_factor_.solve(rl, 0);
+  for (size_t k = 0; k < local_.size(); ++k) z(local_[k]) += zl(k);
+}
+
+void ReusedFactorization::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  // Symmetric multiplicative Schwarz: local, old, local, each on the residual of the last.
+  z.setZero(r.size());
+  apply_local(r, z);
+  Eigen::VectorXd s = r - K_ * z;
+  apply_old(s, z);
+  if (local_.empty()) return;
+  s = r - K_ * z;
+  apply_local(s, z);
+}
+
+Eigen::VectorXd ReusedFactorization::local_correction(const Eigen::VectorXd& b, const Eigen::VectorXd& x0) const {
+  Eigen::VectorXd x = x0.size() ? x0 : Eigen::VectorXd::Zero(b.size());
+  apply_local(Eigen::VectorXd(b - K_ * x), x);
+  return x;
+}
+
+PcgResult ReusedFactorization::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& x0, const PcgOptions& o) const {
+  // The start corrected on the local DOFs first: a new DOF starts at 0 next to neighbours that
+  // carry the old displacement, which would leave a large residual there.
+  return preconditioned_cg(K_, b, [this](const Eigen::VectorXd& r, Eigen::VectorXd& z) { apply(r, z); },
+                           local_correction(b, x0), o);
+}
+
+}  // namespace parafab::xfem
