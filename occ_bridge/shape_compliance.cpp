@@ -156,12 +156,12 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
   return s;
 }
 
-ComplianceDerivative compliance_derivative(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
-                                           std::shared_ptr<const PartShape> minus, double h,
-                                           const ComplianceSetup& setup) {
+ComplianceDerivative element_difference(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
+                                        std::shared_ptr<const PartShape> minus, double h, const ComplianceSetup& setup,
+                                        const ElementTerm& term) {
   ComplianceDerivative d;
-  PARAFAB_VERIFY(at.done && at.model, "compliance_derivative: the state is not solved");
-  PARAFAB_VERIFY(h > 0, "compliance_derivative: step must be positive, got " << h);
+  PARAFAB_VERIFY(at.done && at.model, "element_difference: the state is not solved");
+  PARAFAB_VERIFY(h > 0, "element_difference: step must be positive, got " << h);
   if (!plus && !minus) {
     d.message = "neither perturbed model exists";
     return d;
@@ -245,25 +245,40 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
       }
     }
   }
-  // Each term: w·(2uₑ·fₑ − uₑᵀKₑuₑ) with uₑ the solution at the element's DOF nodes in `at`.
-  const Eigen::VectorXd& u = at.solution.u;
   std::vector<double> terms(items.size(), 0.0);
   tbb::parallel_for(size_t(0), items.size(), [&](size_t i) {
     const Item& it = items[i];
     const xfem::GridElement& el = it.side < 0 ? at.model->elements[it.element] : models[it.side].elements[it.element];
     const auto& tractions = it.side < 0 ? at.tractions : side_tractions[it.side];
-    const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
-    const std::vector<int>& nodes = at.solution.node[it.base];
-    Eigen::VectorXd ue(es.f.size());
-    for (size_t a = 0; a < nodes.size(); ++a)
-      for (int c = 0; c < 3; ++c) ue[3 * a + c] = u[3 * nodes[a] + c];
-    terms[i] = it.weight * (2 * ue.dot(es.f) - ue.dot(es.K * ue));
+    terms[i] = it.weight * term(el, tractions, it.base);
   });
   for (double t : terms) d.derivative += t;  // in item order: deterministic
   d.done = true;
   d.one_sided = !(have[0] && have[1]);
   d.message = d.message.empty() ? "ok" : d.message + "one-sided difference";
   return d;
+}
+
+ComplianceDerivative compliance_derivative(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
+                                           std::shared_ptr<const PartShape> minus, double h,
+                                           const ComplianceSetup& setup) {
+  PARAFAB_VERIFY(at.done && at.model, "compliance_derivative: the state is not solved");
+  // Each term: 2uₑ·fₑ − uₑᵀKₑuₑ with uₑ the solution at the element's DOF nodes in `at`.
+  return element_difference(at, std::move(plus), std::move(minus), h, setup,
+                            [&](const xfem::GridElement& el, const std::vector<xfem::TractionCondition>& tractions,
+                                int base) {
+                              const xfem::ElementSystem es =
+                                  xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
+                              const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[base]);
+                              return 2 * ue.dot(es.f) - ue.dot(es.K * ue);
+                            });
+}
+
+Eigen::VectorXd element_values(const Eigen::VectorXd& v, const std::vector<int>& nodes) {
+  Eigen::VectorXd ve(3 * nodes.size());
+  for (size_t a = 0; a < nodes.size(); ++a)
+    for (int c = 0; c < 3; ++c) ve[3 * a + c] = v[3 * nodes[a] + c];
+  return ve;
 }
 
 }  // namespace parafab::occ

@@ -6,6 +6,7 @@
 // the perturbed model's re-cut changes (recut_by_grid with the grid fixed), contracted with u.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -72,5 +73,21 @@ struct ComplianceDerivative {
 ComplianceDerivative compliance_derivative(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
                                            std::shared_ptr<const PartShape> minus, double h,
                                            const ComplianceSetup& setup);
+
+/// The term of one element in a derivative by changed cells: evaluated on an element of a
+/// perturbed model (or of `at` for a one-sided difference) with the DOF nodes of `at`'s
+/// element `base` (at.solution.node[base]); called from several threads at once.
+using ElementTerm = std::function<double(const xfem::GridElement& element,
+                                         const std::vector<xfem::TractionCondition>& tractions, int base)>;
+
+/// The machinery of compliance_derivative for any sum of element terms: both perturbed models
+/// re-cut from `at`, their changed cells' elements matched to `at`'s, and
+/// Σ weight·term(element) with weights ±1/2h (central) or ±1/h (one-sided).
+ComplianceDerivative element_difference(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
+                                        std::shared_ptr<const PartShape> minus, double h, const ComplianceSetup& setup,
+                                        const ElementTerm& term);
+
+/// The entries of a nodal vector v (3 per DOF node) at an element's DOF nodes.
+Eigen::VectorXd element_values(const Eigen::VectorXd& v, const std::vector<int>& nodes);
 
 }  // namespace parafab::occ

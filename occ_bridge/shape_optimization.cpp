@@ -55,7 +55,7 @@ namespace {
 
 struct Evaluation {
   bool ok = false;
-  double objective = 0, penalized = 0, violation = 0, volume = 0, tangency = 0;
+  double objective = 0, penalized = 0, violation = 0, volume = 0, tangency = 0, max_von_mises = 0;
   Eigen::VectorXd p, lambda, volume_gradient;  ///< volume_gradient: dV/dx (design entries)
   std::shared_ptr<const PartShape> part;
 };
@@ -70,9 +70,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   const ShapeParameters sp = build_shape_parameters(model, options.parameterization);
   result.notes = sp.notes;
   ObjectiveSpec spec = options.objective;
-  const bool compliance = spec.type == "compliance";
+  const bool failure = spec.type == "failure";
+  const bool compliance = spec.type == "compliance" || failure;  // both solve the elasticity job
+  const FailureOptions failure_options{spec.yield_stress, spec.exponent, spec.normalize};
+  if (failure) check_failure_options(failure_options);
   if (compliance) {
-    PARAFAB_VERIFY(options.compliance, "objective 'compliance' needs the elasticity job (material, supports, loads, grid)");
+    PARAFAB_VERIFY(options.compliance, "objective '" << spec.type << "' needs the elasticity job (material, supports, loads, grid)");
     PARAFAB_VERIFY(options.compliance_step > 0, "compliance_step must be positive, got " << options.compliance_step);
     result.gradient = "semi-analytic";
   } else {
@@ -204,6 +207,19 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         }
       }
       f = state->compliance;
+      FailureValue fv;
+      Eigen::VectorXd adjoint;
+      if (failure) {
+        // J and the adjoint λ = −K⁻¹∂J/∂u (kept factorization), shared by every design direction.
+        fv = failure_value(*state, *options.compliance, failure_options, true);
+        if (!fv.done) {
+          if (result.invalid_models++ == 0) result.notes.push_back("first failed failure evaluation: " + fv.message);
+          return false;
+        }
+        f = fv.objective;
+        last.max_von_mises = fv.max_von_mises;
+        adjoint = failure_adjoint(*state, fv);
+      }
       compliance_gradient.resize(nd);
       for (int k = 0; k < nd; ++k) {
         const double h = options.compliance_step * (is_direction(design[k]) ? 1.0 : part_size);
@@ -216,7 +232,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           const ModifyResult mk = modify_part(part, model, sp, pk.p);
           if (mk.done) sides[side] = mk.part;
         }
-        const ComplianceDerivative cd = compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
+        const ComplianceDerivative cd =
+            failure ? failure_derivative(*state, fv, adjoint, sides[0], sides[1], h, *options.compliance, failure_options)
+                    : compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
         if (!cd.done) {
           if (result.invalid_models++ == 0)
             result.notes.push_back("compliance gradient of '" + sp.names[design[k]] + "': " + cd.message);
@@ -252,7 +270,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]], last.volume_gradient[k] = v_target[design[k]];
     grad += dpsi_dV * last.volume_gradient;
     if (compliance && !volume_only) grad += compliance_gradient;
+    const double max_vm = last.max_von_mises;
     last.ok = true;
+    last.max_von_mises = max_vm;
     last.objective = f;
     last.penalized = F;
     last.violation = violation;
@@ -270,6 +290,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     accepted = last;
     // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
     if (it.iteration == 0 && outer_index > 0) return true;
+    if (iteration_count == 0) result.initial_max_von_mises = accepted.max_von_mises;
     ShapeIterate s;
     s.iteration = iteration_count++;
     s.outer = outer_index;
@@ -370,6 +391,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   }
   result.initial_objective = result.iterations.front().objective;
   result.final_objective = accepted.objective;
+  result.final_max_von_mises = accepted.max_von_mises;
   result.initial_volume = V0;
   result.final_volume = accepted.volume;
   result.p_initial = start.p;

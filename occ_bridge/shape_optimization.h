@@ -4,7 +4,8 @@
 // evaluates a mass-property objective with exact Hadamard shape derivatives
 // (shape_derivatives.h) chained through dp⊥/dp̃ (Eq. 6.29); L-BFGS with bounds drives it.
 // Compliance (§6.5.3) runs the linear XFEM solve on a grid fixed for the whole run, with a
-// semi-analytic gradient (shape_compliance.h); the stress objective is not implemented yet.
+// semi-analytic gradient (shape_compliance.h); "failure" (the stress metric of §6.2.3 Eq. 6.4)
+// on the same solve with an adjoint gradient (shape_failure.h).
 #pragma once
 
 #include <Eigen/Core>
@@ -18,6 +19,7 @@
 #include "optimize/projection.h"
 #include "shape_compliance.h"
 #include "shape_derivatives.h"
+#include "shape_failure.h"
 #include "shape_parameters.h"
 
 namespace parafab::occ {
@@ -30,12 +32,17 @@ struct PartShape;
 ///  a a principal axis); "balance": center_of_mass / L² + inertia_alignment (L: bbox diagonal).
 ///  "compliance": fᵀu of the linear XFEM solve (ShapeOptimizationOptions::compliance; not a
 ///  function of the moments: objective_from_moments rejects it).
+///  "failure": (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (or the bare integral when normalize is false) of
+///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, normalize).
 struct ObjectiveSpec {
   std::string type = "mass";
   double density = 1;
   Vec3 point = Vec3::Zero();
   Vec3 axis = Vec3::UnitZ();
   double length_scale = 1;  ///< L of "balance" (set from the part when 0 or negative)
+  double yield_stress = 0;  ///< σ_y of "failure" (required > 0)
+  double exponent = 0;      ///< α of "failure" (required > 0)
+  bool normalize = true;    ///< "failure": divide the integral by the volume
 };
 
 /// The objective value and d value / d moments.
@@ -118,6 +125,8 @@ struct ShapeOptimizationResult {
   std::string gradient = "exact";
   int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
   int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
+  /// "failure": max σ_vm over the material quadrature points at the start and at the end.
+  double initial_max_von_mises = 0, final_max_von_mises = 0;
   std::vector<AugmentedLagrangianStep> outer;  ///< empty without a volume bound
   bool volume_restored = false;        ///< the final volume-only restoration moved the design
   double final_violation = 0;          ///< relative, ≥ 0

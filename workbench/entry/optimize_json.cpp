@@ -128,8 +128,19 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (!type.is_string()) PARAFAB_INPUT_ERROR("objective.type must be a string");
   o.objective.type = type.get<std::string>();
   if (o.objective.type == "stress")
-    PARAFAB_INPUT_ERROR("objective.type 'stress' is not implemented yet; available: mass, volume, center_of_mass, "
-                        "inertia_alignment, balance, compliance");
+    PARAFAB_INPUT_ERROR("objective.type 'stress' is called 'failure' (yield_stress, exponent, normalize); available: "
+                        "mass, volume, center_of_mass, inertia_alignment, balance, compliance, failure");
+  if (o.objective.type == "failure") {
+    // (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (thesis §6.2.3 Eq. 6.4); the fields are required.
+    o.objective.yield_stress = number(fields::require(obj, "yield_stress", "objective"), "objective.yield_stress");
+    o.objective.exponent = number(fields::require(obj, "exponent", "objective"), "objective.exponent");
+    if (obj.contains("normalize")) {
+      if (!obj["normalize"].is_boolean())
+        PARAFAB_INPUT_ERROR("objective.normalize must be true or false, got " << obj["normalize"].dump());
+      o.objective.normalize = obj["normalize"].get<bool>();
+    }
+    occ::check_failure_options({o.objective.yield_stress, o.objective.exponent, o.objective.normalize});
+  }
   if (obj.contains("density")) o.objective.density = number(obj["density"], "objective.density");
   if (obj.contains("axis")) {
     const json& axis = obj["axis"];
@@ -143,7 +154,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   }
   if (obj.contains("length_scale")) o.objective.length_scale = number(obj["length_scale"], "objective.length_scale");
   else o.objective.length_scale = 0;
-  if (o.objective.type == "compliance") {
+  if (o.objective.type == "compliance" || o.objective.type == "failure") {
     o.compliance = compliance_setup(*part, job);
     if (obj.contains("step")) o.compliance_step = number(obj["step"], "objective.step");
     if (!(o.compliance_step > 0)) PARAFAB_INPUT_ERROR("objective.step must be positive, got " << o.compliance_step);
@@ -263,6 +274,13 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (r.gradient == "semi-analytic") {
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;
+  }
+  if (o.objective.type == "failure") {
+    h["initial_max_von_mises"] = r.initial_max_von_mises;
+    h["final_max_von_mises"] = r.final_max_von_mises;
+    h["yield_stress"] = o.objective.yield_stress;
+    h["exponent"] = o.objective.exponent;
+    h["normalize"] = o.objective.normalize;
   }
   h["final_violation"] = r.final_violation;
   if (!r.outer.empty()) {

@@ -1,0 +1,54 @@
+// Failure (stress) objective of shape optimization (thesis §6.2.3 Eq. 6.4, the exponentiated
+// failure metric of [SZB18]): I = ∫_V exp(α(σ_vm/σ_y − 1)) dV over the material quadrature points
+// of the cut-cell rules of the linear XFEM solve (shape_compliance.h: same job, same fixed grid).
+// Reported form J = I / V when `normalize` (a smooth maximum of exp(α(σ_vm/σ_y − 1)): 1 when
+// σ_vm = σ_y everywhere, well scaled for any part size), I otherwise. σ_vm is the von Mises stress
+// of the nodal field (xfem::stress_at; hex8 incompatible modes are not part of it).
+// Gradient: adjoint K λ = −∂J/∂u with the kept factorization, then
+// dJ/ds = ∂J/∂s|_u + λᵀ(dK u − df), both terms central differences over the re-cut cells only.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+
+#include "shape_compliance.h"
+
+namespace parafab::occ {
+
+struct FailureOptions {
+  double yield_stress = 0;  ///< σ_y (> 0, required)
+  double exponent = 0;      ///< α (> 0, required; larger: closer to the maximum stress)
+  bool normalize = true;    ///< J = I / V instead of I
+};
+
+/// Throws parafab::Error naming the field (yield_stress, exponent) and the value when invalid.
+void check_failure_options(const FailureOptions& options);
+
+struct FailureValue {
+  bool done = false;
+  std::string message;
+  double objective = 0;       ///< J (I / V when normalized, else I)
+  double integral = 0;        ///< I = ∫ exp(α(σ_vm/σ_y − 1)) dV
+  double volume = 0;          ///< V = Σ rule weights
+  double max_von_mises = 0;   ///< max σ_vm over the material quadrature points
+  Eigen::VectorXd gradient_u; ///< ∂J/∂u (3 per DOF node); empty unless asked for
+};
+
+/// J of a solved state (and ∂J/∂u when with_gradient).
+FailureValue failure_value(const ComplianceState& state, const ComplianceSetup& setup, const FailureOptions& options,
+                           bool with_gradient = false);
+
+/// dJ/ds along a perturbation (models plus at s = +h, minus at s = −h, either may be null):
+/// λ = −K⁻¹ ∂J/∂u solved once with `state`'s kept factorization (pass it in `adjoint` to reuse it
+/// for several directions; empty: solved here), then the changed cells' elements differenced:
+/// Σ w·[λₑᵀ(Kₑuₑ − fₑ) + Iₑ(uₑ)/V − (I/V²)Vₑ] (normalized) or Σ w·[λₑᵀ(Kₑuₑ − fₑ) + Iₑ(uₑ)].
+ComplianceDerivative failure_derivative(const ComplianceState& state, const FailureValue& value,
+                                        const Eigen::VectorXd& adjoint, std::shared_ptr<const PartShape> plus,
+                                        std::shared_ptr<const PartShape> minus, double h,
+                                        const ComplianceSetup& setup, const FailureOptions& options);
+
+/// λ = −K⁻¹ ∂J/∂u (value must carry gradient_u).
+Eigen::VectorXd failure_adjoint(const ComplianceState& state, const FailureValue& value);
+
+}  // namespace parafab::occ
