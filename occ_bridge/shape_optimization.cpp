@@ -46,7 +46,8 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
   else if (spec.type == "balance") f = center_term() / (spec.length_scale * spec.length_scale) + alignment_term();
   else
     PARAFAB_INPUT_ERROR("objective.type '" << spec.type
-                                           << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance)");
+                                           << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance; with an "
+                                              "elasticity job: compliance, failure)");
   if (gradient) *gradient = f.g;
   return f.v;
 }
