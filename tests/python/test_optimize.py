@@ -95,12 +95,12 @@ class Optimize(unittest.TestCase):
         self.assertEqual(len(h["iterations"]), 2)
         self.assertTrue(os.path.exists(os.path.join(self.dir, "py", "optimized.step")))
 
-    def test_not_implemented_objective_is_a_clear_error(self):
+    def test_stress_objective_name_points_to_failure(self):
         code, err = run(self.part, dict(JOB, objective={"type": "stress"}), os.path.join(self.dir, "x"))
         self.assertEqual(code, 2)
         text = json.dumps(err)
         self.assertIn("stress", text)
-        self.assertIn("not implemented yet", text)
+        self.assertIn("is called 'failure'", text)
         # Compliance exists but needs the elasticity job.
         code, err = run(self.part, dict(JOB, objective={"type": "compliance"}), os.path.join(self.dir, "z"))
         self.assertEqual(code, 2)
