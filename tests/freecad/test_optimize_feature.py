@@ -222,6 +222,17 @@ class OptimizeFeatureTest(unittest.TestCase):
         types = [o.type for o in optimize_feature.OBJECTIVES]
         self.assertEqual(types[:3], ["center_of_mass", "inertia_alignment", "balance"])
         self.assertIn("compliance", types)
+        self.assertIn("failure", types)
+        # The failure objective carries its fields; a missing or non-positive one is named.
+        shape = self.wheel.Shape.copy()
+        failure = dict(self.options, objective="failure", supports=["Face1"], loads=["Face2"], force=(0, 0, -10),
+                       yield_stress=120.0, exponent=6.0)
+        job = optimize_feature.build_job(shape, failure)
+        self.assertEqual(job["objective"], {"type": "failure", "yield_stress": 120.0, "exponent": 6.0,
+                                            "normalize": True})
+        for key in ("yield_stress", "exponent"):
+            with self.assertRaisesRegex(optimize_feature.OptimizeError, key):
+                optimize_feature.build_job(shape, dict(failure, **{key: 0.0}))
         extra = optimize_feature.Objective("compliance_test", "Test", "", ("material", "supports", "loads"))
         optimize_feature.register_objective(extra)
         try:

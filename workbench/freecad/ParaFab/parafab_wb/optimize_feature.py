@@ -36,7 +36,8 @@ class Objective(object):
     """One objective type of the engine, as offered by the panel.
 
     ``uses`` names the inputs the job must carry for it: "axis" (objective.axis), "density"
-    (objective.density), "material", "supports", "loads" (simulation-job format). Supports and
+    (objective.density), "material", "supports", "loads" (simulation-job format), "failure"
+    (objective.yield_stress, exponent, normalize). Supports and
     loads are always sent when given (the engine keeps their faces fixed).
     """
 
@@ -61,6 +62,9 @@ OBJECTIVES = [
     Objective("compliance", "Compliance (stiffness)",
               "fᵀu of the linear XFEM solve on a fixed grid (semi-analytic gradient): lower is stiffer; "
               "combine with a volume bound", ("material", "supports", "loads")),
+    Objective("failure", "Failure (von Mises stress)",
+              "(1/V)∫exp(α(σ_vm/σ_y − 1))dV of the linear XFEM solve (thesis Eq. 6.4, adjoint gradient): a smooth "
+              "maximum of the von Mises stress relative to the yield stress", ("material", "supports", "loads", "failure")),
 ]
 
 
@@ -184,6 +188,9 @@ def default_options():
         "loads": [],                          # ["FaceN", ...]
         "force": (0.0, 0.0, 0.0),             # total force on the loaded faces [N]
         "E": 210000.0, "nu": 0.3,             # MPa, for objectives that use "material"
+        "yield_stress": 250.0,                # MPa, objective "failure"
+        "exponent": 8.0,                      # α of objective "failure" (larger: nearer the maximum)
+        "normalize": True,                    # "failure": divide the integral by the volume
         "max_iterations": 20,
         "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
         "cells": None,                        # grid cells along the longest side (compliance; None: engine default)
@@ -210,6 +217,13 @@ def build_job(shape, options, placement=None):
         obj_json["axis"] = {"point": [point.x, point.y, point.z], "direction": [d.x, d.y, d.z]}
     if "density" in objective.uses:
         obj_json["density"] = float(opts["density"])
+    if "failure" in objective.uses:
+        for key in ("yield_stress", "exponent"):
+            value = opts.get(key)
+            if value is None or not float(value) > 0:
+                raise OptimizeError("objective '%s': %s must be positive, got %r" % (objective.type, key, value))
+            obj_json[key] = float(value)
+        obj_json["normalize"] = bool(opts["normalize"])
     job = {"objective": obj_json, "max_iterations": int(opts["max_iterations"]),
            "bound": float(opts["bound"]), "relative_improvement": float(opts["relative_improvement"])}
 

@@ -135,6 +135,12 @@ class OptimizeTaskPanel(object):
             grid.addRow(label, row)
         self.density = _spin(0.0, 1e6, defaults["density"], 1, " kg/m³")
         grid.addRow("Density", self.density)
+        self.yield_stress = _spin(0.0, 1e6, defaults["yield_stress"], 1, " MPa")
+        self.yield_stress.setToolTip("σ_y of the failure objective")
+        grid.addRow("Yield stress", self.yield_stress)
+        self.exponent = _spin(0.0, 1e3, defaults["exponent"], 2)
+        self.exponent.setToolTip("α of the failure objective: larger is nearer the maximum stress")
+        grid.addRow("Exponent α", self.exponent)
         self.iterations = QtGui.QSpinBox()
         self.iterations.setRange(1, 1000)
         self.iterations.setValue(defaults["max_iterations"])
@@ -233,6 +239,8 @@ class OptimizeTaskPanel(object):
         for b in self.axis_point + self.axis_dir:
             b.setEnabled("axis" in uses)
         self.density.setEnabled("density" in uses or "material" in uses)
+        self.yield_stress.setEnabled("failure" in uses)
+        self.exponent.setEnabled("failure" in uses)
 
     # -- options -----------------------------------------------------------------------------
 
@@ -246,6 +254,7 @@ class OptimizeTaskPanel(object):
                 "axis_point": tuple(b.value() for b in self.axis_point),
                 "axis_direction": tuple(b.value() for b in self.axis_dir),
                 "density": self.density.value(),
+                "yield_stress": self.yield_stress.value(), "exponent": self.exponent.value(),
                 "parameters": "auto" if self.auto.isChecked() else self.checked_parameters(),
                 "supports": self.supports.faces(), "loads": self.loads.faces(),
                 "force": tuple(b.value() for b in self.force),
