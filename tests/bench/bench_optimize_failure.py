@@ -1,0 +1,107 @@
+#!/usr/bin/python3
+"""Failure (stress) shape optimization of the wrench (thesis §6.2.3 Eq. 6.4, §6.6.1 "Wrench",
+which reports 8.0 s per iteration): samples/parts/wrench.step, steel (E 210 GPa, nu 0.3), the
+jaw flanks (y = +-5) supported as if gripping a nut, 300 N along +y on the ring end's outside
+(a torque of about 30 N m on the nut), J = (1/V) int exp(8 (sigma_vm / 300 MPa - 1)) dV, volume
+<= V0 (augmented Lagrangian), 16-cell fixed grid. Design (5 parameters; the thesis' slot and
+hole width/height and hole fillet): both slot end radii, the ring hole radius, both
+ring/handle junction fillet radii (the slot's plane offsets cannot move alone: their
+projection fails). Runs the CLI pinned to one core (taskset -c 0).
+
+Reports the median seconds per iteration (from the iterates' time stamps) against the thesis'
+8.0 s, the median seconds of a plain `parafab simulate` on the same grid in the same run
+(the baseline), the objective reduction, max sigma_vm at the material points before/after, and
+a fresh simulation (own 24-cell grid) of the original and the written STEP. Writes
+DIR/optimize_failure.json and DIR/optimize_failure.png. Usage: [--quick] [--out DIR]"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+WRENCH = os.path.join(HERE, "..", "..", "samples", "parts", "wrench.step")
+CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
+THESIS_SECONDS_PER_ITERATION = 8.0
+
+ap = argparse.ArgumentParser()
+ap.add_argument("--quick", action="store_true")
+ap.add_argument("--out", default=".")
+args = ap.parse_args()
+os.makedirs(args.out, exist_ok=True)
+
+ELASTIC = {"material": {"E": 210000, "nu": 0.3},
+           "supports": [{"point": [90, 5, 3]}, {"point": [90, -5, 3]}],
+           "loads": [{"point": [-10, 0, 3], "force": [0, 300, 0]}]}
+FILLET = (7.350946696428432, 7.220355269907728)  # mid-arc of the r 4 ring/handle fillets
+PARAMETERS = [{"point": [22, 0, 3], "parameter": "radius"}, {"point": [58, 0, 3], "parameter": "radius"},
+              {"point": [-5, 0, 3], "parameter": "radius"},
+              {"point": [FILLET[0], FILLET[1], 3], "parameter": "radius"},
+              {"point": [FILLET[0], -FILLET[1], 3], "parameter": "radius"}]
+CELLS = 16
+JOB = dict(ELASTIC, objective={"type": "failure", "yield_stress": 300, "exponent": 8}, grid={"cells": CELLS},
+           parameters=PARAMETERS, constraints=[{"type": "volume", "max_ratio": 1.0}],
+           max_iterations=2 if args.quick else 6, first_step=0.5, bound=0.4)
+
+
+def cli(argv, job):
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+        json.dump(job, f)
+    try:
+        t = time.time()
+        p = subprocess.run(["taskset", "-c", "0", CLI] + argv[:2] + [f.name] + argv[2:], capture_output=True,
+                           text=True, timeout=3600)
+        return json.loads(p.stdout), time.time() - t
+    finally:
+        os.unlink(f.name)
+
+
+load = os.getloadavg()
+out = os.path.join(args.out, "optimize_failure_wrench")
+h, wall = cli(["optimize", WRENCH, "-o", out], JOB)
+if "error" in h:
+    raise SystemExit(json.dumps(h))
+stamps = [it["seconds"] for it in h["iterations"]]
+per_iteration = [b - a for a, b in zip(stamps, stamps[1:])]
+sim = [cli(["simulate", WRENCH], dict(ELASTIC, grid={"cells": CELLS, "method": "face"}))[1]
+       for _ in range(1 if args.quick else 3)]
+row = {"part": "wrench", "cells": CELLS, "design_variables": len(PARAMETERS), "threads": 1,
+       "status": h["status"], "iterations": len(per_iteration), "evaluations": h["evaluations"],
+       "seconds": h["seconds"], "seconds_per_iteration_median": statistics.median(per_iteration),
+       "thesis_seconds_per_iteration": THESIS_SECONDS_PER_ITERATION,
+       "speedup_vs_thesis": THESIS_SECONDS_PER_ITERATION / statistics.median(per_iteration),
+       "simulate_seconds_median": statistics.median(sim),
+       "iteration_over_simulate": statistics.median(per_iteration) / statistics.median(sim),
+       "initial_objective": h["initial_objective"], "final_objective": h["final_objective"],
+       "reduction": 1 - h["final_objective"] / h["initial_objective"],
+       "initial_max_von_mises": h["initial_max_von_mises"], "final_max_von_mises": h["final_max_von_mises"],
+       "volume_ratio": h["final_volume"] / h["initial_volume"], "invalid_models": h["invalid_models"],
+       "notes": h["notes"], "load_before": load, "load_after": os.getloadavg(),
+       "parameters": h["parameters"]}
+if not args.quick:
+    fresh = []
+    for p in (WRENCH, os.path.join(out, "optimized.step")):
+        r, _ = cli(["simulate", p], dict(ELASTIC, grid={"cells": 24, "method": "face"}))
+        fresh.append(r["max_von_mises"])
+    row["fresh_24_cells_max_von_mises"] = fresh
+with open(os.path.join(args.out, "optimize_failure.json"), "w") as f:
+    json.dump(row, f, indent=2)
+print(json.dumps(row, indent=1))
+
+import matplotlib  # noqa: E402
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
+ax[0].plot([it["iteration"] for it in h["iterations"]], [it["objective"] / h["initial_objective"]
+                                                          for it in h["iterations"]], "o-")
+ax[0].set_xlabel("iteration")
+ax[0].set_ylabel("J / J0")
+ax[0].set_title("wrench failure objective (volume <= V0)")
+ax[1].bar(["this run\n(median, 1 core)", "thesis §6.6.1"], [row["seconds_per_iteration_median"],
+                                                          THESIS_SECONDS_PER_ITERATION], color=["C0", "C7"])
+ax[1].set_ylabel("s / iteration")
+ax[1].set_title("time per iteration, %d cells, load %.2f" % (CELLS, load[0]))
+fig.tight_layout()
+fig.savefig(os.path.join(args.out, "optimize_failure.png"), dpi=110)
