@@ -271,9 +271,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]], last.volume_gradient[k] = v_target[design[k]];
     grad += dpsi_dV * last.volume_gradient;
     if (compliance && !volume_only) grad += compliance_gradient;
-    const double max_vm = last.max_von_mises;
     last.ok = true;
-    last.max_von_mises = max_vm;
     last.objective = f;
     last.penalized = F;
     last.violation = violation;
