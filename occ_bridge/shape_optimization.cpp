@@ -73,7 +73,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   ObjectiveSpec spec = options.objective;
   const bool failure = spec.type == "failure";
   const bool compliance = spec.type == "compliance" || failure;  // both solve the elasticity job
-  const FailureOptions failure_options{spec.yield_stress, spec.exponent, spec.normalize};
+  const FailureOptions failure_options{spec.yield_stress, spec.exponent, spec.per_volume};
   if (failure) check_failure_options(failure_options);
   if (compliance) {
     PARAFAB_VERIFY(options.compliance, "objective '" << spec.type << "' needs the elasticity job (material, supports, loads, grid)");

@@ -32,8 +32,8 @@ struct PartShape;
 ///  a a principal axis); "balance": center_of_mass / L² + inertia_alignment (L: bbox diagonal).
 ///  "compliance": fᵀu of the linear XFEM solve (ShapeOptimizationOptions::compliance; not a
 ///  function of the moments: objective_from_moments rejects it).
-///  "failure": (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (or the bare integral when normalize is false) of
-///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, normalize).
+///  "failure": (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (or the bare integral when per_volume is false) of
+///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, per_volume — JSON "normalize").
 struct ObjectiveSpec {
   std::string type = "mass";
   double density = 1;
@@ -42,7 +42,7 @@ struct ObjectiveSpec {
   double length_scale = 1;  ///< L of "balance" (set from the part when 0 or negative)
   double yield_stress = 0;  ///< σ_y of "failure" (required > 0)
   double exponent = 0;      ///< α of "failure" (required > 0)
-  bool normalize = true;    ///< "failure": divide the integral by the volume
+  bool per_volume = true;   ///< "failure": divide the integral by the volume (JSON objective.normalize)
 };
 
 /// The objective value and d value / d moments.

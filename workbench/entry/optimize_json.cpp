@@ -137,9 +137,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     if (obj.contains("normalize")) {
       if (!obj["normalize"].is_boolean())
         PARAFAB_INPUT_ERROR("objective.normalize must be true or false, got " << obj["normalize"].dump());
-      o.objective.normalize = obj["normalize"].get<bool>();
+      o.objective.per_volume = obj["normalize"].get<bool>();
     }
-    occ::check_failure_options({o.objective.yield_stress, o.objective.exponent, o.objective.normalize});
+    occ::check_failure_options({o.objective.yield_stress, o.objective.exponent, o.objective.per_volume});
   }
   if (obj.contains("density")) o.objective.density = number(obj["density"], "objective.density");
   if (obj.contains("axis")) {
@@ -280,7 +280,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["final_max_von_mises"] = r.final_max_von_mises;
     h["yield_stress"] = o.objective.yield_stress;
     h["exponent"] = o.objective.exponent;
-    h["normalize"] = o.objective.normalize;
+    h["normalize"] = o.objective.per_volume;
   }
   h["final_violation"] = r.final_violation;
   if (!r.outer.empty()) {
