@@ -360,6 +360,9 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   if (job.contains("reuse")) {
     const json& ru = job["reuse"];
     if (!ru.is_object()) PARAFAB_INPUT_ERROR("reuse must be an object {elements, factorization, tolerance, max_iterations}, got " << ru.dump());
+    for (const auto& kv : ru.items())
+      if (kv.key() != "elements" && kv.key() != "factorization" && kv.key() != "tolerance" && kv.key() != "max_iterations")
+        PARAFAB_INPUT_ERROR("reuse." << kv.key() << " is not a field of reuse (elements, factorization, tolerance, max_iterations)");
     auto flag = [&](const char* key, bool& out) {
       if (!ru.contains(key)) return;
       if (!ru[key].is_boolean()) PARAFAB_INPUT_ERROR("reuse." << key << " must be true or false, got " << ru[key].dump());
