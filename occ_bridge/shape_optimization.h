@@ -29,14 +29,25 @@ struct PartShape;
 ///  "inertia_alignment": |I a − (aᵀ I a) a|² / (tr I)², I the inertia about the centre (the axis
 ///  a a principal axis); "balance": center_of_mass / L² + inertia_alignment (L: bbox diagonal).
 ///  "compliance": fᵀu of the linear XFEM solve (ShapeOptimizationOptions::compliance; not a
-///  function of the moments: objective_from_moments rejects it).
+///  function of the moments: objective_from_moments gives 0 for it).
+///  "sum": Σ weightᵢ · fᵢ / scaleᵢ over `terms` (each of another type than "sum"); with
+///  `normalize` optimize_shape sets every scaleᵢ to |fᵢ| at the start (terms of different units
+///  then weigh by their relative change; a term that is 0 at the start keeps scale 1).
 struct ObjectiveSpec {
   std::string type = "mass";
   double density = 1;
   Vec3 point = Vec3::Zero();
   Vec3 axis = Vec3::UnitZ();
   double length_scale = 1;  ///< L of "balance" (set from the part when 0 or negative)
+  double weight = 1;        ///< as a term of a "sum"
+  double scale = 1;         ///< as a term of a "sum" (divides the term)
+  std::vector<ObjectiveSpec> terms;  ///< of a "sum"
+  bool normalize = false;            ///< of a "sum": scales from the start values
 };
+
+/// The factor of the compliance in `spec`: 1 for "compliance", Σ weight/scale of the compliance
+/// terms of a "sum", 0 otherwise.
+double compliance_weight(const ObjectiveSpec& spec);
 
 /// The objective value and d value / d moments.
 double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient);
