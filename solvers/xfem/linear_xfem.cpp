@@ -904,4 +904,38 @@ Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std:
   return H;
 }
 
+namespace {
+template <int NN>
+void displacement_and_gradient_n(const LinearXfemResult& result, const GridElement& el, const std::vector<int>& node,
+                                 const std::vector<Vec3>& X, std::vector<Vec3>& u, std::vector<Eigen::Matrix3d>& H) {
+  Eigen::Matrix<double, 3, NN> U;
+  for (int k = 0; k < NN; ++k) U.col(k) = result.u.segment<3>(3 * node[k]);
+  Eigen::Matrix<double, NN, 1> N;
+  Eigen::Matrix<double, NN, 3> G;
+  for (size_t i = 0; i < X.size(); ++i) {
+    shape<NN>(el.box, X[i], N, G);
+    u[i] = U * N;
+    H[i] = U * G;
+  }
+}
+}  // namespace
+
+void displacement_and_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
+                               const std::vector<Vec3>& X, std::vector<Vec3>& u, std::vector<Eigen::Matrix3d>& H) {
+  const auto& node = result.node[e];
+  u.resize(X.size());
+  H.resize(X.size());
+  if (node.size() == 27) displacement_and_gradient_n<27>(result, elements[e], node, X, u, H);
+  else {
+    PARAFAB_VERIFY(node.size() == 8, "element " << e << " with " << node.size() << " nodes (8 or 27 expected)");
+    displacement_and_gradient_n<8>(result, elements[e], node, X, u, H);
+  }
+}
+
+Eigen::Matrix<double, 6, 1> stress_from_gradient(const ElasticMaterial& material, const Eigen::Matrix3d& H) {
+  Eigen::Matrix<double, 6, 1> eps;  // Voigt, engineering shears
+  eps << H(0, 0), H(1, 1), H(2, 2), H(0, 1) + H(1, 0), H(1, 2) + H(2, 1), H(0, 2) + H(2, 0);
+  return elasticity(material) * eps;
+}
+
 }  // namespace parafab::xfem

@@ -551,11 +551,13 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   xfem::LinearXfemResult r;
   json newton = nullptr;
   StressFn stress;
+  std::function<Eigen::Matrix<double, 6, 1>(const Eigen::Matrix3d&)> stress_of_gradient;  // σ from ∇u
   report(model_name_is_linear(S.model) ? "solve" : "newton", 0.65);
   if (model_name_is_linear(S.model)) {
     if (!linear_solver_) linear_solver_ = std::make_unique<xfem::LinearXfemSolver>();
     r = linear_solver_->solve(grid.elements, grid.adjacent, mat, S.dirichlet, S.tractions, S.fo);
     stress = [&](int e, const Vec3& X) { return xfem::stress_at(r, grid.elements, mat, e, X); };
+    stress_of_gradient = [&mat](const Eigen::Matrix3d& H) { return xfem::stress_from_gradient(mat, H); };
   } else {
     xfem::NonlinearXfemOptions no;
     no.boundary = S.fo;
@@ -570,6 +572,13 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     const xfem::Material* law = S.law.get();
     stress = [&r, &grid, law](int e, const Vec3& X) {  // Cauchy stress σ = P Fᵀ / J
       const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + xfem::displacement_gradient(r, grid.elements, e, X);
+      const Eigen::Matrix3d sig = law->stress(F) * F.transpose() / F.determinant();
+      Eigen::Matrix<double, 6, 1> v;
+      v << sig(0, 0), sig(1, 1), sig(2, 2), sig(0, 1), sig(1, 2), sig(0, 2);
+      return v;
+    };
+    stress_of_gradient = [law](const Eigen::Matrix3d& H) {  // the same from ∇u
+      const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + H;
       const Eigen::Matrix3d sig = law->stress(F) * F.transpose() / F.determinant();
       Eigen::Matrix<double, 6, 1> v;
       v << sig(0, 0), sig(1, 1), sig(2, 2), sig(0, 1), sig(1, 2), sig(0, 2);
@@ -603,22 +612,25 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   const size_t grain = 64;
   std::vector<Partial> partial((n_el + grain - 1) / grain);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, partial.size()), [&](const tbb::blocked_range<size_t>& range) {
+    std::vector<Vec3> X, U;
+    std::vector<Eigen::Matrix3d> H;
     for (size_t c = range.begin(); c != range.end(); ++c) {
       Partial& P = partial[c];
       for (size_t e = c * grain; e < std::min(n_el, (c + 1) * grain); ++e) {
         const auto& el = grid.elements[e];
         const int ei = static_cast<int>(e);
-        auto add_u = [&](const Vec3& X) {
-          const double u = r.displacement(grid.elements, ei, X).norm();
+        X.clear();
+        for (int k = 0; k < 8; ++k) X.push_back(xfem::corner(el.box, k));
+        X.insert(X.end(), el.rule.points.begin(), el.rule.points.end());
+        xfem::displacement_and_gradient(r, grid.elements, ei, X, U, H);
+        for (size_t i = 0; i < X.size(); ++i) {
+          const double u = U[i].norm();
           if (!el.subvolume) P.umax = std::max(P.umax, u);
-          else if (u > P.umax) P.cut_u.push_back({u, ei, X});
-        };
-        for (int k = 0; k < 8; ++k) add_u(xfem::corner(el.box, k));
-        for (const Vec3& X : el.rule.points) {
-          add_u(X);
-          const double vm = xfem::von_mises(stress(ei, X));
+          else if (u > P.umax) P.cut_u.push_back({u, ei, X[i]});
+          if (i < 8) continue;  // von Mises at the rule points only
+          const double vm = xfem::von_mises(stress_of_gradient(H[i]));
           if (!el.subvolume) P.vmmax = std::max(P.vmmax, vm);
-          else if (vm > P.vmmax) P.cut_vm.push_back({vm, ei, X});
+          else if (vm > P.vmmax) P.cut_vm.push_back({vm, ei, X[i]});
         }
       }
     }
