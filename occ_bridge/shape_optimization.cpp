@@ -38,6 +38,28 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
     const Dual trace_i = 2.0 * (sxx + syy + szz);
     return dot(off, off) / (trace_i * trace_i);
   };
+  if (spec.type == "sum") {
+    if (spec.terms.empty()) PARAFAB_INPUT_ERROR("objective 'sum' has no terms");
+    double f = 0;
+    Eigen::Matrix<double, 10, 1> g = Eigen::Matrix<double, 10, 1>::Zero(), gi;
+    for (size_t i = 0; i < spec.terms.size(); ++i) {
+      const ObjectiveSpec& t = spec.terms[i];
+      if (t.type == "sum") PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum cannot be a term of a sum");
+      if (t.type == "failure")
+        PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: 'failure' is not supported as a term of a sum yet");
+      if (!(t.scale > 0) || !std::isfinite(t.weight))
+        PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: weight " << t.weight << ", scale " << t.scale);
+      const double fi = objective_from_moments(t, m, &gi);
+      f += t.weight / t.scale * fi;
+      g += t.weight / t.scale * gi;
+    }
+    if (gradient) *gradient = g;
+    return f;
+  }
+  if (spec.type == "compliance" || spec.type == "failure") {  // not functions of the moments (optimize_shape adds them)
+    if (gradient) gradient->setZero();
+    return 0;
+  }
   Dual f;
   if (spec.type == "mass") f = spec.density * x[0];
   else if (spec.type == "volume") f = x[0] * 1.0;
@@ -46,10 +68,19 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
   else if (spec.type == "balance") f = center_term() / (spec.length_scale * spec.length_scale) + alignment_term();
   else
     PARAFAB_INPUT_ERROR("objective.type '" << spec.type
-                                           << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance; with an "
-                                              "elasticity job: compliance, failure)");
+                                           << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance, "
+                                              "compliance, failure, sum)");
   if (gradient) *gradient = f.g;
   return f.v;
+}
+
+double compliance_weight(const ObjectiveSpec& spec) {
+  if (spec.type == "compliance") return 1;
+  double w = 0;
+  if (spec.type == "sum")
+    for (const ObjectiveSpec& t : spec.terms)
+      if (t.type == "compliance") w += t.weight / t.scale;
+  return w;
 }
 
 namespace {
@@ -71,22 +102,31 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   const ShapeParameters sp = build_shape_parameters(model, options.parameterization);
   result.notes = sp.notes;
   ObjectiveSpec spec = options.objective;
+  // Compliance alone or as terms of a sum (then `compliance` is its weight; moment terms are
+  // added by objective_from_moments); "failure" solves the same elasticity job.
   const bool failure = spec.type == "failure";
-  const bool compliance = spec.type == "compliance" || failure;  // both solve the elasticity job
+  bool has_compliance = spec.type == "compliance" || failure;
+  for (const ObjectiveSpec& t : spec.terms) has_compliance |= spec.type == "sum" && t.type == "compliance";
+  const bool compliance = has_compliance;
   const FailureOptions failure_options{spec.yield_stress, spec.exponent, spec.per_volume};
   if (failure) check_failure_options(failure_options);
+  {
+    Eigen::Matrix<double, 10, 1> g;
+    objective_from_moments(spec, Moments::Zero().unaryExpr([](double) { return 1.0; }), &g);  // validates the type
+  }
   if (compliance) {
     PARAFAB_VERIFY(options.compliance, "objective '" << spec.type << "' needs the elasticity job (material, supports, loads, grid)");
     PARAFAB_VERIFY(options.compliance_step > 0, "compliance_step must be positive, got " << options.compliance_step);
     result.gradient = "semi-analytic";
-  } else {
-    Eigen::Matrix<double, 10, 1> g;
-    objective_from_moments(spec, Moments::Zero().unaryExpr([](double) { return 1.0; }), &g);  // validates the type
   }
-  if (spec.length_scale <= 0) {
+  {
     const PartInfo info = part_info(part);
-    spec.length_scale = (info.bbox_max - info.bbox_min).norm();
+    const double L = (info.bbox_max - info.bbox_min).norm();
+    if (spec.length_scale <= 0) spec.length_scale = L;
+    for (ObjectiveSpec& t : spec.terms)
+      if (t.length_scale <= 0) t.length_scale = L;
   }
+  bool scales_set = !(spec.type == "sum" && spec.normalize);
   // Design entries.
   std::vector<int> design = options.design;
   std::set<int> fixed(sp.fixed_faces.begin(), sp.fixed_faces.end());
@@ -207,7 +247,15 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           return false;
         }
       }
-      f = state->compliance;
+      if (!scales_set) {  // "normalize": every term divided by its value at the start
+        for (ObjectiveSpec& t : spec.terms) {
+          const double v = t.type == "compliance" ? state->compliance : objective_from_moments(t, md.moments, nullptr);
+          t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
+        }
+        scales_set = true;
+      }
+      const double cw = compliance_weight(spec);
+      f = cw * state->compliance + objective_from_moments(spec, md.moments, &dfdm);
       FailureValue fv;
       Eigen::VectorXd adjoint;
       if (failure) {
@@ -241,11 +289,18 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
             result.notes.push_back("compliance gradient of '" + sp.names[design[k]] + "': " + cd.message);
           return false;
         }
-        compliance_gradient[k] = cd.derivative;
+        compliance_gradient[k] = (failure ? 1.0 : cw) * cd.derivative;
         result.topology_switches += cd.topology_switches;
         result.gradient_cells += cd.cells_changed;
       }
     } else if (!compliance) {
+      if (!scales_set) {
+        for (ObjectiveSpec& t : spec.terms) {
+          const double v = objective_from_moments(t, md.moments, nullptr);
+          t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
+        }
+        scales_set = true;
+      }
       f = objective_from_moments(spec, md.moments, &dfdm);
     }
     Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;

@@ -31,9 +31,13 @@ struct PartShape;
 ///  "inertia_alignment": |I a − (aᵀ I a) a|² / (tr I)², I the inertia about the centre (the axis
 ///  a a principal axis); "balance": center_of_mass / L² + inertia_alignment (L: bbox diagonal).
 ///  "compliance": fᵀu of the linear XFEM solve (ShapeOptimizationOptions::compliance; not a
-///  function of the moments: objective_from_moments rejects it).
+///  function of the moments: objective_from_moments gives 0 for it).
 ///  "failure": (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (or the bare integral when per_volume is false) of
-///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, per_volume — JSON "normalize").
+///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, per_volume — JSON
+///  "normalize"); objective_from_moments gives 0 for it; not a term of a "sum" yet.
+///  "sum": Σ weightᵢ · fᵢ / scaleᵢ over `terms` (each of another type than "sum"); with
+///  `normalize` optimize_shape sets every scaleᵢ to |fᵢ| at the start (terms of different units
+///  then weigh by their relative change; a term that is 0 at the start keeps scale 1).
 struct ObjectiveSpec {
   std::string type = "mass";
   double density = 1;
@@ -43,7 +47,15 @@ struct ObjectiveSpec {
   double yield_stress = 0;  ///< σ_y of "failure" (required > 0)
   double exponent = 0;      ///< α of "failure" (required > 0)
   bool per_volume = true;   ///< "failure": divide the integral by the volume (JSON objective.normalize)
+  double weight = 1;        ///< as a term of a "sum"
+  double scale = 1;         ///< as a term of a "sum" (divides the term)
+  std::vector<ObjectiveSpec> terms;  ///< of a "sum"
+  bool normalize = false;            ///< of a "sum": scales from the start values
 };
+
+/// The factor of the compliance in `spec`: 1 for "compliance", Σ weight/scale of the compliance
+/// terms of a "sum", 0 otherwise.
+double compliance_weight(const ObjectiveSpec& spec);
 
 /// The objective value and d value / d moments.
 double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient);

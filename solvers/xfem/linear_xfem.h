@@ -308,4 +308,12 @@ namespace parafab::xfem {
 Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements,
                                       int e, const Vec3& X);
 
+/// u and ∇u at several points of element e: the element's nodal values gathered once, one
+/// fixed-size shape-function evaluation per point (the results pass over every rule point).
+void displacement_and_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
+                               const std::vector<Vec3>& X, std::vector<Vec3>& u, std::vector<Eigen::Matrix3d>& H);
+
+/// Small-strain Cauchy stress σ = D ε(∇u) (Voigt xx, yy, zz, xy, yz, xz).
+Eigen::Matrix<double, 6, 1> stress_from_gradient(const ElasticMaterial& material, const Eigen::Matrix3d& H);
+
 }  // namespace parafab::xfem

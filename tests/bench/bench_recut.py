@@ -28,9 +28,10 @@ BEFORE = os.path.join(REPO, "samples", "parts", "l_bracket.step")
 AFTER = os.path.join(REPO, "samples", "parts", "l_bracket_holes5.step")
 
 
-def xfem_update(cells, repeats):
+def xfem_update(cells, repeats, element="hex8"):
     job = json.load(open(base.JOB))
     job["grid"] = {"cells": cells}
+    job["element"] = element
     first, update, fresh = [], [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -44,7 +45,7 @@ def xfem_update(cells, repeats):
         fr = parafab.simulate(AFTER, job)
         fresh.append(time.perf_counter() - t0)
     med = lambda v: sorted(v)[len(v) // 2]
-    return {"cells": cells, "unknowns": up["dofs"], "first_seconds": med(first), "update_seconds": med(update),
+    return {"cells": cells, "element": element, "solver": up.get("solver"), "unknowns": up["dofs"], "first_seconds": med(first), "update_seconds": med(update),
             "fresh_seconds": med(fresh), "u_probe": up["probes"][0]["displacement"][2],
             "u_probe_fresh": fr["probes"][0]["displacement"][2], "recut": up["recut"], "parts": up["seconds"],
             "fresh_parts": fr["seconds"]}
@@ -68,7 +69,9 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     base.PART = AFTER  # the CalculiX route meshes the changed part
     reference = base.calculix(2.0 if a.quick else 1.5)
-    xf = [xfem_update(c, 1 if a.quick else 3) for c in ([12, 16] if a.quick else [16, 24, 32])]
+    runs = [("hex8", 12), ("hex8", 16)] if a.quick else [("hex8", 16), ("hex8", 24), ("hex8", 32), ("hex27", 6),
+                                                         ("hex27", 8), ("hex27", 12)]
+    xf = [xfem_update(c, 1 if a.quick else 3, e) for e, c in runs]
     cx = [base.calculix(s) for s in ([6, 4] if a.quick else [8, 6, 4, 3, 2])]
     uref = reference["u_probe"]
     for r in xf:
@@ -86,10 +89,12 @@ def main():
         else:
             what = "%d of %d blocks, %d kept / %d new" % (rc["blocks_recut"], rc["blocks"], rc["subvolumes_kept"],
                                                           rc["subvolumes_new"])
+        sv = r["solver"] or {}
+        what += "; solve %s (%s CG iterations)" % (sv.get("method"), sv.get("iterations"))
         print("%-26s %8d %9d %9.2f %9.2e  %s" % (
-            "XFEM update (re-cut)", r["cells"], r["unknowns"], r["update_seconds"], r["error"], what))
+            "XFEM %s update (re-cut)" % r["element"], r["cells"], r["unknowns"], r["update_seconds"], r["error"], what))
         print("%-26s %8d %9d %9.2f %9.2e  (first run on the old part %.2f s)" % (
-            "XFEM fresh", r["cells"], r["unknowns"], r["fresh_seconds"], r["fresh_error"], r["first_seconds"]))
+            "XFEM %s fresh" % r["element"], r["cells"], r["unknowns"], r["fresh_seconds"], r["fresh_error"], r["first_seconds"]))
     for r in cx:
         print("%-26s %8s %9d %9.2f %9.2e" % ("Gmsh + CalculiX tet10", "h=%g" % r["resolution"], r["unknowns"],
                                              r["seconds"], r["error"]))
@@ -98,8 +103,8 @@ def main():
         r["calculix_seconds_at_equal_error"] = t
         r["speedup_vs_remesh"] = t / r["update_seconds"] if t else None
         r["speedup_vs_fresh_xfem"] = r["fresh_seconds"] / r["update_seconds"]
-        print("grid %d: update %.2f s; fresh XFEM %.1f× slower; Gmsh + CalculiX at equal error %s" % (
-            r["cells"], r["update_seconds"], r["speedup_vs_fresh_xfem"],
+        print("%s grid %d: update %.2f s; fresh XFEM %.1f× slower; Gmsh + CalculiX at equal error %s" % (
+            r["element"], r["cells"], r["update_seconds"], r["speedup_vs_fresh_xfem"],
             "%.2f s → speed-up %.2f× (goal ≥ 5)" % (t, r["speedup_vs_remesh"]) if t else "outside the measured range"))
     data = {"part": "l_bracket → l_bracket_holes5", "probe": [60, 20, 4], "reference": reference, "xfem": xf,
             "calculix": cx}
@@ -108,11 +113,17 @@ def main():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    ax.loglog([r["update_seconds"] for r in xf], [r["error"] for r in xf], "o-", label="XFEM update (re-cut changed blocks + solve)")
-    ax.loglog([r["fresh_seconds"] for r in xf], [r["fresh_error"] for r in xf], "^:", label="XFEM fresh (cut + rules + solve)")
+    for e, mk in (("hex8", "o"), ("hex27", "D")):
+        sel = [r for r in xf if r["element"] == e]
+        if not sel:
+            continue
+        ax.loglog([r["update_seconds"] for r in sel], [r["error"] for r in sel], mk + "-",
+                  label="XFEM %s update (re-cut changed cells, re-solve with reuse)" % e)
+        ax.loglog([r["fresh_seconds"] for r in sel], [r["fresh_error"] for r in sel], mk + ":", mfc="none",
+                  label="XFEM %s fresh (cut + rules + solve)" % e)
     ax.loglog([r["seconds"] for r in cx], [r["error"] for r in cx], "s--", label="Gmsh + CalculiX tet10 (remesh + solve)")
     for r in xf:
-        ax.annotate(str(r["cells"]), (r["update_seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.annotate("%s %d" % (r["element"], r["cells"]), (r["update_seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     for r in cx:
         ax.annotate("h=%g" % r["resolution"], (r["seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     ax.set_xlabel("wall time after the change [s]")

@@ -218,6 +218,33 @@ class OptimizeFeatureTest(unittest.TestCase):
               file=sys.stderr)
         self.assertLess(c1, c0)
 
+    def test_balance_and_compliance_is_a_normalized_sum(self):
+        """The panel's "Balance + compliance" objective sends a normalized weighted sum whose
+        terms share the global axis mapped into the part's frame; the engine's start value of a
+        normalized sum is the sum of the weights (each term divided by its own start value)."""
+        import parafab
+        shape = self.wheel.Shape.copy()
+        faces = sorted(range(len(shape.Faces)), key=lambda i: shape.Faces[i].BoundBox.ZMin)
+        support, load = "Face%d" % (faces[0] + 1), "Face%d" % (faces[-1] + 1)
+        params = [p for p in self.options["parameters"] if p[0] not in (support, load)][:2]
+        opts = dict(self.options, objective="balance_and_compliance", supports=[support], loads=[load],
+                    force=(0, 0, -100), cells=6, max_iterations=0, weights=[1.0, 0.5], parameters=params, ties=[])
+        job = optimize_feature.build_job(shape, opts, self.wheel.Placement)
+        obj = job["objective"]
+        self.assertEqual(obj["type"], "sum")
+        self.assertTrue(obj["normalize"])
+        self.assertEqual([(t["type"], t["weight"]) for t in obj["terms"]], [("balance", 1.0), ("compliance", 0.5)])
+        self.assertEqual(obj["terms"][0]["axis"], obj["terms"][1]["axis"])
+        local = self.wheel.Placement.inverse().Rotation.multVec(self.axis_dir)
+        for a, b in zip(obj["terms"][0]["axis"]["direction"], (local.x, local.y, local.z)):
+            self.assertAlmostEqual(a, b, delta=1e-12)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "2 terms but 1 weights"):
+            optimize_feature.build_job(shape, dict(opts, weights=[1.0]), self.wheel.Placement)
+        h = parafab.optimize(WHEEL, job)  # the job is in the part's own frame (the file's)
+        print("\n[optimize] wheel balance + 0.5 compliance, normalized start value %.15g" % h["initial_objective"],
+              file=sys.stderr)
+        self.assertAlmostEqual(h["initial_objective"], 1.5, delta=1e-12)
+
     def test_objective_list_is_extensible(self):
         types = [o.type for o in optimize_feature.OBJECTIVES]
         self.assertEqual(types[:3], ["center_of_mass", "inertia_alignment", "balance"])

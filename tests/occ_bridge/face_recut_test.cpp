@@ -207,9 +207,10 @@ void check_recut(const Change& c) {
               c.after->face_count(), r.subvolumes_kept, r.subvolumes_new, dm,
               std::abs(volume - occt_volume(*c.after)) / occt_volume(*c.after), du);
   // Measured: moments ≤ 1.1e-16 (kept rules are the old ones, re-cut cells the same
-  // computation), field ≤ 1.4e-13 (element order differs: round-off of the solve).
+  // computation), field ≤ 1.0e-12 (24 cells; 1.7e-13–3.2e-13 at 14): element and node order
+  // differ, so do the round-off of the assembly's sums and the factorization's ordering.
   EXPECT_LT(dm, 1e-14) << c.what;
-  EXPECT_LT(du, 1e-12) << c.what;
+  EXPECT_LT(du, 3e-12) << c.what;
   EXPECT_LE(r.cells_recut, c.max_recut_cells) << c.what;
   EXPECT_EQ(r.planes_moved, c.planes_moved) << c.what;
   EXPECT_EQ(r.old_cut_cells, static_cast<int>(old_model.cut->cut_cells.size())) << c.what;

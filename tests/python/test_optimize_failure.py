@@ -100,6 +100,13 @@ class OptimizeFailure(unittest.TestCase):
             with self.assertRaises(parafab.Error) as e:
                 parafab.optimize(self.part, dict(JOB, objective=obj))
             self.assertIn("objective." + field, str(e.exception))
+        # Not a term of a weighted sum yet: an error naming the term.
+        code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "y")],
+                        dict(JOB, objective={"type": "sum", "terms": [
+                            {"type": "volume"}, {"type": "failure", "yield_stress": 100, "exponent": 8}]}))
+        self.assertEqual(code, 2)
+        self.assertIn("objective.terms[1]", err["error"]["message"])
+        self.assertIn("failure", err["error"]["message"])
 
 
 if __name__ == "__main__":

@@ -70,6 +70,7 @@ class SimulationUpdate(unittest.TestCase):
         self.assertEqual(s["factorizations"], 1)
         self.assertGreater(s["iterations"], 0)
         self.assertLessEqual(s["iterations"], 10)  # measured 7 (432 of 3165 unknowns changed)
+        self.assertGreater(s["residual"], 0)  # the true residual ‖f − K u‖ / ‖f‖ (measured 3.9e-11), not a default
         self.assertLessEqual(s["residual"], 1e-10)
         self.assertGreaterEqual(s["cached_element_matrices"], rc["subvolumes_kept"])
         self.assertEqual(up["dofs"], self.fresh["dofs"])
@@ -98,7 +99,8 @@ class SimulationUpdate(unittest.TestCase):
 
     def test_bad_reuse_fields_are_named(self):
         for bad, field in [({"tolerance": 2}, "reuse.tolerance"), ({"max_iterations": -1}, "reuse.max_iterations"),
-                           ({"elements": 1}, "reuse.elements"), ("yes", "reuse")]:
+                           ({"elements": 1}, "reuse.elements"), ("yes", "reuse"),
+                           ({"factorisation": False}, "reuse.factorisation is not a field")]:
             with self.assertRaises(Exception) as cm:
                 parafab.Simulation(BEFORE, job(reuse=bad))
             self.assertIn(field, str(cm.exception))

@@ -1,6 +1,8 @@
 // JSON layer of the shape optimization (thesis §6.5): job parsing, history output, chart.
 #include "optimize_json.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -114,6 +116,50 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   return s;
 }
 
+// One objective (not its terms): type and the fields of the moment objectives; `path` names it
+// in errors ("objective", "objective.terms[2]").
+occ::ObjectiveSpec objective_spec(const json& obj, const std::string& path, bool& needs_compliance) {
+  if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be an object with a \"type\"");
+  occ::ObjectiveSpec spec;
+  const json& type = fields::require(obj, "type", path);
+  if (!type.is_string()) PARAFAB_INPUT_ERROR(path << ".type must be a string");
+  spec.type = type.get<std::string>();
+  if (spec.type == "stress")
+    PARAFAB_INPUT_ERROR(path << ".type 'stress' is called 'failure' (yield_stress, exponent, normalize); available: "
+                                "mass, volume, center_of_mass, inertia_alignment, balance, compliance, failure, sum");
+  static const char* known[] = {"mass",       "volume",  "center_of_mass", "inertia_alignment",
+                                "balance",    "compliance", "failure",     "sum"};
+  if (std::find(std::begin(known), std::end(known), spec.type) == std::end(known))
+    PARAFAB_INPUT_ERROR(path << ".type '" << spec.type
+                             << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance, compliance, "
+                                "failure, sum)");
+  needs_compliance |= spec.type == "compliance" || spec.type == "failure";
+  if (spec.type == "failure") {
+    // (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (thesis §6.2.3 Eq. 6.4); the fields are required.
+    spec.yield_stress = number(fields::require(obj, "yield_stress", path), path + ".yield_stress");
+    spec.exponent = number(fields::require(obj, "exponent", path), path + ".exponent");
+    if (obj.contains("normalize")) {
+      if (!obj["normalize"].is_boolean())
+        PARAFAB_INPUT_ERROR(path << ".normalize must be true or false, got " << obj["normalize"].dump());
+      spec.per_volume = obj["normalize"].get<bool>();
+    }
+    occ::check_failure_options({spec.yield_stress, spec.exponent, spec.per_volume});
+  }
+  if (obj.contains("density")) spec.density = number(obj["density"], path + ".density");
+  if (obj.contains("axis")) {
+    const json& axis = obj["axis"];
+    if (axis.is_array()) {
+      spec.axis = vec3(axis, path + ".axis");
+    } else {
+      if (axis.contains("point")) spec.point = vec3(axis["point"], path + ".axis.point");
+      spec.axis = vec3(fields::require(axis, "direction", path + ".axis"), path + ".axis.direction");
+    }
+    if (spec.axis.norm() < 1e-12) PARAFAB_INPUT_ERROR(path << ".axis direction is zero");
+  }
+  spec.length_scale = obj.contains("length_scale") ? number(obj["length_scale"], path + ".length_scale") : 0;
+  return spec;
+}
+
 }  // namespace
 
 json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
@@ -122,43 +168,34 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   const auto part = occ::read_part(part_path);
   occ::ShapeOptimizationOptions o;
 
-  // Objective.
+  // Objective: one type, or "sum" of weighted terms of the other types.
   const json& obj = fields::require(job, "objective", "job");
-  const json& type = fields::require(obj, "type", "objective");
-  if (!type.is_string()) PARAFAB_INPUT_ERROR("objective.type must be a string");
-  o.objective.type = type.get<std::string>();
-  if (o.objective.type == "stress")
-    PARAFAB_INPUT_ERROR("objective.type 'stress' is called 'failure' (yield_stress, exponent, normalize); available: "
-                        "mass, volume, center_of_mass, inertia_alignment, balance, compliance, failure");
-  if (o.objective.type == "failure") {
-    // (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (thesis §6.2.3 Eq. 6.4); the fields are required.
-    o.objective.yield_stress = number(fields::require(obj, "yield_stress", "objective"), "objective.yield_stress");
-    o.objective.exponent = number(fields::require(obj, "exponent", "objective"), "objective.exponent");
+  bool needs_compliance = false;
+  o.objective = objective_spec(obj, "objective", needs_compliance);
+  if (o.objective.type == "sum") {
+    const json& terms = fields::require(obj, "terms", "objective");
+    if (!terms.is_array() || terms.empty())
+      PARAFAB_INPUT_ERROR("objective.terms must be a non-empty list of {\"type\", \"weight\", ...}");
+    for (size_t i = 0; i < terms.size(); ++i) {
+      const std::string path = "objective.terms[" + std::to_string(i) + "]";
+      occ::ObjectiveSpec t = objective_spec(terms[i], path, needs_compliance);
+      if (t.type == "sum") PARAFAB_INPUT_ERROR(path << ".type: a sum cannot be a term of a sum");
+      if (t.type == "failure") PARAFAB_INPUT_ERROR(path << ".type: 'failure' is not supported as a term of a sum yet");
+      t.weight = terms[i].contains("weight") ? number(terms[i]["weight"], path + ".weight") : 1.0;
+      if (!std::isfinite(t.weight)) PARAFAB_INPUT_ERROR(path << ".weight must be finite, got " << t.weight);
+      o.objective.terms.push_back(t);
+    }
     if (obj.contains("normalize")) {
-      if (!obj["normalize"].is_boolean())
-        PARAFAB_INPUT_ERROR("objective.normalize must be true or false, got " << obj["normalize"].dump());
-      o.objective.per_volume = obj["normalize"].get<bool>();
+      if (!obj["normalize"].is_boolean()) PARAFAB_INPUT_ERROR("objective.normalize must be true or false");
+      o.objective.normalize = obj["normalize"].get<bool>();
     }
-    occ::check_failure_options({o.objective.yield_stress, o.objective.exponent, o.objective.per_volume});
   }
-  if (obj.contains("density")) o.objective.density = number(obj["density"], "objective.density");
-  if (obj.contains("axis")) {
-    const json& axis = obj["axis"];
-    if (axis.is_array()) {
-      o.objective.axis = vec3(axis, "objective.axis");
-    } else {
-      if (axis.contains("point")) o.objective.point = vec3(axis["point"], "objective.axis.point");
-      o.objective.axis = vec3(fields::require(axis, "direction", "objective.axis"), "objective.axis.direction");
-    }
-    if (o.objective.axis.norm() < 1e-12) PARAFAB_INPUT_ERROR("objective.axis direction is zero");
-  }
-  if (obj.contains("length_scale")) o.objective.length_scale = number(obj["length_scale"], "objective.length_scale");
-  else o.objective.length_scale = 0;
-  if (o.objective.type == "compliance" || o.objective.type == "failure") {
+  if (needs_compliance) {
     o.compliance = compliance_setup(*part, job);
     if (obj.contains("step")) o.compliance_step = number(obj["step"], "objective.step");
     if (!(o.compliance_step > 0)) PARAFAB_INPUT_ERROR("objective.step must be positive, got " << o.compliance_step);
-  } else {  // the type is valid?
+  }
+  {  // the types are valid?
     Eigen::Matrix<double, 10, 1> g;
     occ::Moments m = occ::Moments::Ones();
     occ::objective_from_moments(o.objective, m, &g);
@@ -267,6 +304,12 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   h["initial_objective"] = r.initial_objective;
   h["final_objective"] = r.final_objective;
   h["objective"] = o.objective.type;
+  if (o.objective.type == "sum") {
+    json terms = json::array();
+    for (const auto& t : o.objective.terms) terms.push_back({{"type", t.type}, {"weight", t.weight}});
+    h["objective_terms"] = terms;
+    h["objective_normalized"] = o.objective.normalize;
+  }
   h["initial_volume"] = r.initial_volume;
   h["final_volume"] = r.final_volume;
   h["tangency_residual_max"] = r.tangency_residual_max;

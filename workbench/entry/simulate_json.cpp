@@ -1,6 +1,7 @@
 #include "simulate_json.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -360,6 +361,9 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   if (job.contains("reuse")) {
     const json& ru = job["reuse"];
     if (!ru.is_object()) PARAFAB_INPUT_ERROR("reuse must be an object {elements, factorization, tolerance, max_iterations}, got " << ru.dump());
+    for (const auto& kv : ru.items())
+      if (kv.key() != "elements" && kv.key() != "factorization" && kv.key() != "tolerance" && kv.key() != "max_iterations")
+        PARAFAB_INPUT_ERROR("reuse." << kv.key() << " is not a field of reuse (elements, factorization, tolerance, max_iterations)");
     auto flag = [&](const char* key, bool& out) {
       if (!ru.contains(key)) return;
       if (!ru[key].is_boolean()) PARAFAB_INPUT_ERROR("reuse." << key << " must be true or false, got " << ru[key].dump());
@@ -547,11 +551,13 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   xfem::LinearXfemResult r;
   json newton = nullptr;
   StressFn stress;
+  std::function<Eigen::Matrix<double, 6, 1>(const Eigen::Matrix3d&)> stress_of_gradient;  // σ from ∇u
   report(model_name_is_linear(S.model) ? "solve" : "newton", 0.65);
   if (model_name_is_linear(S.model)) {
     if (!linear_solver_) linear_solver_ = std::make_unique<xfem::LinearXfemSolver>();
     r = linear_solver_->solve(grid.elements, grid.adjacent, mat, S.dirichlet, S.tractions, S.fo);
     stress = [&](int e, const Vec3& X) { return xfem::stress_at(r, grid.elements, mat, e, X); };
+    stress_of_gradient = [&mat](const Eigen::Matrix3d& H) { return xfem::stress_from_gradient(mat, H); };
   } else {
     xfem::NonlinearXfemOptions no;
     no.boundary = S.fo;
@@ -571,6 +577,13 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
       v << sig(0, 0), sig(1, 1), sig(2, 2), sig(0, 1), sig(1, 2), sig(0, 2);
       return v;
     };
+    stress_of_gradient = [law](const Eigen::Matrix3d& H) {  // the same from ∇u
+      const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + H;
+      const Eigen::Matrix3d sig = law->stress(F) * F.transpose() / F.determinant();
+      Eigen::Matrix<double, 6, 1> v;
+      v << sig(0, 0), sig(1, 1), sig(2, 2), sig(0, 1), sig(1, 2), sig(0, 2);
+      return v;
+    };
   }
   if (!r.solved) PARAFAB_INPUT_ERROR("the simulation could not be solved: " << r.message);
   report("results", 0.9);
@@ -585,36 +598,79 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     int element;
     Vec3 X;
   };
+  xfem::MassAccumulator acc;
+  for (const auto& el : grid.elements) acc.add(el.rule.points, el.rule.weights);
+  // Field evaluation in parallel (TBB), one partial result per chunk of elements: the maxima
+  // over uncut elements and every cut-element point above its chunk's running maximum. The
+  // final values do not depend on the chunking: a candidate at or below the overall uncut
+  // maximum is discarded below.
+  struct Partial {
+    double umax = 0, vmmax = 0;
+    std::vector<Candidate> cut_u, cut_vm;
+  };
+  const size_t n_el = grid.elements.size();
+  const size_t grain = 64;
+  std::vector<Partial> partial((n_el + grain - 1) / grain);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, partial.size()), [&](const tbb::blocked_range<size_t>& range) {
+    std::vector<Vec3> X, U;
+    std::vector<Eigen::Matrix3d> H;
+    for (size_t c = range.begin(); c != range.end(); ++c) {
+      Partial& P = partial[c];
+      for (size_t e = c * grain; e < std::min(n_el, (c + 1) * grain); ++e) {
+        const auto& el = grid.elements[e];
+        const int ei = static_cast<int>(e);
+        X.clear();
+        for (int k = 0; k < 8; ++k) X.push_back(xfem::corner(el.box, k));
+        X.insert(X.end(), el.rule.points.begin(), el.rule.points.end());
+        xfem::displacement_and_gradient(r, grid.elements, ei, X, U, H);
+        for (size_t i = 0; i < X.size(); ++i) {
+          const double u = U[i].norm();
+          if (!el.subvolume) P.umax = std::max(P.umax, u);
+          else if (u > P.umax) P.cut_u.push_back({u, ei, X[i]});
+          if (i < 8) continue;  // von Mises at the rule points only
+          const double vm = xfem::von_mises(stress_of_gradient(H[i]));
+          if (!el.subvolume) P.vmmax = std::max(P.vmmax, vm);
+          else if (vm > P.vmmax) P.cut_vm.push_back({vm, ei, X[i]});
+        }
+      }
+    }
+  });
   double umax = 0, vmmax = 0;
   std::vector<Candidate> cut_u, cut_vm;
-  xfem::MassAccumulator acc;
-  for (size_t e = 0; e < grid.elements.size(); ++e) {
-    const auto& el = grid.elements[e];
-    const int ei = static_cast<int>(e);
-    acc.add(el.rule.points, el.rule.weights);
-    auto add_u = [&](const Vec3& X) {
-      const double u = r.displacement(grid.elements, ei, X).norm();
-      if (!el.subvolume) umax = std::max(umax, u);
-      else if (u > umax) cut_u.push_back({u, ei, X});
-    };
-    for (int k = 0; k < 8; ++k) add_u(xfem::corner(el.box, k));
-    for (const Vec3& X : el.rule.points) {
-      add_u(X);
-      const double vm = xfem::von_mises(stress(ei, X));
-      if (!el.subvolume) vmmax = std::max(vmmax, vm);
-      else if (vm > vmmax) cut_vm.push_back({vm, ei, X});
-    }
+  for (Partial& P : partial) {
+    umax = std::max(umax, P.umax), vmmax = std::max(vmmax, P.vmmax);
+    cut_u.insert(cut_u.end(), P.cut_u.begin(), P.cut_u.end());
+    cut_vm.insert(cut_vm.end(), P.cut_vm.begin(), P.cut_vm.end());
   }
-  const occ::PointClassifier classifier(*part_, 1e-7 * diag);
+  // The largest candidate inside the material: candidates in decreasing order (ties by element
+  // and position, so the order is that of any thread count), classified by OCCT a batch at a
+  // time in parallel, one classifier per task; the first inside in that order wins.
   int classified = 0;
+  tbb::enumerable_thread_specific<std::unique_ptr<occ::PointClassifier>> classifiers;  // one per thread, made on first use
   auto largest_inside = [&](std::vector<Candidate>& c, double& best) {
-    std::sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) { return a.value > b.value; });
-    for (const Candidate& k : c) {
-      if (k.value <= best) break;
-      ++classified;
-      if (classifier.in_material(k.X)) {
-        best = k.value;
-        break;
+    c.erase(std::remove_if(c.begin(), c.end(), [&](const Candidate& k) { return k.value <= best; }), c.end());
+    std::sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) {
+      if (a.value != b.value) return a.value > b.value;
+      if (a.element != b.element) return a.element < b.element;
+      return std::lexicographical_compare(a.X.data(), a.X.data() + 3, b.X.data(), b.X.data() + 3);
+    });
+    // Batches grow (32, 64, ... 1024) so a long run of outside points costs few task launches.
+    size_t batch = 32;
+    std::vector<char> inside;
+    for (size_t begin = 0; begin < c.size(); begin += batch, batch = std::min<size_t>(2 * batch, 1024)) {
+      const size_t end = std::min(c.size(), begin + batch);
+      inside.assign(end - begin, 0);
+      tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 8), [&](const tbb::blocked_range<size_t>& range) {
+        auto& mine = classifiers.local();
+        if (!mine) mine = std::make_unique<occ::PointClassifier>(*part_, 1e-7 * diag);
+        for (size_t i = range.begin(); i != range.end(); ++i) inside[i - begin] = mine->in_material(c[i].X);
+      });
+      for (size_t i = begin; i < end; ++i) {
+        ++classified;
+        if (inside[i - begin]) {
+          best = c[i].value;
+          return;
+        }
       }
     }
   };

@@ -41,11 +41,14 @@ class Objective(object):
     loads are always sent when given (the engine keeps their faces fixed).
     """
 
-    def __init__(self, type, label, tooltip, uses=()):
+    def __init__(self, type, label, tooltip, uses=(), terms=()):
         self.type = type
         self.label = label
         self.tooltip = tooltip
         self.uses = tuple(uses)
+        #: For a weighted sum: the engine types of its terms (the job gets {"type": "sum",
+        #: "normalize": true, "terms": [...]}, weights from the option "weights", default 1 each).
+        self.terms = tuple(terms)
 
 
 #: Objective types offered by the panel, in order. Extend with :func:`register_objective`.
@@ -65,6 +68,10 @@ OBJECTIVES = [
     Objective("failure", "Failure (von Mises stress)",
               "(1/V)∫exp(α(σ_vm/σ_y − 1))dV of the linear XFEM solve (thesis Eq. 6.4, adjoint gradient): a smooth "
               "maximum of the von Mises stress relative to the yield stress", ("material", "supports", "loads", "failure")),
+    Objective("balance_and_compliance", "Balance + compliance (normalized sum)",
+              "balance / its start value + compliance / its start value (weights: option 'weights'), "
+              "e.g. a wheel balanced about its axis that must stay stiff",
+              ("axis", "material", "supports", "loads"), terms=("balance", "compliance")),
 ]
 
 
@@ -224,6 +231,14 @@ def build_job(shape, options, placement=None):
                 raise OptimizeError("objective '%s': %s must be positive, got %r" % (objective.type, key, value))
             obj_json[key] = float(value)
         obj_json["normalize"] = bool(opts["normalize"])
+    if objective.terms:
+        weights = opts.get("weights") or [1.0] * len(objective.terms)
+        if len(weights) != len(objective.terms):
+            raise OptimizeError("objective '%s' has %d terms but %d weights were given"
+                                % (objective.type, len(objective.terms), len(weights)))
+        shared = {k: v for k, v in obj_json.items() if k != "type"}
+        obj_json = {"type": "sum", "normalize": True,
+                    "terms": [dict(shared, type=t, weight=float(w)) for t, w in zip(objective.terms, weights)]}
     job = {"objective": obj_json, "max_iterations": int(opts["max_iterations"]),
            "bound": float(opts["bound"]), "relative_improvement": float(opts["relative_improvement"])}
 
