@@ -105,9 +105,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   // Compliance alone or as terms of a sum (then `compliance` is its weight; moment terms are
   // added by objective_from_moments); "failure" solves the same elasticity job.
   const bool failure = spec.type == "failure";
-  bool has_compliance = spec.type == "compliance" || failure;
-  for (const ObjectiveSpec& t : spec.terms) has_compliance |= spec.type == "sum" && t.type == "compliance";
-  const bool compliance = has_compliance;
+  const bool compliance = spec.type == "compliance" || failure ||
+                          (spec.type == "sum" && std::any_of(spec.terms.begin(), spec.terms.end(), [](const ObjectiveSpec& t) {
+                             return t.type == "compliance";
+                           }));
   const FailureOptions failure_options{spec.yield_stress, spec.exponent, spec.per_volume};
   if (failure) check_failure_options(failure_options);
   {
@@ -126,7 +127,16 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     for (ObjectiveSpec& t : spec.terms)
       if (t.length_scale <= 0) t.length_scale = L;
   }
+  // "normalize": every term of a sum divided by its value at the first evaluation (the start).
   bool scales_set = !(spec.type == "sum" && spec.normalize);
+  const auto normalize_terms = [&](const Moments& m, double compliance_value) {
+    if (scales_set) return;
+    for (ObjectiveSpec& t : spec.terms) {
+      const double v = t.type == "compliance" ? compliance_value : objective_from_moments(t, m, nullptr);
+      t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
+    }
+    scales_set = true;
+  };
   // Design entries.
   std::vector<int> design = options.design;
   std::set<int> fixed(sp.fixed_faces.begin(), sp.fixed_faces.end());
@@ -247,13 +257,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           return false;
         }
       }
-      if (!scales_set) {  // "normalize": every term divided by its value at the start
-        for (ObjectiveSpec& t : spec.terms) {
-          const double v = t.type == "compliance" ? state->compliance : objective_from_moments(t, md.moments, nullptr);
-          t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
-        }
-        scales_set = true;
-      }
+      normalize_terms(md.moments, state->compliance);
       const double cw = compliance_weight(spec);
       f = cw * state->compliance + objective_from_moments(spec, md.moments, &dfdm);
       FailureValue fv;
@@ -294,13 +298,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         result.gradient_cells += cd.cells_changed;
       }
     } else if (!compliance) {
-      if (!scales_set) {
-        for (ObjectiveSpec& t : spec.terms) {
-          const double v = objective_from_moments(t, md.moments, nullptr);
-          t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
-        }
-        scales_set = true;
-      }
+      normalize_terms(md.moments, 0.0);
       f = objective_from_moments(spec, md.moments, &dfdm);
     }
     Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;
