@@ -5,9 +5,29 @@
 #include <cmath>
 #include <cstdio>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "common/error.h"
 
 namespace parafab::xfem {
+
+namespace {
+
+// y = K x for a symmetric K stored by columns: y_i = (column i) · x, rows in parallel (TBB).
+// Each y_i is one serial sum, so the result does not depend on the thread count.
+void symmetric_product(const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+  y.resize(K.rows());
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, K.cols(), 512), [&](const tbb::blocked_range<Eigen::Index>& range) {
+    for (Eigen::Index i = range.begin(); i != range.end(); ++i) {
+      double sum = 0;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, i); it; ++it) sum += it.value() * x(it.index());
+      y(i) = sum;
+    }
+  });
+}
+
+}  // namespace
 
 PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& b,
                             const std::function<void(const Eigen::VectorXd&, Eigen::VectorXd&)>& apply,
@@ -24,7 +44,9 @@ PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::V
     return res;
   }
   const double stop = o.tolerance * bnorm;
-  Eigen::VectorXd r = b - K * res.x, z(b.size()), p, Ap;
+  Eigen::VectorXd Ap;
+  symmetric_product(K, res.x, Ap);
+  Eigen::VectorXd r = b - Ap, z(b.size()), p;
   double rnorm = r.norm();
   if (rnorm <= stop) {
     res.converged = true;
@@ -35,7 +57,7 @@ PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::V
   p = z;
   double rz = r.dot(z);
   for (res.iterations = 1; res.iterations <= o.max_iterations; ++res.iterations) {
-    Ap.noalias() = K * p;
+    symmetric_product(K, p, Ap);
     const double pAp = p.dot(Ap);
     if (!(pAp > 0) || !(rz > 0)) {
       char msg[160];
@@ -60,7 +82,8 @@ PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::V
   }
   res.iterations = std::min(res.iterations, o.max_iterations);
   // The true residual (the recurrence drifts by round-off).
-  res.residual = (b - K * res.x).norm() / bnorm;
+  symmetric_product(K, res.x, Ap);
+  res.residual = (b - Ap).norm() / bnorm;
   res.converged = res.message.empty() && res.residual <= o.tolerance;
   if (res.message.empty() && !res.converged) {
     char msg[160];
@@ -169,13 +192,34 @@ void ReusedFactorization::apply_local(const Eigen::VectorXd& r, Eigen::VectorXd&
 
 void ReusedFactorization::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   // Symmetric multiplicative Schwarz: local, old, local, each on the residual of the last.
+  // Neither residual needs a full product with K: after the first local solve z lives on the
+  // local DOFs (K z from their columns only), and the last local solve reads the residual on
+  // the local DOFs only (their rows, i.e. columns by symmetry).
   z.setZero(r.size());
-  apply_local(r, z);
-  Eigen::VectorXd s = r - K_ * z;
+  if (local_.empty()) {
+    apply_old(r, z);
+    return;
+  }
+  Eigen::VectorXd rl(local_.size());
+  for (size_t k = 0; k < local_.size(); ++k) rl(k) = r(local_[k]);
+  const Eigen::VectorXd zl = local_factor_.solve(rl, 0);
+  Eigen::VectorXd s = r;
+  for (size_t k = 0; k < local_.size(); ++k) {
+    const int j = local_[k];
+    z(j) = zl(k);
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) s(it.index()) -= it.value() * zl(k);
+  }
   apply_old(s, z);
-  if (local_.empty()) return;
-  s = r - K_ * z;
-  apply_local(s, z);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, local_.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t k = range.begin(); k != range.end(); ++k) {
+      const int j = local_[k];
+      double Kz = 0;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) Kz += it.value() * z(it.index());
+      rl(k) = r(j) - Kz;
+    }
+  });
+  const Eigen::VectorXd zl2 = local_factor_.solve(rl, 0);
+  for (size_t k = 0; k < local_.size(); ++k) z(local_[k]) += zl2(k);
 }
 
 Eigen::VectorXd ReusedFactorization::local_correction(const Eigen::VectorXd& b, const Eigen::VectorXd& x0) const {
