@@ -17,6 +17,8 @@
 #include <fstream>
 #include <optional>
 #include <charconv>
+#include <cstring>
+#include <unordered_map>
 
 #include "common/error.h"
 #include "json_fields.h"
@@ -252,6 +254,71 @@ struct SimulationSession::Setup {
   occ::PartInfo info;
   GridEstimate cut_estimate;  ///< cutting and rules (grid_estimate.h)
   void set_estimate();
+};
+
+// The in/out verdicts of the candidate points of cut elements (8 cell corners, then the rule
+// points), kept from run to run of a session. A cut cell is known by its index and a hash of
+// the rules of all its subvolumes (moment-fitted to their geometry, copied unchanged when a
+// re-cut keeps the cell): a cell whose hash is unchanged holds the same material, so a point's
+// verdict still holds. Entries of cells no longer in the model are dropped at every run.
+struct SimulationSession::InsideCache {
+  struct Key {
+    std::array<int, 3> cell;
+    uint64_t hash;
+    int ordinal;  ///< the element's place among the cell's elements
+    bool operator==(const Key& o) const { return cell == o.cell && hash == o.hash && ordinal == o.ordinal; }
+  };
+  struct KeyHash {
+    size_t operator()(const Key& k) const {
+      return static_cast<size_t>(k.hash ^ (uint64_t(k.cell[0]) * 73856093u) ^ (uint64_t(k.cell[1]) * 19349663u) ^
+                                 (uint64_t(k.cell[2]) * 83492791u) ^ (uint64_t(k.ordinal) << 48));
+    }
+  };
+  /// Per point: −1 not classified yet, 0 outside, 1 inside.
+  std::unordered_map<Key, std::vector<signed char>, KeyHash> verdicts;
+
+  static uint64_t mix(uint64_t h, uint64_t v) {  // splitmix64 step
+    uint64_t x = h ^ (v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2));
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+    return x ^ (x >> 31);
+  }
+  static uint64_t mix(uint64_t h, double d) {
+    uint64_t v;
+    std::memcpy(&v, &d, sizeof v);
+    return mix(h, v);
+  }
+  /// Per element of the model its verdict vector (null for uncut elements), carried over from
+  /// the last run where the cell is unchanged, fresh (all −1) otherwise.
+  std::vector<std::vector<signed char>*> bind(const std::vector<xfem::GridElement>& elements) {
+    std::map<std::array<int, 3>, std::vector<size_t>> cells;  // cut elements by cell, in model order
+    for (size_t e = 0; e < elements.size(); ++e)
+      if (elements[e].subvolume) cells[elements[e].cell].push_back(e);
+    std::unordered_map<Key, std::vector<signed char>, KeyHash> next;
+    std::vector<std::vector<signed char>*> of(elements.size(), nullptr);
+    for (const auto& [cell, members] : cells) {
+      uint64_t h = 0x243f6a8885a308d3ULL;
+      for (size_t e : members) {
+        const auto& rule = elements[e].rule;
+        for (int d = 0; d < 3; ++d) h = mix(mix(h, elements[e].box.min(d)), elements[e].box.max(d));
+        h = mix(h, uint64_t(rule.points.size()));
+        for (const Vec3& p : rule.points) h = mix(mix(mix(h, p.x()), p.y()), p.z());
+        for (double w : rule.weights) h = mix(h, w);
+      }
+      for (size_t k = 0; k < members.size(); ++k) {
+        const size_t e = members[k];
+        const Key key{cell, h, static_cast<int>(k)};
+        const size_t n = 8 + elements[e].rule.points.size();
+        auto old = verdicts.find(key);
+        auto& v = next[key];  // nodes stay put when `next` moves into `verdicts`
+        if (old != verdicts.end() && old->second.size() == n) v = std::move(old->second);
+        else v.assign(n, -1);
+        of[e] = &v;
+      }
+    }
+    verdicts = std::move(next);
+    return of;
+  }
 };
 
 SimulationSession::SimulationSession(const std::string& part_path, const json& job) : job_(job) {
@@ -596,6 +663,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   struct Candidate {
     double value;
     int element;
+    int point;  ///< 0–7 the cell corners, 8 + k rule point k
     Vec3 X;
   };
   xfem::MassAccumulator acc;
@@ -626,11 +694,11 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
         for (size_t i = 0; i < X.size(); ++i) {
           const double u = U[i].norm();
           if (!el.subvolume) P.umax = std::max(P.umax, u);
-          else if (u > P.umax) P.cut_u.push_back({u, ei, X[i]});
+          else if (u > P.umax) P.cut_u.push_back({u, ei, static_cast<int>(i), X[i]});
           if (i < 8) continue;  // von Mises at the rule points only
           const double vm = xfem::von_mises(stress_of_gradient(H[i]));
           if (!el.subvolume) P.vmmax = std::max(P.vmmax, vm);
-          else if (vm > P.vmmax) P.cut_vm.push_back({vm, ei, X[i]});
+          else if (vm > P.vmmax) P.cut_vm.push_back({vm, ei, static_cast<int>(i), X[i]});
         }
       }
     }
@@ -644,8 +712,12 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   }
   // The largest candidate inside the material: candidates in decreasing order (ties by element
   // and position, so the order is that of any thread count), classified by OCCT a batch at a
-  // time in parallel, one classifier per task; the first inside in that order wins.
-  int classified = 0;
+  // time in parallel, one classifier per task; the first inside in that order wins. Verdicts
+  // of earlier runs on unchanged cells are reused (InsideCache), so an update classifies only
+  // points of cells it re-cut.
+  int classified = 0, reused_verdicts = 0;
+  if (!inside_cache_) inside_cache_ = std::make_unique<InsideCache>();
+  const std::vector<std::vector<signed char>*> verdict = inside_cache_->bind(grid.elements);
   tbb::enumerable_thread_specific<std::unique_ptr<occ::PointClassifier>> classifiers;  // one per thread, made on first use
   auto largest_inside = [&](std::vector<Candidate>& c, double& best) {
     c.erase(std::remove_if(c.begin(), c.end(), [&](const Candidate& k) { return k.value <= best; }), c.end());
@@ -656,22 +728,30 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     });
     // Batches grow (32, 64, ... 1024) so a long run of outside points costs few task launches.
     size_t batch = 32;
-    std::vector<char> inside;
+    std::vector<size_t> unknown;
     for (size_t begin = 0; begin < c.size(); begin += batch, batch = std::min<size_t>(2 * batch, 1024)) {
       const size_t end = std::min(c.size(), begin + batch);
-      inside.assign(end - begin, 0);
-      tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 8), [&](const tbb::blocked_range<size_t>& range) {
+      unknown.clear();
+      for (size_t i = begin; i < end; ++i)
+        if ((*verdict[c[i].element])[c[i].point] < 0) unknown.push_back(i);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, unknown.size(), 8), [&](const tbb::blocked_range<size_t>& range) {
         auto& mine = classifiers.local();
         if (!mine) mine = std::make_unique<occ::PointClassifier>(*part_, 1e-7 * diag);
-        for (size_t i = range.begin(); i != range.end(); ++i) inside[i - begin] = mine->in_material(c[i].X);
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const Candidate& q = c[unknown[k]];
+          (*verdict[q.element])[q.point] = mine->in_material(q.X) ? 1 : 0;  // distinct points per task
+        }
       });
+      classified += static_cast<int>(unknown.size());
       for (size_t i = begin; i < end; ++i) {
-        ++classified;
-        if (inside[i - begin]) {
+        if ((*verdict[c[i].element])[c[i].point] == 1) {
           best = c[i].value;
+          reused_verdicts += static_cast<int>(i - begin + 1) - static_cast<int>(std::count_if(
+              unknown.begin(), unknown.end(), [&](size_t u) { return u <= i; }));
           return;
         }
       }
+      reused_verdicts += static_cast<int>(end - begin - unknown.size());
     }
   };
   largest_inside(cut_u, umax);
@@ -705,6 +785,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"max_displacement", umax},
            {"max_von_mises", vmmax},
            {"points_classified", classified},
+           {"points_classified_before", reused_verdicts},  // verdicts reused from earlier runs of the session
            {"status", grid.rule_failures.empty() ? "ok" : "rule_failures"},
            {"rule_failures", rule_failures},
            {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant

@@ -61,6 +61,10 @@ class SimulationSession {
   /// Kept between runs and updates: a re-solve whose stiffness has the analyzed pattern reuses
   /// CHOLMOD's symbolic analysis.
   std::unique_ptr<xfem::LinearXfemSolver> linear_solver_;
+  /// Kept between runs and updates: which points of cut elements OCCT found in the material
+  /// (for the largest displacement and stress), per cell whose content did not change.
+  struct InsideCache;
+  std::unique_ptr<InsideCache> inside_cache_;
 };
 
 /// The job's "threads" (N > 0; default: all cores) bounds the threads of every phase of run()
