@@ -183,9 +183,10 @@ ElementSystem element_system_n(const GridElement& el, const ElasticMaterial& mat
     // (a, b), C_ij(a, b) = Σ_q w_q ∂_i N_a ∂_j N_b (9 products NN × nq × NN instead of B_qᵀ D B_q).
     const Eigen::Map<const Eigen::VectorXd> w(el.rule.weights.data(), nq);
     std::array<std::array<Eigen::Matrix<double, NN, NN>, 3>, 3> C;
-    for (int i = 0; i < 3; ++i) {
+    for (int i = 0; i < 3; ++i) {  // C_ji = C_ijᵀ: six products
       const Eigen::Matrix<double, NN, Eigen::Dynamic> Pw = P[i] * w.asDiagonal();
-      for (int j = 0; j < 3; ++j) C[i][j].noalias() = Pw * P[j].transpose();
+      for (int j = i; j < 3; ++j) C[i][j].noalias() = Pw * P[j].transpose();
+      for (int j = 0; j < i; ++j) C[i][j] = C[j][i].transpose();
     }
     const Eigen::Matrix<double, NN, NN> trace = C[0][0] + C[1][1] + C[2][2];
     for (int a = 0; a < NN; ++a)
