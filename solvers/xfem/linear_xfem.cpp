@@ -878,10 +878,7 @@ namespace parafab::xfem {
 
 Eigen::Matrix<double, 6, 1> stress_at(const LinearXfemResult& result, const std::vector<GridElement>& elements,
                                       const ElasticMaterial& material, int e, const Vec3& X) {
-  const Eigen::Matrix3d H = displacement_gradient(result, elements, e, X);
-  Eigen::Matrix<double, 6, 1> eps;  // Voigt, engineering shears
-  eps << H(0, 0), H(1, 1), H(2, 2), H(0, 1) + H(1, 0), H(1, 2) + H(2, 1), H(0, 2) + H(2, 0);
-  return elasticity(material) * eps;
+  return stress_from_gradient(material, displacement_gradient(result, elements, e, X));
 }
 
 double von_mises(const Eigen::Matrix<double, 6, 1>& s) {
