@@ -340,9 +340,32 @@ RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRu
         const Eigen::VectorXd iq = integral(rq.rule);
         if (root && refinement.relative) tolerance *= iq.cwiseAbs().maxCoeff();
         root = false;
-        const double estimate = (ip - iq).cwiseAbs().maxCoeff();
+        double estimate = (ip - iq).cwiseAbs().maxCoeff();
         const double local = tolerance * std::pow(0.25, depth);
-        if (refinement.tolerance > 0 && estimate > local && depth < refinement.max_depth) {
+        const AreaRule* leaf = &rp;
+        const Eigen::VectorXd* leaf_integral = &iq;
+        AreaRule bp, bq;
+        Eigen::VectorXd ibq;
+        bool boosted = false;
+        if (refinement.tolerance > 0 && estimate > local && refinement.degree_boost > 0) {
+          // p-refinement first: the same region at degree p + boost and p + boost + 1.
+          AreaRuleOptions bo = area, bo1 = higher;
+          bo.degree += refinement.degree_boost, bo1.degree += refinement.degree_boost;
+          if (area.points_per_direction > 0)
+            bo.points_per_direction += refinement.degree_boost, bo1.points_per_direction += refinement.degree_boost;
+          const RegionMoments bm = region_moments(region, bo1.degree);
+          bp = fit_area_rule(bm, bo);
+          bq = fit_area_rule(bm, bo1);
+          ibq = integral(bq.rule);
+          const double boosted_estimate = (integral(bp.rule) - ibq).cwiseAbs().maxCoeff();
+          if (boosted_estimate <= local) {
+            estimate = boosted_estimate;
+            leaf = &bp;
+            leaf_integral = &ibq;
+            boosted = true;
+          }
+        }
+        if (!boosted && refinement.tolerance > 0 && estimate > local && depth < refinement.max_depth) {
           const Vec2 mid = 0.5 * (rp.box_min + rp.box_max);
           for (int qu = 0; qu < 2; ++qu)
             for (int qv = 0; qv < 2; ++qv) {
@@ -353,15 +376,16 @@ RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRu
           return;
         }
         if (refinement.tolerance > 0 && estimate > local) converged = false;
-        r.rule.points.insert(r.rule.points.end(), rp.rule.points.begin(), rp.rule.points.end());
-        r.rule.weights.insert(r.rule.weights.end(), rp.rule.weights.begin(), rp.rule.weights.end());
-        r.integral += iq;
+        r.rule.points.insert(r.rule.points.end(), leaf->rule.points.begin(), leaf->rule.points.end());
+        r.rule.weights.insert(r.rule.weights.end(), leaf->rule.weights.begin(), leaf->rule.weights.end());
+        r.integral += *leaf_integral;
         r.error_estimate += estimate;
-        r.moment_residual = std::max(r.moment_residual, rp.moment_residual);
+        r.moment_residual = std::max(r.moment_residual, leaf->moment_residual);
         ++r.leaves;
+        r.boosted_leaves += boosted;
         r.depth = std::max(r.depth, depth);
         r.status =
-            r.status == RuleStatus::EmptyDomain ? rp.status : worse_status(r.status, rp.status);
+            r.status == RuleStatus::EmptyDomain ? leaf->status : worse_status(r.status, leaf->status);
       };
   process(loops, 0);
   if (!converged && r.status != RuleStatus::EmptyDomain)

@@ -52,10 +52,17 @@ AreaRule area_rule(const std::vector<UvLoop>& loops, const AreaRuleOptions& opti
 /// at the centre of its bounding box into four quadrants, loops clipped to each quadrant.
 /// The difference estimates the error of the degree-p rule; the integral reported is the sum
 /// of the degree-(p+1) values (local extrapolation), usually far more accurate than that.
+///
+/// Before a region is split, rules of degree p + degree_boost and p + degree_boost + 1 are
+/// tried on it (p-refinement): a smooth integrand over a curved, trimmed region (a cylinder
+/// turned against the grid) is usually resolved by raising the degree long before quartering
+/// converges (turned tube, 32 cells: 59567 leaves without, 4495 with a boost of 6). The leaf then carries the
+/// boosted rule.
 struct RefinementOptions {
   double tolerance = 0;   ///< 0: no refinement (the estimate of the single rule is still reported)
   bool relative = false;  ///< tolerance relative to ‖integral‖∞ of the root region
   int max_depth = 6;
+  int degree_boost = 0;   ///< 0: split only
 };
 
 /// Vector-valued integral of some integrand over a uv rule, Σ_j w_j f(u_j, v_j); must accept
@@ -63,12 +70,13 @@ struct RefinementOptions {
 using UvIntegral = std::function<Eigen::VectorXd(const QuadratureRule2&)>;
 
 struct RefinedAreaRule {
-  QuadratureRule2 rule;  ///< union of the leaves' degree-p rules
+  QuadratureRule2 rule;  ///< union of the leaves' degree-p (or boosted) rules
   RuleStatus status = RuleStatus::Ok;
   Eigen::VectorXd integral;    ///< `integral` summed over the leaves' degree-(p+1) rules
   double error_estimate = 0;   ///< Σ over leaves of ‖I_p − I_{p+1}‖∞ (absolute)
   double moment_residual = 0;  ///< largest leaf moment residual
   int leaves = 0;
+  int boosted_leaves = 0;  ///< leaves that carry the degree-boosted rule
   int depth = 0;  ///< deepest leaf
 };
 RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRuleOptions& area,

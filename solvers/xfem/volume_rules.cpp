@@ -127,7 +127,7 @@ VolumeRule volume_rule(const Subvolume& sv, const VolumeRuleOptions& o) {
       return v;
     };
   };
-  const RefinementOptions refinement{o.flux_tolerance, false, o.max_depth};
+  const RefinementOptions refinement{o.flux_tolerance, false, o.max_depth, o.flux_degree_boost};
   Eigen::VectorXd total = Eigen::VectorXd::Zero(m + 3);
   RuleStatus patch_status = RuleStatus::Ok;
   for (size_t k = 0; k < sv.patches.size(); ++k) {

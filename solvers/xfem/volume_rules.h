@@ -26,6 +26,8 @@ struct VolumeRuleOptions {
   /// moments over the unit cube, i.e. roughly relative to the fitting-box volume; 0: off.
   double flux_tolerance = 1e-10;
   int max_depth = 6;
+  /// Degree raise tried on a patch region before it is split (RefinementOptions::degree_boost).
+  int flux_degree_boost = 6;
 };
 
 struct VolumeRule {

@@ -8,13 +8,16 @@ Cases: the filleted L-bracket job (samples/simulations/l_bracket.json), and the 
 clamped; Euler–Bernoulli 87.7 mm), probe at the centre of the free end; cantilever_turned is
 the same box turned by 12° about (0.3, 0.5, 1) inside the grid (job "rotate"), so that every
 face cuts cells: its probe and its displacement are turned back before comparing with the
-(unturned) CalculiX reference.
+(unturned) CalculiX reference. tube_turned is the thin-walled part of issue 11: a steel tube
+1000 mm long, outer radius 50 mm, wall 10 mm, clamped at x = 0 and loaded by 10 kN at the
+other end (Euler–Bernoulli 5.48 mm), turned by 12° the same way; probe in the middle of the
+wall at the free end.
 
 XFEM runs with both elements in the same run: "hex8" (trilinear + incompatible modes) and
 "hex27" (triquadratic), each on its own grid sequence (--elements picks them).
 
 Usage: /usr/bin/python3 tests/bench/bench_xfem_vs_calculix.py
-           [--case l_bracket|cantilever|cantilever_turned] [--elements hex8,hex27] [--quick] [--out DIR]
+           [--case l_bracket|cantilever|cantilever_turned|tube_turned] [--elements hex8,hex27] [--quick] [--out DIR]
 """
 import argparse
 import json
@@ -46,7 +49,27 @@ def use_cantilever(tmp):
                "probes": [[8000, 500, 500]]}, open(JOB, "w"))
 
 
-TURN = None  # (axis, center, degrees) of cantilever_turned
+def use_tube(tmp):
+    """Point PART and JOB at the thin-walled tube (written by Gmsh's OCC kernel)."""
+    global PART, JOB
+    sys.path.insert(0, os.path.join(REPO, "tests", "reference"))
+    import calculix_reference as cr
+    PART = os.path.join(tmp, "tube.step")
+    geo = os.path.join(tmp, "tube.geo")
+    with open(geo, "w") as f:
+        f.write('SetFactory("OpenCASCADE");\nCylinder(1) = {0, 0, 0, 1000, 0, 0, 50};\n'
+                'Cylinder(2) = {0, 0, 0, 1000, 0, 0, 40};\n'
+                'BooleanDifference{ Volume{1}; Delete; }{ Volume{2}; Delete; }\n')
+    subprocess.run([cr.GMSH, geo, "-0", "-format", "step", "-o", PART], capture_output=True, text=True,
+                   timeout=120, check=True)
+    JOB = os.path.join(tmp, "tube.json")
+    json.dump({"material": {"E": 210000, "nu": 0.3},
+               "supports": [{"point": [0, 0, 45]}],
+               "loads": [{"point": [1000, 0, 45], "force": [0, 0, -1e4]}],
+               "probes": [[1000, 0, 45]]}, open(JOB, "w"))
+
+
+TURN = None  # (axis, center, degrees) of cantilever_turned and tube_turned
 
 
 def rotation(axis, degrees):
@@ -110,7 +133,7 @@ def calculix(size):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--case", choices=["l_bracket", "cantilever", "cantilever_turned"], default="l_bracket")
+    ap.add_argument("--case", choices=["l_bracket", "cantilever", "cantilever_turned", "tube_turned"], default="l_bracket")
     ap.add_argument("--elements", default="hex8,hex27", help="XFEM elements to run, comma-separated")
     ap.add_argument("--out", default=os.path.join(REPO, "out", "bench"))
     a = ap.parse_args()
@@ -124,6 +147,12 @@ def main():
         ref_size = 250.0 if a.quick else 100.0
         grids = {"hex8": [8] if a.quick else [4, 8, 16, 32], "hex27": [4] if a.quick else [4, 8, 12, 16]}
         sizes = [1000] if a.quick else [1000, 500, 250, 150]
+    elif a.case == "tube_turned":
+        use_tube(tempfile.mkdtemp(prefix="parafab_tube_"))
+        TURN = ([0.3, 0.5, 1.0], [500.0, 0.0, 0.0], 12.0)
+        ref_size = 10.0 if a.quick else 5.0
+        grids = {"hex8": [32] if a.quick else [32, 48, 64, 96], "hex27": [16] if a.quick else [16, 24, 32, 48]}
+        sizes = [40] if a.quick else [40, 20, 12, 8]
     else:
         ref_size = 2.0 if a.quick else 1.5
         grids = {"hex8": [8, 16] if a.quick else [8, 12, 16, 24, 32], "hex27": [8] if a.quick else [6, 8, 12, 16]}
