@@ -106,6 +106,14 @@ class RuleFailuresAreReported(unittest.TestCase):
         self.assertEqual(r["status"], "ok")
         self.assertEqual(r["rule_failures"], [])
 
+    def test_bad_quadrature_fields_are_named(self):
+        for quad, text in [({"degree_boost": -1}, "quadrature.degree_boost must be in 0..12"),
+                           ({"degree_boost": 13}, "quadrature.degree_boost must be in 0..12"),
+                           ({"depth": 3}, "quadrature.depth is not a field of quadrature")]:
+            with self.assertRaises(Exception) as ctx:
+                parafab.simulate(CYLINDER, self.job(quadrature=quad))
+            self.assertIn(text, str(ctx.exception))
+
     def test_failing_rules_are_in_the_result(self):
         job = self.job(quadrature={"max_depth": 0, "flux_tolerance": 1e-15})
         r = parafab.simulate(CYLINDER, job)

@@ -95,10 +95,11 @@ class SimulationUpdate(unittest.TestCase):
         self.assertEqual(first["points_classified_before"], 0)
         self.assertGreater(up["points_classified_before"], 0)
         self.assertLess(up["points_classified"], 0.2 * fresh["points_classified"])  # measured 677 of 6080
-        # measured 1.1e-13 and 1.7e-13 relative (CG to 1e-10 vs a fresh factorization)
+        # CG to a relative residual of 1e-10 against a fresh factorization: measured 8.8e-13 and
+        # 1.1e-12 relative (1.1e-13 and 1.7e-13 with the rules before the degree boost)
         self.assertAlmostEqual(up["max_displacement"], fresh["max_displacement"],
-                               delta=1e-12 * fresh["max_displacement"])
-        self.assertAlmostEqual(up["max_von_mises"], fresh["max_von_mises"], delta=1e-12 * fresh["max_von_mises"])
+                               delta=5e-12 * fresh["max_displacement"])
+        self.assertAlmostEqual(up["max_von_mises"], fresh["max_von_mises"], delta=5e-12 * fresh["max_von_mises"])
 
     def test_one_iteration_forces_the_fallback(self):
         up = self.update(reuse={"max_iterations": 1})

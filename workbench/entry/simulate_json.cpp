@@ -383,7 +383,14 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   const json quad = job.value("quadrature", json::object());
   go.rule.max_depth = static_cast<int>(number(quad.value("max_depth", json(go.rule.max_depth)), "quadrature.max_depth"));
   go.rule.flux_tolerance = number(quad.value("flux_tolerance", json(go.rule.flux_tolerance)), "quadrature.flux_tolerance");
+  go.rule.flux_degree_boost =
+      static_cast<int>(number(quad.value("degree_boost", json(go.rule.flux_degree_boost)), "quadrature.degree_boost"));
+  for (const auto& kv : quad.items())
+    if (kv.key() != "max_depth" && kv.key() != "flux_tolerance" && kv.key() != "degree_boost")
+      PARAFAB_INPUT_ERROR("quadrature." << kv.key() << " is not a field of quadrature (max_depth, flux_tolerance, degree_boost)");
   if (go.rule.max_depth < 0) PARAFAB_INPUT_ERROR("quadrature.max_depth must be >= 0, got " << go.rule.max_depth);
+  if (go.rule.flux_degree_boost < 0 || go.rule.flux_degree_boost > 12)
+    PARAFAB_INPUT_ERROR("quadrature.degree_boost must be in 0..12, got " << go.rule.flux_degree_boost);
   if (!(go.rule.flux_tolerance >= 0))
     PARAFAB_INPUT_ERROR("quadrature.flux_tolerance must be >= 0, got " << go.rule.flux_tolerance);
   if (go.grid.block_cells < 0) PARAFAB_INPUT_ERROR("grid.block_cells must be >= 0");
