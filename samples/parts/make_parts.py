@@ -116,9 +116,19 @@ def housing():
     return s.removeSplitter()
 
 
+def plate_holes():
+    # Plate 160 x 100 x 5 with an 8 x 5 grid of holes, radius 5, pitch 20 (thesis Table 6.1:
+    # "plate with a grid of holes"; the hole radii are the design variables).
+    s = Part.makeBox(160, 100, 5)
+    for i in range(8):
+        for j in range(5):
+            s = s.cut(Part.makeCylinder(5, 5, V(10 + 20 * i, 10 + 20 * j, 0), Z))
+    return s.removeSplitter()
+
+
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
          "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
-         "l_bracket_holes5": lambda: l_bracket(5)}
+         "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes}
 # PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
 only = [n for n in os.environ.get("PARAFAB_PARTS_ONLY", "").split(",") if n]
 
