@@ -45,8 +45,6 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
     for (size_t i = 0; i < spec.terms.size(); ++i) {
       const ObjectiveSpec& t = spec.terms[i];
       if (t.type == "sum") PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum cannot be a term of a sum");
-      if (t.type == "failure")
-        PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: 'failure' is not supported as a term of a sum yet");
       if (!(t.scale > 0) || !std::isfinite(t.weight))
         PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: weight " << t.weight << ", scale " << t.scale);
       const double fi = objective_from_moments(t, m, &gi);
@@ -72,6 +70,15 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
                                               "compliance, failure, sum)");
   if (gradient) *gradient = f.g;
   return f.v;
+}
+
+double failure_weight(const ObjectiveSpec& spec) {
+  if (spec.type == "failure") return 1;
+  double w = 0;
+  if (spec.type == "sum")
+    for (const ObjectiveSpec& t : spec.terms)
+      if (t.type == "failure") w += t.weight / t.scale;
+  return w;
 }
 
 double compliance_weight(const ObjectiveSpec& spec) {
@@ -102,14 +109,23 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   const ShapeParameters sp = build_shape_parameters(model, options.parameterization);
   result.notes = sp.notes;
   ObjectiveSpec spec = options.objective;
-  // Compliance alone or as terms of a sum (then `compliance` is its weight; moment terms are
-  // added by objective_from_moments); "failure" solves the same elasticity job.
-  const bool failure = spec.type == "failure";
+  // Compliance and the failure metric alone or as terms of a sum (weighted by compliance_weight
+  // and failure_weight; moment terms are added by objective_from_moments); both solve the same
+  // elasticity job once per evaluation.
+  const ObjectiveSpec* failure_spec = spec.type == "failure" ? &spec : nullptr;
+  if (spec.type == "sum")
+    for (size_t i = 0; i < spec.terms.size(); ++i)
+      if (spec.terms[i].type == "failure") {
+        if (failure_spec) PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum takes one 'failure' term at most");
+        failure_spec = &spec.terms[i];
+      }
+  const bool failure = failure_spec != nullptr;
   const bool compliance = spec.type == "compliance" || failure ||
                           (spec.type == "sum" && std::any_of(spec.terms.begin(), spec.terms.end(), [](const ObjectiveSpec& t) {
                              return t.type == "compliance";
                            }));
-  const FailureOptions failure_options{spec.yield_stress, spec.exponent, spec.per_volume};
+  const FailureOptions failure_options =
+      failure ? FailureOptions{failure_spec->yield_stress, failure_spec->exponent, failure_spec->per_volume} : FailureOptions{};
   if (failure) check_failure_options(failure_options);
   {
     Eigen::Matrix<double, 10, 1> g;
@@ -129,10 +145,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   }
   // "normalize": every term of a sum divided by its value at the first evaluation (the start).
   bool scales_set = !(spec.type == "sum" && spec.normalize);
-  const auto normalize_terms = [&](const Moments& m, double compliance_value) {
+  const auto normalize_terms = [&](const Moments& m, double compliance_value, double failure_value) {
     if (scales_set) return;
     for (ObjectiveSpec& t : spec.terms) {
-      const double v = t.type == "compliance" ? compliance_value : objective_from_moments(t, m, nullptr);
+      const double v = t.type == "compliance" ? compliance_value
+                       : t.type == "failure"  ? failure_value
+                                              : objective_from_moments(t, m, nullptr);
       t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
     }
     scales_set = true;
@@ -257,9 +275,6 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           return false;
         }
       }
-      normalize_terms(md.moments, state->compliance);
-      const double cw = compliance_weight(spec);
-      f = cw * state->compliance + objective_from_moments(spec, md.moments, &dfdm);
       FailureValue fv;
       Eigen::VectorXd adjoint;
       if (failure) {
@@ -269,10 +284,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           if (result.invalid_models++ == 0) result.notes.push_back("first failed failure evaluation: " + fv.message);
           return false;
         }
-        f = fv.objective;
         last.max_von_mises = fv.max_von_mises;
         adjoint = failure_adjoint(*state, fv);
       }
+      normalize_terms(md.moments, state->compliance, fv.objective);
+      const double cw = compliance_weight(spec), fw = failure_weight(spec);
+      f = cw * state->compliance + fw * fv.objective + objective_from_moments(spec, md.moments, &dfdm);
       compliance_gradient.resize(nd);
       for (int k = 0; k < nd; ++k) {
         const double h = options.compliance_step * (is_direction(design[k]) ? 1.0 : part_size);
@@ -285,20 +302,26 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           const ModifyResult mk = modify_part(part, model, sp, pk.p);
           if (mk.done) sides[side] = mk.part;
         }
-        const ComplianceDerivative cd =
-            failure ? failure_derivative(*state, fv, adjoint, sides[0], sides[1], h, *options.compliance, failure_options)
-                    : compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
-        if (!cd.done) {
-          if (result.invalid_models++ == 0)
-            result.notes.push_back("compliance gradient of '" + sp.names[design[k]] + "': " + cd.message);
-          return false;
+        // dC/dx_k and dJ/dx_k from the same two perturbed models (each re-cuts them on the grid).
+        compliance_gradient[k] = 0;
+        for (const bool of_failure : {false, true}) {
+          if (of_failure ? fw == 0 : cw == 0) continue;
+          const ComplianceDerivative cd =
+              of_failure ? failure_derivative(*state, fv, adjoint, sides[0], sides[1], h, *options.compliance, failure_options)
+                         : compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
+          if (!cd.done) {
+            if (result.invalid_models++ == 0)
+              result.notes.push_back(std::string(of_failure ? "failure" : "compliance") + " gradient of '" +
+                                     sp.names[design[k]] + "': " + cd.message);
+            return false;
+          }
+          compliance_gradient[k] += (of_failure ? fw : cw) * cd.derivative;
+          result.topology_switches += cd.topology_switches;
+          result.gradient_cells += cd.cells_changed;
         }
-        compliance_gradient[k] = (failure ? 1.0 : cw) * cd.derivative;
-        result.topology_switches += cd.topology_switches;
-        result.gradient_cells += cd.cells_changed;
       }
     } else if (!compliance) {
-      normalize_terms(md.moments, 0.0);
+      normalize_terms(md.moments, 0.0, 0.0);
       f = objective_from_moments(spec, md.moments, &dfdm);
     }
     Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;

@@ -56,6 +56,9 @@ struct ObjectiveSpec {
 /// The factor of the compliance in `spec`: 1 for "compliance", Σ weight/scale of the compliance
 /// terms of a "sum", 0 otherwise.
 double compliance_weight(const ObjectiveSpec& spec);
+/// The same for the failure metric: 1 for "failure", weight/scale of the failure term of a
+/// "sum" (at most one: its options define the metric), 0 otherwise.
+double failure_weight(const ObjectiveSpec& spec);
 
 /// The objective value and d value / d moments.
 double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient);

@@ -100,13 +100,53 @@ class OptimizeFailure(unittest.TestCase):
             with self.assertRaises(parafab.Error) as e:
                 parafab.optimize(self.part, dict(JOB, objective=obj))
             self.assertIn("objective." + field, str(e.exception))
-        # Not a term of a weighted sum yet: an error naming the term.
+        # A sum takes one failure term (its options define the metric): a second is an error naming it.
+        fail = {"type": "failure", "yield_stress": 100, "exponent": 8}
         code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "y")],
-                        dict(JOB, objective={"type": "sum", "terms": [
-                            {"type": "volume"}, {"type": "failure", "yield_stress": 100, "exponent": 8}]}))
+                        dict(JOB, objective={"type": "sum", "terms": [{"type": "volume"}, fail, fail]}))
         self.assertEqual(code, 2)
-        self.assertIn("objective.terms[1]", err["error"]["message"])
-        self.assertIn("failure", err["error"]["message"])
+        self.assertIn("objective.terms[2]", err["error"]["message"])
+        self.assertIn("one 'failure' term", err["error"]["message"])
+
+    def start_value(self, objective):
+        """The objective at the start (no step), from a run of its own."""
+        h = parafab.optimize(self.part, dict(JOB, objective=objective, max_iterations=0))
+        return h["initial_objective"], h
+
+    def test_a_sum_with_failure_is_the_weighted_sum_of_separate_runs(self):
+        # Reference: J, C and V from three separate single-objective runs (each its own solve).
+        fail = {"type": "failure", "yield_stress": 100, "exponent": 8}
+        J, hj = self.start_value(fail)
+        C, _ = self.start_value({"type": "compliance"})
+        V = hj["initial_volume"]
+        total, h = self.start_value({"type": "sum", "terms": [dict(fail, weight=2.0), {"type": "compliance", "weight": 0.5},
+                                                             {"type": "volume", "weight": 1e-4}]})
+        expected = 2.0 * J + 0.5 * C + 1e-4 * V
+        print("sum 2 J + 0.5 C + 1e-4 V: %.15g, separate runs %.15g (J %.10g, C %.10g, V %.10g), relative %.1e" % (
+            total, expected, J, C, V, abs(total - expected) / expected))
+        self.assertAlmostEqual(total, expected, delta=1e-12 * expected)
+        self.assertIn("initial_max_von_mises", h)  # the sum reports the stress of its failure term
+        normalized, _ = self.start_value({"type": "sum", "normalize": True,
+                                          "terms": [dict(fail, weight=2.0), {"type": "compliance", "weight": 0.5}]})
+        self.assertAlmostEqual(normalized, 2.5, delta=1e-12)  # each term divided by its own start value
+
+    def test_a_compliance_and_failure_sum_falls_and_a_fresh_simulation_agrees(self):
+        out = os.path.join(self.dir, "sum")
+        h = parafab.optimize(self.part, dict(JOB, max_iterations=4, max_outer=2, objective={
+            "type": "sum", "normalize": True,
+            "terms": [{"type": "failure", "yield_stress": 100, "exponent": 8, "weight": 1},
+                      {"type": "compliance", "weight": 1}]}), out_dir=out)
+        job = dict(ELASTIC, grid={"cells": 12})
+        a, b = parafab.simulate(self.part, job), parafab.simulate(h["optimized_step"], job)
+        print("compliance + failure (normalized): %.6f -> %.6f in %d iterations; fresh 12 cells: max von Mises "
+              "%.3f -> %.3f MPa, C %.5f -> %.5f; V/V0 %.5f" % (
+                  h["initial_objective"], h["final_objective"], len(h["iterations"]) - 1, a["max_von_mises"],
+                  b["max_von_mises"], -2 * a["potential"], -2 * b["potential"], h["final_volume"] / h["initial_volume"]))
+        self.assertAlmostEqual(h["initial_objective"], 2.0, delta=1e-12)
+        self.assertLess(h["final_objective"], h["initial_objective"])
+        # Both measures of the written part, by a simulation of its own on another grid.
+        self.assertLess(b["max_von_mises"], a["max_von_mises"])
+        self.assertLess(-2 * b["potential"], -2 * a["potential"])
 
 
 if __name__ == "__main__":

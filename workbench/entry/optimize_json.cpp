@@ -180,7 +180,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       const std::string path = "objective.terms[" + std::to_string(i) + "]";
       occ::ObjectiveSpec t = objective_spec(terms[i], path, needs_compliance);
       if (t.type == "sum") PARAFAB_INPUT_ERROR(path << ".type: a sum cannot be a term of a sum");
-      if (t.type == "failure") PARAFAB_INPUT_ERROR(path << ".type: 'failure' is not supported as a term of a sum yet");
+      if (t.type == "failure" && std::any_of(o.objective.terms.begin(), o.objective.terms.end(),
+                                             [](const occ::ObjectiveSpec& u) { return u.type == "failure"; }))
+        PARAFAB_INPUT_ERROR(path << ".type: a sum takes one 'failure' term at most");
       t.weight = terms[i].contains("weight") ? number(terms[i]["weight"], path + ".weight") : 1.0;
       if (!std::isfinite(t.weight)) PARAFAB_INPUT_ERROR(path << ".weight must be finite, got " << t.weight);
       o.objective.terms.push_back(t);
@@ -318,12 +320,15 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;
   }
-  if (o.objective.type == "failure") {
+  const occ::ObjectiveSpec* failure_term = o.objective.type == "failure" ? &o.objective : nullptr;
+  for (const auto& t : o.objective.terms)
+    if (t.type == "failure") failure_term = &t;
+  if (failure_term) {
     h["initial_max_von_mises"] = r.initial_max_von_mises;
     h["final_max_von_mises"] = r.final_max_von_mises;
-    h["yield_stress"] = o.objective.yield_stress;
-    h["exponent"] = o.objective.exponent;
-    h["normalize"] = o.objective.per_volume;
+    h["yield_stress"] = failure_term->yield_stress;
+    h["exponent"] = failure_term->exponent;
+    h["normalize"] = failure_term->per_volume;
   }
   h["final_violation"] = r.final_violation;
   if (!r.outer.empty()) {
