@@ -245,6 +245,27 @@ class OptimizeFeatureTest(unittest.TestCase):
               file=sys.stderr)
         self.assertAlmostEqual(h["initial_objective"], 1.5, delta=1e-12)
 
+    def test_compliance_and_failure_is_a_normalized_sum(self):
+        """The panel's "Stiffness + stress" objective sends compliance and the failure metric as a
+        normalized sum (the failure fields on its term); its start value is the sum of the weights."""
+        import parafab
+        shape = self.wheel.Shape.copy()
+        faces = sorted(range(len(shape.Faces)), key=lambda i: shape.Faces[i].BoundBox.ZMin)
+        support, load = "Face%d" % (faces[0] + 1), "Face%d" % (faces[-1] + 1)
+        params = [p for p in self.options["parameters"] if p[0] not in (support, load)][:2]
+        opts = dict(self.options, objective="compliance_and_failure", supports=[support], loads=[load],
+                    force=(0, 0, -100), cells=6, max_iterations=0, weights=[1.0, 2.0], parameters=params, ties=[],
+                    yield_stress=50.0, exponent=6.0)
+        job = optimize_feature.build_job(shape, opts, self.wheel.Placement)
+        terms = job["objective"]["terms"]
+        self.assertEqual([(t["type"], t["weight"]) for t in terms], [("compliance", 1.0), ("failure", 2.0)])
+        self.assertEqual((terms[1]["yield_stress"], terms[1]["exponent"]), (50.0, 6.0))
+        h = parafab.optimize(WHEEL, job)
+        print("\n[optimize] wheel compliance + 2 failure, normalized start value %.15g, max von Mises %.4g MPa"
+              % (h["initial_objective"], h["initial_max_von_mises"]), file=sys.stderr)
+        self.assertAlmostEqual(h["initial_objective"], 3.0, delta=1e-12)
+        self.assertGreater(h["initial_max_von_mises"], 0)
+
     def test_objective_list_is_extensible(self):
         types = [o.type for o in optimize_feature.OBJECTIVES]
         self.assertEqual(types[:3], ["center_of_mass", "inertia_alignment", "balance"])

@@ -72,6 +72,10 @@ OBJECTIVES = [
               "balance / its start value + compliance / its start value (weights: option 'weights'), "
               "e.g. a wheel balanced about its axis that must stay stiff",
               ("axis", "material", "supports", "loads"), terms=("balance", "compliance")),
+    Objective("compliance_and_failure", "Stiffness + stress (normalized sum)",
+              "compliance / its start value + failure metric / its start value (weights: option 'weights'): "
+              "stiffer and with a lower peak von Mises stress", ("material", "supports", "loads", "failure"),
+              terms=("compliance", "failure")),
 ]
 
 
