@@ -735,12 +735,16 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     });
     // Batches grow (32, 64, ... 1024) so a long run of outside points costs few task launches.
     size_t batch = 32;
-    std::vector<size_t> unknown;
+    std::vector<size_t> unknown;  // candidates of the batch without a verdict yet
+    std::vector<char> known;      // per candidate of the batch: verdict from an earlier run
     for (size_t begin = 0; begin < c.size(); begin += batch, batch = std::min<size_t>(2 * batch, 1024)) {
       const size_t end = std::min(c.size(), begin + batch);
       unknown.clear();
-      for (size_t i = begin; i < end; ++i)
-        if ((*verdict[c[i].element])[c[i].point] < 0) unknown.push_back(i);
+      known.assign(end - begin, 0);
+      for (size_t i = begin; i < end; ++i) {
+        known[i - begin] = (*verdict[c[i].element])[c[i].point] >= 0;
+        if (!known[i - begin]) unknown.push_back(i);
+      }
       tbb::parallel_for(tbb::blocked_range<size_t>(0, unknown.size(), 8), [&](const tbb::blocked_range<size_t>& range) {
         auto& mine = classifiers.local();
         if (!mine) mine = std::make_unique<occ::PointClassifier>(*part_, 1e-7 * diag);
@@ -751,14 +755,12 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
       });
       classified += static_cast<int>(unknown.size());
       for (size_t i = begin; i < end; ++i) {
+        reused_verdicts += known[i - begin];
         if ((*verdict[c[i].element])[c[i].point] == 1) {
           best = c[i].value;
-          reused_verdicts += static_cast<int>(i - begin + 1) - static_cast<int>(std::count_if(
-              unknown.begin(), unknown.end(), [&](size_t u) { return u <= i; }));
           return;
         }
       }
-      reused_verdicts += static_cast<int>(end - begin - unknown.size());
     }
   };
   largest_inside(cut_u, umax);
