@@ -159,6 +159,22 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     optimize::add_mirror(sp.constraints, *a, *b, m.normal, m.offset, sp.initial,
                          "mirror " + std::to_string(m.face_a) + "/" + std::to_string(m.face_b));
   }
+  for (size_t k = 0; k < options.orthogonal.size(); ++k) {
+    const auto& o = options.orthogonal[k];
+    const auto* b = sp.block(o.face);
+    if (!(b && b->kind == optimize::PrimitiveKind::plane)) PARAFAB_INPUT_ERROR(
+                        "orthogonal[" << k << "]: face " << o.face << " is not a plane (only plane normals can be kept orthogonal to an axis)");
+    if (!(o.axis.norm() > 0)) PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: the axis is zero");
+    const Vec3 a = o.axis.normalized();
+    const std::vector<int> n = {parameter_index(sp, o.face, "normal x"), parameter_index(sp, o.face, "normal y"),
+                                parameter_index(sp, o.face, "normal z")};
+    const double at_start = a.x() * sp.initial[n[0]] + a.y() * sp.initial[n[1]] + a.z() * sp.initial[n[2]];
+    if (!(std::abs(at_start) <= 1e-9)) PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: face " << o.face
+                                                                   << "'s normal is not orthogonal to the axis at the start (n·a = "
+                                                                   << at_start << ")");
+    optimize::add_linear(sp.constraints, n, {a.x(), a.y(), a.z()}, 0.0,
+                         "face " + std::to_string(o.face) + " normal orthogonal to the axis");
+  }
   return sp;
 }
 

@@ -28,6 +28,14 @@ struct ShapeParameterOptions {
     double offset = 0;
   };
   std::vector<Mirror> mirrors;
+  /// Draft (thesis §6.6, motor housing: "normals orthogonal to the symmetry axis stay
+  /// orthogonal"): plane face `face` keeps its normal orthogonal to `axis`, n·a = 0 (a wall
+  /// parallel to the pull direction stays so). The part must satisfy it at the start (|n·a| ≤ 1e-9).
+  struct Orthogonal {
+    int face = -1;
+    Vec3 axis = Vec3::UnitZ();
+  };
+  std::vector<Orthogonal> orthogonal;
   double min_radius = 1e-3;  ///< lower bound of every radius (units of the part)
 };
 

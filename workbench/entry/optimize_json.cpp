@@ -236,6 +236,16 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     m.offset = number(fields::require(plane, "offset", path + ".plane"), path + ".plane.offset");
     o.parameterization.mirrors.push_back(m);
   }
+  // Draft: plane normals kept orthogonal to an axis, [{"face": i | "point": [x, y, z], "axis": [x, y, z]}].
+  const json orthogonal = job.value("orthogonal", json::array());
+  if (!orthogonal.is_array()) PARAFAB_INPUT_ERROR("orthogonal must be a list of {\"face\" | \"point\", \"axis\"}");
+  for (size_t i = 0; i < orthogonal.size(); ++i) {
+    const std::string path = "orthogonal[" + std::to_string(i) + "]";
+    occ::ShapeParameterOptions::Orthogonal d;
+    d.face = face_index(*part, orthogonal[i], path);
+    d.axis = vec3(fields::require(orthogonal[i], "axis", path), path + ".axis");
+    o.parameterization.orthogonal.push_back(d);
+  }
 
   // Parameters: the face model decides the indices (built again inside optimize_shape; cheap).
   const occ::FaceModel model = occ::build_face_model(*part);

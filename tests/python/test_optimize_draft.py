@@ -1,0 +1,76 @@
+"""Draft constraint of `parafab optimize` (issue 12, thesis §6.6 motor housing: "normals
+orthogonal to the axis stay orthogonal"): job field "orthogonal": [{"face" | "point", "axis"}].
+The box's x = 40 face may move and turn (offset and normal are design entries); the objective,
+the centre of mass onto an axis along x through the box's centre shifted in y and z, gains from
+tilting that face out of the vertical. Checked on the written STEP by the part inspector (its
+own face model of the new file): without the constraint the face's normal gets a z component;
+with it, n·z stays 0. Bad entries are errors naming the entry."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"))
+import parafab  # noqa: E402
+
+CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
+BOX = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples", "parts", "box.step")
+FACE = [40, 15, 10]  # the face x = 40 of the 40 x 30 x 20 box
+JOB = {"objective": {"type": "center_of_mass", "axis": {"point": [20, 13, 7], "direction": [1, 0, 0]}},
+       "parameters": [{"point": FACE, "parameter": p} for p in ("offset", "normal x", "normal y", "normal z")],
+       "max_iterations": 6, "bound": 0.3}
+
+
+def normal_of_face_at(path, point):
+    """The unit normal of the plane face through `point` of the part in `path` (its own inspection)."""
+    best = None
+    for f in parafab.inspect_part(path)["faces"]:
+        if f["type"] != "plane":
+            continue
+        n, q = f["parameters"]["n"], f["parameters"]["p"]  # normal and a point of the plane
+        dist = abs(sum(a * (b - c) for a, b, c in zip(n, point, q)))
+        if best is None or dist < best[0]:
+            best = (dist, n)
+    return best[1]
+
+
+class OptimizeDraft(unittest.TestCase):
+    def run_job(self, job):
+        out = tempfile.mkdtemp()
+        h = parafab.optimize(BOX, job, out_dir=out)
+        n = normal_of_face_at(h["optimized_step"], [40 + 0.0, 15, 10])
+        return h, n
+
+    def test_the_face_stays_vertical_only_with_the_constraint(self):
+        free, n_free = self.run_job(JOB)
+        held, n_held = self.run_job(dict(JOB, orthogonal=[{"point": FACE, "axis": [0, 0, 1]}]))
+        print("free: |c⊥|² %.6g -> %.6g, normal %s; orthogonal to z: %.6g -> %.6g, normal %s" % (
+            free["initial_objective"], free["final_objective"], n_free,
+            held["initial_objective"], held["final_objective"], n_held))
+        self.assertLess(free["final_objective"], free["initial_objective"])
+        self.assertGreater(abs(n_free[2]), 1e-3)  # the free face tilts
+        self.assertLess(held["final_objective"], held["initial_objective"])
+        self.assertLess(abs(n_held[2]), 1e-12)  # n·z = 0 on the written part
+        self.assertGreater(abs(n_held[1]), 0.1)  # it still turns about z (measured n_y 0.394)
+
+    def test_bad_entries_are_named(self):
+        cases = [({"point": [20, 15, 20], "axis": [0, 0, 1]}, "not orthogonal to the axis at the start"),
+                 ({"point": FACE, "axis": [0, 0, 0]}, "the axis is zero"),
+                 ({"point": FACE}, "orthogonal[0].axis")]
+        for entry, text in cases:
+            with self.assertRaises(parafab.Error) as e:
+                parafab.optimize(BOX, dict(JOB, orthogonal=[entry]))
+            self.assertIn(text, str(e.exception))
+            self.assertIn("orthogonal[0]", str(e.exception))
+        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+            json.dump(dict(JOB, orthogonal=[cases[0][0]]), f)
+        p = subprocess.run([CLI, "optimize", BOX, f.name, "-o", tempfile.mkdtemp()], capture_output=True, text=True)
+        os.unlink(f.name)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("orthogonal[0]", json.loads(p.stdout)["error"]["message"])
+
+
+if __name__ == "__main__":
+    unittest.main()
