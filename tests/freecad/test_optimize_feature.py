@@ -266,6 +266,42 @@ class OptimizeFeatureTest(unittest.TestCase):
         self.assertAlmostEqual(h["initial_objective"], 3.0, delta=1e-12)
         self.assertGreater(h["initial_max_von_mises"], 0)
 
+    def test_draft_faces_keep_their_normal_orthogonal_to_the_pull_direction(self):
+        """Plumbing of the panel's draft faces: they go to the engine as "orthogonal" entries with the
+        pull direction mapped into the part's frame, and the run accepts them (the constraint's
+        effect on free normals is python.optimize_draft's test); a curved draft face is refused by
+        the panel, a pull direction the faces are not orthogonal to by the engine."""
+        import parafab
+        shape = self.wheel.Shape.copy()
+        local = Part.read(WHEEL)  # the part's own frame: its side walls have n_z = 0
+        walls = ["Face%d" % (i + 1) for i, f in enumerate(local.Faces)
+                 if f.Surface.TypeId == "Part::GeomPlane" and abs(f.normalAt(0, 0).z) < 1e-9]
+        curved = ["Face%d" % (i + 1) for i, f in enumerate(local.Faces) if f.Surface.TypeId == "Part::GeomCylinder"]
+        pull = self.wheel.Placement.Rotation.multVec(FreeCAD.Vector(0, 0, 1))  # the part's z, in global coordinates
+        opts = dict(self.options, draft_faces=walls[:3], draft_direction=(pull.x, pull.y, pull.z), max_iterations=2)
+        job = optimize_feature.build_job(shape, opts, self.wheel.Placement)
+        self.assertEqual(len(job["orthogonal"]), 3)
+        for entry in job["orthogonal"]:
+            for a, b in zip(entry["axis"], (0.0, 0.0, 1.0)):
+                self.assertAlmostEqual(a, b, delta=1e-12)
+        out = tempfile.mkdtemp()
+        h = parafab.optimize(WHEEL, job, out_dir=out)
+        worst = 0.0
+        for f in parafab.inspect_part(h["optimized_step"])["faces"]:
+            if f["type"] == "plane" and abs(f["parameters"]["n"][2]) < 0.5:
+                worst = max(worst, abs(f["parameters"]["n"][2]))
+        print("\n[optimize] wheel with 3 draft faces: |c⊥|² %.6g -> %.6g, largest n_z of a side plane %.1e"
+              % (h["initial_objective"], h["final_objective"], worst), file=sys.stderr)
+        self.assertLess(worst, 1e-12)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "not planar"):
+            optimize_feature.build_job(shape, dict(opts, draft_faces=curved[:1]), self.wheel.Placement)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "pull\\) direction is zero"):
+            optimize_feature.build_job(shape, dict(opts, draft_direction=(0, 0, 0)), self.wheel.Placement)
+        tilted = optimize_feature.build_job(shape, dict(opts, draft_direction=(1, 0, 0)), FreeCAD.Placement())
+        with self.assertRaises(parafab.Error) as e:
+            parafab.optimize(WHEEL, dict(tilted, max_iterations=0))
+        self.assertIn("not orthogonal to the axis at the start", str(e.exception))
+
     def test_objective_list_is_extensible(self):
         types = [o.type for o in optimize_feature.OBJECTIVES]
         self.assertEqual(types[:3], ["center_of_mass", "inertia_alignment", "balance"])

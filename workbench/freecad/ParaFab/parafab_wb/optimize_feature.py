@@ -195,6 +195,8 @@ def default_options():
         "parameters": "auto",                 # or [("FaceN", "radius"), ...]
         "ties": [],                           # [[("FaceN", "radius"), ("FaceM", "radius")], ...]
         "fixed_faces": [],                    # ["FaceN", ...]
+        "draft_faces": [],                    # ["FaceN", ...]: planes whose normal stays ⊥ the pull direction
+        "draft_direction": (0.0, 0.0, 1.0),   # pull direction (global), for draft_faces
         "supports": [],                       # ["FaceN", ...]
         "loads": [],                          # ["FaceN", ...]
         "force": (0.0, 0.0, 0.0),             # total force on the loaded faces [N]
@@ -260,6 +262,16 @@ def build_job(shape, options, placement=None):
         job["ties"] = [[ref(p, "ties[%d]" % i) for p in tie] for i, tie in enumerate(opts["ties"])]
     if opts["fixed_faces"]:
         job["fixed_faces"] = [face_index(f, n, "fixed faces") for f in opts["fixed_faces"]]
+    if opts.get("draft_faces"):
+        pull = FreeCAD.Vector(*opts.get("draft_direction", (0.0, 0.0, 1.0)))
+        if pull.Length < 1e-12:
+            raise OptimizeError("the draft (pull) direction is zero")
+        for f in opts["draft_faces"]:
+            if shape.Faces[face_index(f, n, "draft faces")].Surface.TypeId != "Part::GeomPlane":
+                raise OptimizeError("draft face %s is not planar (only plane normals can be kept orthogonal)" % f)
+        d = (placement or FreeCAD.Placement()).inverse().Rotation.multVec(pull)  # into the part's frame
+        job["orthogonal"] = [{"face": face_index(f, n, "draft faces"), "axis": [d.x, d.y, d.z]}
+                             for f in opts["draft_faces"]]
     if opts["supports"]:
         job["supports"] = [{"face": face_index(f, n, "supports")} for f in opts["supports"]]
     loaded = [face_index(f, n, "loads") for f in opts["loads"]]

@@ -165,6 +165,21 @@ class OptimizeTaskPanel(object):
         lay.addLayout(force)
         layout.addWidget(loads)
 
+        draft = QtGui.QGroupBox("Draft (planes stay parallel to the pull direction)")
+        lay = QtGui.QVBoxLayout(draft)
+        self.draft_faces = analysis_panel.FaceList("Draft faces (planar)", [], [self.obj])
+        self.draft_faces.setToolTip("Planar faces whose normal stays orthogonal to the pull direction "
+                                    "(undercut-free for casting or moulding along it)")
+        lay.addWidget(self.draft_faces)
+        row = QtGui.QHBoxLayout()
+        self.draft_dir = [_spin(-1, 1, v, 4) for v in defaults["draft_direction"]]
+        for b in self.draft_dir:
+            row.addWidget(b)
+        pull = QtGui.QFormLayout()
+        pull.addRow("Pull direction", row)
+        lay.addLayout(pull)
+        layout.addWidget(draft)
+
         out = QtGui.QFormLayout()
         self.output_dir = analysis_panel._narrow(QtGui.QLineEdit())
         self.output_dir.setPlaceholderText(optimize_feature.default_output_dir(self.obj))
@@ -257,6 +272,8 @@ class OptimizeTaskPanel(object):
                 "yield_stress": self.yield_stress.value(), "exponent": self.exponent.value(),
                 "parameters": "auto" if self.auto.isChecked() else self.checked_parameters(),
                 "supports": self.supports.faces(), "loads": self.loads.faces(),
+                "draft_faces": self.draft_faces.faces(),
+                "draft_direction": tuple(b.value() for b in self.draft_dir),
                 "force": tuple(b.value() for b in self.force),
                 "max_iterations": self.iterations.value(),
                 "max_volume_ratio": ratio if ratio > 0 else None}
