@@ -72,22 +72,25 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
   return f.v;
 }
 
-double failure_weight(const ObjectiveSpec& spec) {
-  if (spec.type == "failure") return 1;
+double term_weight(const ObjectiveSpec& spec, const std::string& type) {
+  if (spec.type == type) return 1;
   double w = 0;
   if (spec.type == "sum")
     for (const ObjectiveSpec& t : spec.terms)
-      if (t.type == "failure") w += t.weight / t.scale;
+      if (t.type == type) w += t.weight / t.scale;
   return w;
 }
 
-double compliance_weight(const ObjectiveSpec& spec) {
-  if (spec.type == "compliance") return 1;
-  double w = 0;
+const ObjectiveSpec* failure_term(const ObjectiveSpec& spec) {
+  if (spec.type == "failure") return &spec;
+  const ObjectiveSpec* found = nullptr;
   if (spec.type == "sum")
-    for (const ObjectiveSpec& t : spec.terms)
-      if (t.type == "compliance") w += t.weight / t.scale;
-  return w;
+    for (size_t i = 0; i < spec.terms.size(); ++i)
+      if (spec.terms[i].type == "failure") {
+        if (found) PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum takes one 'failure' term at most");
+        found = &spec.terms[i];
+      }
+  return found;
 }
 
 namespace {
@@ -109,16 +112,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   const ShapeParameters sp = build_shape_parameters(model, options.parameterization);
   result.notes = sp.notes;
   ObjectiveSpec spec = options.objective;
-  // Compliance and the failure metric alone or as terms of a sum (weighted by compliance_weight
-  // and failure_weight; moment terms are added by objective_from_moments); both solve the same
+  // Compliance and the failure metric alone or as terms of a sum (weighted by term_weight;
+  // moment terms are added by objective_from_moments); both solve the same
   // elasticity job once per evaluation.
-  const ObjectiveSpec* failure_spec = spec.type == "failure" ? &spec : nullptr;
-  if (spec.type == "sum")
-    for (size_t i = 0; i < spec.terms.size(); ++i)
-      if (spec.terms[i].type == "failure") {
-        if (failure_spec) PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum takes one 'failure' term at most");
-        failure_spec = &spec.terms[i];
-      }
+  const ObjectiveSpec* failure_spec = failure_term(spec);
   const bool failure = failure_spec != nullptr;
   const bool compliance = spec.type == "compliance" || failure ||
                           (spec.type == "sum" && std::any_of(spec.terms.begin(), spec.terms.end(), [](const ObjectiveSpec& t) {
@@ -288,7 +285,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         adjoint = failure_adjoint(*state, fv);
       }
       normalize_terms(md.moments, state->compliance, fv.objective);
-      const double cw = compliance_weight(spec), fw = failure_weight(spec);
+      const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure");
       f = cw * state->compliance + fw * fv.objective + objective_from_moments(spec, md.moments, &dfdm);
       compliance_gradient.resize(nd);
       for (int k = 0; k < nd; ++k) {

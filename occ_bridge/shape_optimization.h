@@ -53,12 +53,13 @@ struct ObjectiveSpec {
   bool normalize = false;            ///< of a "sum": scales from the start values
 };
 
-/// The factor of the compliance in `spec`: 1 for "compliance", Σ weight/scale of the compliance
-/// terms of a "sum", 0 otherwise.
-double compliance_weight(const ObjectiveSpec& spec);
-/// The same for the failure metric: 1 for "failure", weight/scale of the failure term of a
-/// "sum" (at most one: its options define the metric), 0 otherwise.
-double failure_weight(const ObjectiveSpec& spec);
+/// The factor of the objective `type` ("compliance", "failure": the ones optimize_shape adds
+/// beside the moments) in `spec`: 1 when spec is of that type, Σ weight/scale of such terms of a
+/// "sum", 0 otherwise.
+double term_weight(const ObjectiveSpec& spec, const std::string& type);
+/// The spec that defines the failure metric: `spec` itself for "failure", the failure term of a
+/// "sum" (one at most: a second is an input error naming it), null otherwise.
+const ObjectiveSpec* failure_term(const ObjectiveSpec& spec);
 
 /// The objective value and d value / d moments.
 double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient);

@@ -330,10 +330,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;
   }
-  const occ::ObjectiveSpec* failure_term = o.objective.type == "failure" ? &o.objective : nullptr;
-  for (const auto& t : o.objective.terms)
-    if (t.type == "failure") failure_term = &t;
-  if (failure_term) {
+  if (const occ::ObjectiveSpec* failure_term = occ::failure_term(o.objective)) {
     h["initial_max_von_mises"] = r.initial_max_von_mises;
     h["final_max_von_mises"] = r.final_max_von_mises;
     h["yield_stress"] = failure_term->yield_stress;
