@@ -13,6 +13,7 @@
 #include <string>
 #include <unordered_map>
 
+#include "common/bit_hash.h"
 #include "common/error.h"
 #include "xfem/area_rules.h"
 
@@ -481,32 +482,11 @@ struct ElementKeyHash {
   size_t operator()(const ElementKey& k) const { return static_cast<size_t>(k.h1 ^ (k.h2 << 1)); }
 };
 
-uint64_t mix64(uint64_t x) {  // splitmix64 finalizer
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
-struct KeyHasher {
-  uint64_t h1 = 0x243f6a8885a308d3ULL, h2 = 0x13198a2e03707344ULL;
-  void add(uint64_t v) {
-    h1 = mix64(h1 ^ v);
-    h2 = mix64(h2 + 0x632be59bd9b4e019ULL * (v + 1));
-  }
-  void add(double d) {
-    uint64_t v;
-    std::memcpy(&v, &d, sizeof v);
-    add(v);
-  }
-  void add(const Vec3& v) { add(v.x()), add(v.y()), add(v.z()); }
-};
-
 ElementKey element_key(const GridElement& el, const std::vector<DirichletCondition>& dirichlet,
                        const std::vector<TractionCondition>& tractions) {
   ElementKey k;
   k.cell = el.cell;
-  KeyHasher h;
+  BitHash h;
   h.add(el.box.min), h.add(el.box.max);
   h.add(static_cast<uint64_t>(el.rule.points.size()));
   for (const Vec3& p : el.rule.points) h.add(p);

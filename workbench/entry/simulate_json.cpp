@@ -17,9 +17,9 @@
 #include <fstream>
 #include <optional>
 #include <charconv>
-#include <cstring>
 #include <unordered_map>
 
+#include "common/bit_hash.h"
 #include "common/error.h"
 #include "json_fields.h"
 #include "face_lookup.h"
@@ -264,30 +264,16 @@ struct SimulationSession::Setup {
 struct SimulationSession::InsideCache {
   struct Key {
     std::array<int, 3> cell;
-    uint64_t hash;
-    int ordinal;  ///< the element's place among the cell's elements
-    bool operator==(const Key& o) const { return cell == o.cell && hash == o.hash && ordinal == o.ordinal; }
+    uint64_t h1, h2;  ///< BitHash of the boxes and rules of all the cell's elements
+    int ordinal;      ///< the element's place among the cell's elements
+    bool operator==(const Key& o) const { return cell == o.cell && h1 == o.h1 && h2 == o.h2 && ordinal == o.ordinal; }
   };
   struct KeyHash {
-    size_t operator()(const Key& k) const {
-      return static_cast<size_t>(k.hash ^ (uint64_t(k.cell[0]) * 73856093u) ^ (uint64_t(k.cell[1]) * 19349663u) ^
-                                 (uint64_t(k.cell[2]) * 83492791u) ^ (uint64_t(k.ordinal) << 48));
-    }
+    size_t operator()(const Key& k) const { return static_cast<size_t>(k.h1 ^ (k.h2 << 1) ^ (uint64_t(k.ordinal) << 48)); }
   };
   /// Per point: −1 not classified yet, 0 outside, 1 inside.
   std::unordered_map<Key, std::vector<signed char>, KeyHash> verdicts;
 
-  static uint64_t mix(uint64_t h, uint64_t v) {  // splitmix64 step
-    uint64_t x = h ^ (v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2));
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-  }
-  static uint64_t mix(uint64_t h, double d) {
-    uint64_t v;
-    std::memcpy(&v, &d, sizeof v);
-    return mix(h, v);
-  }
   /// Per element of the model its verdict vector (null for uncut elements), carried over from
   /// the last run where the cell is unchanged, fresh (all −1) otherwise.
   std::vector<std::vector<signed char>*> bind(const std::vector<xfem::GridElement>& elements) {
@@ -297,17 +283,17 @@ struct SimulationSession::InsideCache {
     std::unordered_map<Key, std::vector<signed char>, KeyHash> next;
     std::vector<std::vector<signed char>*> of(elements.size(), nullptr);
     for (const auto& [cell, members] : cells) {
-      uint64_t h = 0x243f6a8885a308d3ULL;
+      BitHash h;
       for (size_t e : members) {
         const auto& rule = elements[e].rule;
-        for (int d = 0; d < 3; ++d) h = mix(mix(h, elements[e].box.min(d)), elements[e].box.max(d));
-        h = mix(h, uint64_t(rule.points.size()));
-        for (const Vec3& p : rule.points) h = mix(mix(mix(h, p.x()), p.y()), p.z());
-        for (double w : rule.weights) h = mix(h, w);
+        h.add(elements[e].box.min), h.add(elements[e].box.max);
+        h.add(uint64_t(rule.points.size()));
+        for (const Vec3& p : rule.points) h.add(p);
+        for (double w : rule.weights) h.add(w);
       }
       for (size_t k = 0; k < members.size(); ++k) {
         const size_t e = members[k];
-        const Key key{cell, h, static_cast<int>(k)};
+        const Key key{cell, h.h1, h.h2, static_cast<int>(k)};
         const size_t n = 8 + elements[e].rule.points.size();
         auto old = verdicts.find(key);
         auto& v = next[key];  // nodes stay put when `next` moves into `verdicts`
