@@ -200,26 +200,21 @@ void ReusedFactorization::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) co
     apply_old(r, z);
     return;
   }
-  Eigen::VectorXd rl(local_.size());
-  for (size_t k = 0; k < local_.size(); ++k) rl(k) = r(local_[k]);
-  const Eigen::VectorXd zl = local_factor_.solve(rl, 0);
+  apply_local(r, z);
   Eigen::VectorXd s = r;
-  for (size_t k = 0; k < local_.size(); ++k) {
-    const int j = local_[k];
-    z(j) = zl(k);
-    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) s(it.index()) -= it.value() * zl(k);
-  }
+  for (const int j : local_)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) s(it.index()) -= it.value() * z(j);
   apply_old(s, z);
+  // s on the local rows only (apply_local reads nothing else): r − K z there.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, local_.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
     for (size_t k = range.begin(); k != range.end(); ++k) {
       const int j = local_[k];
       double Kz = 0;
       for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) Kz += it.value() * z(it.index());
-      rl(k) = r(j) - Kz;
+      s(j) = r(j) - Kz;
     }
   });
-  const Eigen::VectorXd zl2 = local_factor_.solve(rl, 0);
-  for (size_t k = 0; k < local_.size(); ++k) z(local_[k]) += zl2(k);
+  apply_local(s, z);
 }
 
 Eigen::VectorXd ReusedFactorization::local_correction(const Eigen::VectorXd& b, const Eigen::VectorXd& x0) const {
