@@ -3,6 +3,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <sstream>
 
@@ -153,11 +154,52 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
                            "tie " + sp.names[first] + " = " + sp.names[other]);
     }
   }
-  for (const auto& m : options.mirrors) {
+  // A symmetric copy must hold for the part as read: the equations just added vanish at p0 up to
+  // round-off of the STEP data (lengths relative to the blocks' largest entry).
+  auto holds_at_start = [&](int first_row, const std::string& what) {
+    const Eigen::VectorXd c = sp.constraints.values(sp.initial);
+    for (int i = first_row; i < c.size(); ++i) {
+      double scale = 1;
+      for (int v : sp.constraints.constraints()[i].vars) scale = std::max(scale, std::abs(sp.initial[v]));
+      if (!(std::abs(c[i]) <= 1e-7 * scale))
+        PARAFAB_INPUT_ERROR(what << " does not hold for the part as read: '" << sp.constraints.constraints()[i].name
+                                 << "' is " << c[i]);
+    }
+  };
+  for (size_t k = 0; k < options.mirrors.size(); ++k) {
+    const auto& m = options.mirrors[k];
     const auto *a = sp.block(m.face_a), *b = sp.block(m.face_b);
-    PARAFAB_VERIFY(a && b, "mirror: faces " << m.face_a << " and " << m.face_b << " need analytic surfaces");
+    if (!(a && b)) PARAFAB_INPUT_ERROR("mirrors[" << k << "]: faces " << m.face_a << " and " << m.face_b << " need analytic surfaces");
+    const int first = sp.constraints.size();
     optimize::add_mirror(sp.constraints, *a, *b, m.normal, m.offset, sp.initial,
                          "mirror " + std::to_string(m.face_a) + "/" + std::to_string(m.face_b));
+    holds_at_start(first, "mirrors[" + std::to_string(k) + "] (face " + std::to_string(m.face_b) + " the mirror image of face " +
+                              std::to_string(m.face_a) + ")");
+  }
+  for (size_t k = 0; k < options.rotations.size(); ++k) {
+    const auto& r = options.rotations[k];
+    const std::string at = "rotations[" + std::to_string(k) + "]";
+    if (r.faces.size() < 2) PARAFAB_INPUT_ERROR(at << ": needs at least two faces, got " << r.faces.size());
+    if (!(r.axis.norm() > 0)) PARAFAB_INPUT_ERROR(at << ": the axis is zero");
+    if (!(std::isfinite(r.degrees) && std::abs(r.degrees) > 0 && std::abs(r.degrees) < 360))
+      PARAFAB_INPUT_ERROR(at << ": degrees must be in (-360, 360) and not 0, got " << r.degrees);
+    for (size_t i = 0; i + 1 < r.faces.size(); ++i) {
+      const int fa = r.faces[i], fb = r.faces[i + 1];
+      const auto *a = sp.block(fa), *b = sp.block(fb);
+      if (!(a && b)) PARAFAB_INPUT_ERROR(at << ": faces " << fa << " and " << fb << " need analytic surfaces");
+      if (a->kind != b->kind)
+        PARAFAB_INPUT_ERROR(at << ": face " << fb << " (" << optimize::to_string(b->kind) << ") cannot be a turned copy of face "
+                               << fa << " (" << optimize::to_string(a->kind) << ")");
+      if (is_fixed(fa) != is_fixed(fb))
+        sp.notes.push_back(at + ": face " + std::to_string(is_fixed(fa) ? fa : fb) + " is fixed, so face " +
+                           std::to_string(is_fixed(fa) ? fb : fa) + " is held too");
+      const int first = sp.constraints.size();
+      optimize::add_rotation(sp.constraints, *a, *b, r.point, r.axis, r.degrees * M_PI / 180, sp.initial,
+                             "rotation " + std::to_string(fa) + "->" + std::to_string(fb));
+      std::ostringstream what;
+      what << at << " (face " << fb << " = face " << fa << " turned by " << r.degrees << "°)";
+      holds_at_start(first, what.str());
+    }
   }
   for (size_t k = 0; k < options.orthogonal.size(); ++k) {
     const auto& o = options.orthogonal[k];

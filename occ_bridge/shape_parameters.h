@@ -1,7 +1,7 @@
 // Shape parameters of a part (thesis §6.5.1): the mid-level parameters p of its analytic faces
 // from the face model, named ("face 7 cylinder radius"), the tangency relations as constraints
 // c_para(p) = 0 in a reduced independent form, unit axes, and user constraints (fixed faces,
-// ties into one design variable, mirror symmetry, bounds). The math lives in
+// ties into one design variable, mirror and rotational symmetry, bounds). The math lives in
 // solvers/optimize/shape_constraints.h; this file maps the face model onto it.
 #pragma once
 
@@ -28,6 +28,16 @@ struct ShapeParameterOptions {
     double offset = 0;
   };
   std::vector<Mirror> mirrors;
+  /// Rotational symmetry of a pattern: faces[k + 1] is faces[k] turned by `degrees` about the
+  /// axis through `point` along `axis` (bolt holes on a circle, spokes of a wheel). Like a
+  /// mirror, it must hold at the start (the part as read).
+  struct Rotation {
+    std::vector<int> faces;
+    Vec3 point = Vec3::Zero();
+    Vec3 axis = Vec3::UnitZ();
+    double degrees = 0;
+  };
+  std::vector<Rotation> rotations;
   /// Draft (thesis §6.6, motor housing: "normals orthogonal to the symmetry axis stay
   /// orthogonal"): plane face `face` keeps its normal orthogonal to `axis`, n·a = 0 (a wall
   /// parallel to the pull direction stays so). The part must satisfy it at the start (|n·a| ≤ 1e-9).
@@ -58,7 +68,8 @@ struct ShapeParameters {
 };
 
 /// Builds p, its names, bounds and c_para from the face model. Throws parafab::Error naming
-/// the face for a fixed/tied/mirrored face that does not exist or has no such parameter.
+/// the face for a fixed/tied/mirrored/rotated face that does not exist or has no such parameter,
+/// and for a mirror or rotation the part as read does not satisfy.
 ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParameterOptions& options = {});
 
 /// Index in p of (face, parameter name); throws parafab::Error listing the face's parameters.

@@ -126,9 +126,22 @@ def plate_holes():
     return s.removeSplitter()
 
 
+def flange():
+    # Disc radius 50, 8 thick, bore radius 12, six bolt holes radius 5 on the circle of radius
+    # 32 about z, one at +x and the others its copies turned by 60° steps (the rotational
+    # pattern of `parafab optimize`'s "rotations").
+    s = Part.makeCylinder(50, 8).cut(Part.makeCylinder(12, 8))
+    for k in range(6):
+        hole = Part.makeCylinder(5, 8, V(32, 0, 0), Z)
+        hole.rotate(V(0, 0, 0), Z, 60 * k)
+        s = s.cut(hole)
+    return s.removeSplitter()
+
+
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
          "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
-         "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes}
+         "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes,
+         "flange": flange}
 # PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
 only = [n for n in os.environ.get("PARAFAB_PARTS_ONLY", "").split(",") if n]
 

@@ -310,53 +310,77 @@ void add_linear(ConstraintSystem& system, const std::vector<int>& vars, const st
               }});
 }
 
-int add_mirror(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b, const Eigen::Vector3d& e,
-               double m, const Eigen::VectorXd& p0, const std::string& label) {
+int add_isometric_copy(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b,
+                       const Eigen::Matrix3d& Q, const Eigen::Vector3d& t, const Eigen::VectorXd& p0,
+                       const std::string& label) {
   using K = PrimitiveKind;
-  PARAFAB_VERIFY(a.kind == b.kind, label << ": mirror symmetry needs faces of one type, got " << to_string(a.kind)
+  PARAFAB_VERIFY(a.kind == b.kind, label << ": a symmetric copy needs faces of one type, got " << to_string(a.kind)
                                          << " and " << to_string(b.kind));
+  PARAFAB_VERIFY((Q.transpose() * Q - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12,
+                 label << ": the map is not an isometry (QᵀQ ≠ I)");
   const int na = a.size(), before = system.size();
   const std::vector<int> vars = block_vars(a, &b);
   auto add = [&](const std::string& eq, std::function<J(const std::vector<J>&)> f) {
     system.add({label + ": " + eq, vars, std::move(f)});
   };
-  const Eigen::Vector3d en = e.normalized();
-  auto reflect_dir = [en](const JV& v) { return v - (2.0 * dot(v, JV{J(en.x(), v.x.size()), J(en.y(), v.x.size()), J(en.z(), v.x.size())})) * JV{J(en.x(), v.x.size()), J(en.y(), v.x.size()), J(en.z(), v.x.size())}; };
-  auto reflect_point = [en, m](const JV& v) {
-    const int n = v.x.size();
-    const JV E{J(en.x(), n), J(en.y(), n), J(en.z(), n)};
-    return v - (2.0 * (dot(v, E) - m)) * E;
+  auto map_dir = [Q](const JV& v) {
+    return JV{Q(0, 0) * v.x + Q(0, 1) * v.y + Q(0, 2) * v.z, Q(1, 0) * v.x + Q(1, 1) * v.y + Q(1, 2) * v.z,
+              Q(2, 0) * v.x + Q(2, 1) * v.y + Q(2, 2) * v.z};
+  };
+  auto map_point = [map_dir, t](const JV& v) {
+    const JV q = map_dir(v);
+    return JV{q.x + t.x(), q.y + t.y(), q.z + t.z()};
   };
   const Eigen::Vector3d axis_a0 = a.kind == K::sphere ? Eigen::Vector3d::UnitZ() : block_vec(p0, a, axis_at(a.kind));
-  const Eigen::Vector3d ra0 = axis_a0 - 2 * axis_a0.dot(en) * en;
+  const Eigen::Vector3d qa0 = Q * axis_a0;
   if (a.kind == K::plane) {
-    const double sigma = ra0.dot(block_vec(p0, b, 0)) < 0 ? -1.0 : 1.0;
-    for (int comp : reduced_components(ra0))
-      add(std::string("cross(R n_a, n_b).") + "xyz"[comp] + " = 0",
-          [=](const std::vector<J>& x) { return cross(reflect_dir(vec_at(x, 0)), vec_at(x, na))[comp]; });
-    add("d_b - s(d_a - 2m n_a.e) = 0", [=](const std::vector<J>& x) {
-      return x[na + 3] - sigma * (x[3] - (2.0 * m) * (x[0] * en.x() + x[1] * en.y() + x[2] * en.z()));
+    // n_a·X = d_a maps to (Q n_a)·X' = d_a + (Q n_a)·t; b may carry the opposite orientation.
+    const double sigma = qa0.dot(block_vec(p0, b, 0)) < 0 ? -1.0 : 1.0;
+    for (int comp : reduced_components(qa0))
+      add(std::string("cross(Q n_a, n_b).") + "xyz"[comp] + " = 0",
+          [=](const std::vector<J>& x) { return cross(map_dir(vec_at(x, 0)), vec_at(x, na))[comp]; });
+    add("d_b - s(d_a + (Q n_a).t) = 0", [=](const std::vector<J>& x) {
+      const JV qn = map_dir(vec_at(x, 0));
+      return x[na + 3] - sigma * (x[3] + qn.x * t.x() + qn.y * t.y() + qn.z * t.z());
     });
     return system.size() - before;
   }
-  // Centre / axis point: b's on the mirrored axis (cylinder), or equal (others).
+  // Centre / axis point: b's on the mapped axis (cylinder: its point slides), or the image (others).
   if (a.kind == K::cylinder) {
-    for (int comp : reduced_components(ra0))
-      add(std::string("cross(c_b - R c_a, a_b).") + "xyz"[comp] + " = 0", [=](const std::vector<J>& x) {
-        return cross(vec_at(x, na) - reflect_point(vec_at(x, 0)), vec_at(x, na + 3))[comp];
+    for (int comp : reduced_components(qa0))
+      add(std::string("cross(c_b - (Q c_a + t), a_b).") + "xyz"[comp] + " = 0", [=](const std::vector<J>& x) {
+        return cross(vec_at(x, na) - map_point(vec_at(x, 0)), vec_at(x, na + 3))[comp];
       });
   } else {
     for (int comp = 0; comp < 3; ++comp)
-      add(std::string("(c_b - R c_a).") + "xyz"[comp] + " = 0",
-          [=](const std::vector<J>& x) { return (vec_at(x, na) - reflect_point(vec_at(x, 0)))[comp]; });
+      add(std::string("(c_b - (Q c_a + t)).") + "xyz"[comp] + " = 0",
+          [=](const std::vector<J>& x) { return (vec_at(x, na) - map_point(vec_at(x, 0)))[comp]; });
   }
   if (a.kind != K::sphere)
-    for (int comp : reduced_components(ra0))
-      add(std::string("cross(R a_a, a_b).") + "xyz"[comp] + " = 0",
-          [=](const std::vector<J>& x) { return cross(reflect_dir(vec_at(x, 3)), vec_at(x, na + 3))[comp]; });
+    for (int comp : reduced_components(qa0))
+      add(std::string("cross(Q a_a, a_b).") + "xyz"[comp] + " = 0",
+          [=](const std::vector<J>& x) { return cross(map_dir(vec_at(x, 3)), vec_at(x, na + 3))[comp]; });
   for (int k = a.kind == K::sphere ? 3 : 6; k < na; ++k)
     add(block_parameter_names(a.kind)[k] + " equal", [=](const std::vector<J>& x) { return x[na + k] - x[k]; });
   return system.size() - before;
+}
+
+int add_mirror(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b, const Eigen::Vector3d& e,
+               double m, const Eigen::VectorXd& p0, const std::string& label) {
+  PARAFAB_VERIFY(e.norm() > 0, label << ": the mirror plane's normal is zero");
+  const Eigen::Vector3d en = e.normalized();
+  // X' = X − 2(e·X − m) e = (I − 2 e eᵀ) X + 2m e
+  return add_isometric_copy(system, a, b, Eigen::Matrix3d::Identity() - 2.0 * en * en.transpose(), 2.0 * m * en, p0,
+                            label);
+}
+
+int add_rotation(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b,
+                 const Eigen::Vector3d& point, const Eigen::Vector3d& axis, double angle, const Eigen::VectorXd& p0,
+                 const std::string& label) {
+  PARAFAB_VERIFY(axis.norm() > 0, label << ": the rotation axis is zero");
+  // X' = Q (X − o) + o
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+  return add_isometric_copy(system, a, b, Q, point - Q * point, p0, label);
 }
 
 Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {

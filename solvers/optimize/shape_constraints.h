@@ -1,7 +1,7 @@
 // The parameterization constraints c_para(p) = 0 of thesis §6.5.1 (Fig. 6.11) on plain vectors:
 // mid-level parameters of analytic faces (plane, cylinder, cone, sphere, torus) in one vector p,
 // the tangency relations between adjacent faces in a reduced independent form, unit axes, and
-// user constraints (linear ties and fixes, mirror symmetry). Every scalar constraint carries its
+// user constraints (linear ties and fixes, mirror and rotational symmetry). Every scalar constraint carries its
 // exact gradient and Hessian (jet.h), as the projection (Eq. 6.25-6.26, 6.29) needs.
 #pragma once
 
@@ -94,12 +94,26 @@ int add_tangency(ConstraintSystem& system, const std::string& kind, const Parame
 void add_linear(ConstraintSystem& system, const std::vector<int>& vars, const std::vector<double>& coefficients,
                 double rhs, const std::string& label);
 
-/// Face b is the mirror image of face a in the plane e·X = m (e unit): points reflect, axes
-/// reflect (sign chosen at p0 so that b's axis ≈ R a's), radii equal; for planes n_b = R n_a and
-/// d_b = d_a − 2m(n_a·e) up to the orientation sign at p0. Blocks must be of one primitive kind.
-/// Returns the number of equations added.
+/// Face b is the image of face a under the isometry X ↦ Q X + t (Q orthogonal; a symmetric copy
+/// in a pattern): points map (a cylinder's axis point may slide along b's axis), axes map (sign
+/// chosen at p0 so that b's axis ≈ Q a's), radii and half-angles equal; for planes n_b ∥ Q n_a
+/// and d_b = s(d_a + (Q n_a)·t) with the orientation sign s at p0. Blocks must be of one
+/// primitive kind. Returns the number of equations added (reduced: two per parallel pair).
+int add_isometric_copy(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b,
+                       const Eigen::Matrix3d& Q, const Eigen::Vector3d& t, const Eigen::VectorXd& p0,
+                       const std::string& label);
+
+/// Face b is the mirror image of face a in the plane e·X = m (add_isometric_copy with
+/// Q = I − 2eeᵀ/|e|², t = 2m e/|e|).
 int add_mirror(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b,
                const Eigen::Vector3d& e, double m, const Eigen::VectorXd& p0, const std::string& label);
+
+/// Face b is face a turned by `angle` (radians, right-handed) about the axis through `point`
+/// along `axis` (rotational symmetry of a pattern: add_isometric_copy with Q the rotation,
+/// t = point − Q point).
+int add_rotation(ConstraintSystem& system, const ParameterBlock& a, const ParameterBlock& b,
+                 const Eigen::Vector3d& point, const Eigen::Vector3d& axis, double angle, const Eigen::VectorXd& p0,
+                 const std::string& label);
 
 /// The implicit function φ(X; block) of a primitive whose zero set is the face's surface and
 /// |∇_X φ| = 1 on it when its axis is unit (plane: n·X − d; cylinder: distance to the axis − r;

@@ -35,7 +35,12 @@ int face_index(const occ::PartShape& part, const json& item, const std::string& 
   }
   if (item.contains("point")) {
     const occ::PartInfo info = occ::part_info(part);
-    return occ::face_at_point(part, vec3(item["point"], path + ".point"), 1e-6 * (info.bbox_max - info.bbox_min).norm() + 1e-9);
+    const Eigen::Vector3d X = vec3(item["point"], path + ".point");
+    try {
+      return occ::face_at_point(part, X, 1e-6 * (info.bbox_max - info.bbox_min).norm() + 1e-9);
+    } catch (const Error& e) {
+      PARAFAB_INPUT_ERROR(path << ": " << e.what());  // which entry named the point
+    }
   }
   PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
 }
@@ -235,6 +240,28 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     m.normal = vec3(fields::require(plane, "normal", path + ".plane"), path + ".plane.normal");
     m.offset = number(fields::require(plane, "offset", path + ".plane"), path + ".plane.offset");
     o.parameterization.mirrors.push_back(m);
+  }
+  // Rotational symmetry: [{"faces": [f0, f1, ...], "axis": {"point": [..], "direction": [..]}, "degrees": θ}],
+  // f(k+1) = f(k) turned by θ; a face is an index or a point on it ([x, y, z]).
+  const json rotations = job.value("rotations", json::array());
+  if (!rotations.is_array()) PARAFAB_INPUT_ERROR("rotations must be a list of {\"faces\", \"axis\", \"degrees\"}");
+  for (size_t i = 0; i < rotations.size(); ++i) {
+    const std::string path = "rotations[" + std::to_string(i) + "]";
+    fields::only(rotations[i], path, {"faces", "axis", "degrees"});
+    const json& faces = fields::require(rotations[i], "faces", path);
+    if (!faces.is_array() || faces.size() < 2) PARAFAB_INPUT_ERROR(path << ".faces must be a list of at least two faces");
+    occ::ShapeParameterOptions::Rotation r;
+    for (size_t k = 0; k < faces.size(); ++k) {
+      const std::string fp = path + ".faces[" + std::to_string(k) + "]";
+      if (faces[k].is_number_integer()) r.faces.push_back(face_index(*part, json{{"face", faces[k]}}, fp));
+      else if (faces[k].is_array()) r.faces.push_back(face_index(*part, json{{"point", faces[k]}}, fp));
+      else PARAFAB_INPUT_ERROR(fp << " must be a face index or a point [x, y, z] on the face");
+    }
+    const json& axis = fields::require(rotations[i], "axis", path);
+    r.point = vec3(fields::require(axis, "point", path + ".axis"), path + ".axis.point");
+    r.axis = vec3(fields::require(axis, "direction", path + ".axis"), path + ".axis.direction");
+    r.degrees = number(fields::require(rotations[i], "degrees", path), path + ".degrees");
+    o.parameterization.rotations.push_back(r);
   }
   // Draft: plane normals kept orthogonal to an axis, [{"face": i | "point": [x, y, z], "axis": [x, y, z]}].
   const json orthogonal = job.value("orthogonal", json::array());

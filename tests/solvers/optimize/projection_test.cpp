@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <cmath>
+#include <map>
 #include <random>
 
 #include "optimize/lbfgs.h"
@@ -79,7 +81,7 @@ TEST(ShapeConstraints, TangencyJacobiansAndHessiansMatchCentralDifferences) {
     EXPECT_LT(je, 1e-7) << kind;
     EXPECT_LT(he, 1e-7) << kind;
   }
-  // Mirror symmetry and linear ties too.
+  // Mirror and rotational symmetry and linear ties too.
   for (K k : {K::plane, K::cylinder, K::cone, K::sphere, K::torus}) {
     const ParameterBlock a{0, k, 0}, b{1, k, block_size(k)};
     Eigen::VectorXd p(2 * a.size());
@@ -87,11 +89,51 @@ TEST(ShapeConstraints, TangencyJacobiansAndHessiansMatchCentralDifferences) {
     fill_block(p, b, rng);
     ConstraintSystem s(p.size());
     add_mirror(s, a, b, Eigen::Vector3d(0.3, -0.2, 0.9), 0.7, p, "mirror");
+    add_rotation(s, a, b, Eigen::Vector3d(0.2, 0.1, -0.4), Eigen::Vector3d(-0.5, 0.4, 0.8), 1.1, p, "rotation");
     add_linear(s, {0, b.offset}, {1.0, -2.0}, 0.25, "tie");
     double je, he;
     check_derivatives(s, p, je, he);
     EXPECT_LT(je, 1e-7) << to_string(k);
     EXPECT_LT(he, 1e-7) << to_string(k);
+  }
+}
+
+// A face turned about an axis by hand (points Q(X − o) + o, axes Q a; a cylinder's axis point
+// slid along its axis, a plane's normal flipped) satisfies the rotation constraints; the same
+// face with a radius, an offset or the angle changed does not.
+TEST(ShapeConstraints, RotatedCopiesSatisfyTheRotationConstraints) {
+  using K = PrimitiveKind;
+  std::mt19937 rng(11);
+  const Eigen::Vector3d o(1.5, -0.5, 2.0), w = Eigen::Vector3d(0.2, -0.3, 1.0).normalized();
+  const double angle = 2 * M_PI / 5;
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(angle, w).toRotationMatrix();
+  for (K k : {K::plane, K::cylinder, K::cone, K::sphere, K::torus}) {
+    const ParameterBlock a{0, k, 0}, b{1, k, block_size(k)};
+    Eigen::VectorXd p(2 * a.size());
+    fill_block(p, a, rng);
+    p.segment(b.offset, b.size()) = p.segment(a.offset, a.size());
+    if (k == K::plane) {
+      const Eigen::Vector3d n = p.segment<3>(0);
+      const double d = p[3];  // n·X = d ⇒ (Qn)·X' = d + (Qn)·(o − Q o), stored flipped
+      p.segment<3>(4) = -(Q * n);
+      p[7] = -(d + (Q * n).dot(o - Q * o));
+    } else {
+      p.segment<3>(b.offset) = Q * (p.segment<3>(0) - o) + o;
+      if (k != K::sphere) p.segment<3>(b.offset + 3) = Q * p.segment<3>(3);
+      if (k == K::cylinder) p.segment<3>(b.offset) += 0.7 * p.segment<3>(b.offset + 3);
+    }
+    ConstraintSystem s(p.size());
+    const int added = add_rotation(s, a, b, o, w, angle, p, "rotation");
+    // Independent equations: parallel directions 2, points 3 (2 for a cylinder's sliding point), radii 1 each.
+    const std::map<K, int> equations = {{K::plane, 3}, {K::cylinder, 5}, {K::cone, 7}, {K::sphere, 4}, {K::torus, 7}};
+    EXPECT_EQ(added, equations.at(k)) << to_string(k);
+    EXPECT_LT(s.values(p).cwiseAbs().maxCoeff(), 1e-14) << to_string(k);
+    Eigen::VectorXd q = p;
+    q[b.offset + b.size() - 1] += 1e-3;  // the radius (half-angle for a cone, offset for a plane)
+    EXPECT_GT(s.values(q).cwiseAbs().maxCoeff(), 0.9e-3) << to_string(k);
+    ConstraintSystem other(p.size());
+    add_rotation(other, a, b, o, w, angle + 1e-3, p, "rotation");
+    EXPECT_GT(other.values(p).cwiseAbs().maxCoeff(), 1e-4) << to_string(k);
   }
 }
 
