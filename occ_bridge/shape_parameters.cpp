@@ -204,18 +204,41 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
   for (size_t k = 0; k < options.orthogonal.size(); ++k) {
     const auto& o = options.orthogonal[k];
     const auto* b = sp.block(o.face);
-    if (!(b && b->kind == optimize::PrimitiveKind::plane)) PARAFAB_INPUT_ERROR(
-                        "orthogonal[" << k << "]: face " << o.face << " is not a plane (only plane normals can be kept orthogonal to an axis)");
+    using K = optimize::PrimitiveKind;
+    if (!(b && (b->kind == K::plane || b->kind == K::cylinder || b->kind == K::cone)))
+      PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: face " << o.face << " is "
+                                        << (b ? optimize::to_string(b->kind) : "not analytic")
+                                        << " (a plane keeps its normal orthogonal to the axis, a cylinder or cone its axis parallel to it)");
     if (!(o.axis.norm() > 0)) PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: the axis is zero");
     const Vec3 a = o.axis.normalized();
-    const std::vector<int> n = {parameter_index(sp, o.face, "normal x"), parameter_index(sp, o.face, "normal y"),
-                                parameter_index(sp, o.face, "normal z")};
-    const double at_start = a.x() * sp.initial[n[0]] + a.y() * sp.initial[n[1]] + a.z() * sp.initial[n[2]];
-    if (!(std::abs(at_start) <= 1e-9)) PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: face " << o.face
-                                                                   << "'s normal is not orthogonal to the axis at the start (n·a = "
-                                                                   << at_start << ")");
-    optimize::add_linear(sp.constraints, n, {a.x(), a.y(), a.z()}, 0.0,
-                         "face " + std::to_string(o.face) + " normal orthogonal to the axis");
+    const std::string face = "face " + std::to_string(o.face);
+    if (b->kind == K::plane) {
+      const std::vector<int> n = {parameter_index(sp, o.face, "normal x"), parameter_index(sp, o.face, "normal y"),
+                                  parameter_index(sp, o.face, "normal z")};
+      const double at_start = a.x() * sp.initial[n[0]] + a.y() * sp.initial[n[1]] + a.z() * sp.initial[n[2]];
+      if (!(std::abs(at_start) <= 1e-9)) PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: " << face
+                                                                     << "'s normal is not orthogonal to the axis at the start (n·a = "
+                                                                     << at_start << ")");
+      optimize::add_linear(sp.constraints, n, {a.x(), a.y(), a.z()}, 0.0, face + " normal orthogonal to the axis");
+      continue;
+    }
+    // A cylinder's normals are all orthogonal to `a` exactly when its axis v is parallel to a (a
+    // cone's then keep their draft angle to a): v × a = 0, two independent linear rows (the
+    // components other than the one along a's largest entry, which follows from them).
+    const std::vector<int> v = {parameter_index(sp, o.face, "axis x"), parameter_index(sp, o.face, "axis y"),
+                                parameter_index(sp, o.face, "axis z")};
+    const Vec3 v0(sp.initial[v[0]], sp.initial[v[1]], sp.initial[v[2]]);
+    if (!(v0.normalized().cross(a).norm() <= 1e-9))
+      PARAFAB_INPUT_ERROR("orthogonal[" << k << "]: " << face << "'s axis is not parallel to the axis at the start (|v × a| = "
+                                        << v0.normalized().cross(a).norm() << ")");
+    int largest = 0;
+    a.cwiseAbs().maxCoeff(&largest);
+    for (int comp = 0; comp < 3; ++comp) {
+      if (comp == largest) continue;
+      const int i = (comp + 1) % 3, j = (comp + 2) % 3;  // (v × a)_comp = v_i a_j − v_j a_i
+      optimize::add_linear(sp.constraints, {v[i], v[j]}, {a[j], -a[i]}, 0.0,
+                           face + " axis parallel to the axis (" + "xyz"[comp] + " of v × a)");
+    }
   }
   return sp;
 }

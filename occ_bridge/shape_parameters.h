@@ -40,7 +40,9 @@ struct ShapeParameterOptions {
   std::vector<Rotation> rotations;
   /// Draft (thesis §6.6, motor housing: "normals orthogonal to the symmetry axis stay
   /// orthogonal"): plane face `face` keeps its normal orthogonal to `axis`, n·a = 0 (a wall
-  /// parallel to the pull direction stays so). The part must satisfy it at the start (|n·a| ≤ 1e-9).
+  /// parallel to the pull direction stays so); a cylinder keeps its axis parallel to `axis` (all
+  /// its normals orthogonal to it), a cone too (its normals keep the draft angle). The part must
+  /// satisfy it at the start (|n·a|, |v × a| ≤ 1e-9).
   struct Orthogonal {
     int face = -1;
     Vec3 axis = Vec3::UnitZ();

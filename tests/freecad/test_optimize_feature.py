@@ -269,8 +269,9 @@ class OptimizeFeatureTest(unittest.TestCase):
     def test_draft_faces_keep_their_normal_orthogonal_to_the_pull_direction(self):
         """Plumbing of the panel's draft faces: they go to the engine as "orthogonal" entries with the
         pull direction mapped into the part's frame, and the run accepts them (the constraint's
-        effect on free normals is python.optimize_draft's test); a curved draft face is refused by
-        the panel, a pull direction the faces are not orthogonal to by the engine."""
+        effect on free normals is python.optimize_draft's test); cylinders keep their axis along
+        the pull; a sphere is refused by the panel, a pull direction the faces are not orthogonal to
+        by the engine."""
         import parafab
         shape = self.wheel.Shape.copy()
         local = Part.read(WHEEL)  # the part's own frame: its side walls have n_z = 0
@@ -293,8 +294,18 @@ class OptimizeFeatureTest(unittest.TestCase):
         print("\n[optimize] wheel with 3 draft faces: |c⊥|² %.6g -> %.6g, largest n_z of a side plane %.1e"
               % (h["initial_objective"], h["final_objective"], worst), file=sys.stderr)
         self.assertLess(worst, 1e-12)
-        with self.assertRaisesRegex(optimize_feature.OptimizeError, "not planar"):
-            optimize_feature.build_job(shape, dict(opts, draft_faces=curved[:1]), self.wheel.Placement)
+        # Cylinders (the rim and hub walls, axis along the part's z) keep their axis along the pull.
+        with_cylinders = optimize_feature.build_job(shape, dict(opts, draft_faces=walls[:1] + curved), self.wheel.Placement)
+        self.assertEqual(len(with_cylinders["orthogonal"]), 1 + len(curved))
+        hc = parafab.optimize(WHEEL, with_cylinders, out_dir=tempfile.mkdtemp())
+        tilt = max(math.hypot(*f["parameters"]["d"][:2]) for f in parafab.inspect_part(hc["optimized_step"])["faces"]
+                   if f["type"] == "cylinder")
+        print("[optimize] wheel with %d cylinder draft faces: |c⊥|² %.6g -> %.6g, largest axis tilt %.1e"
+              % (len(curved), hc["initial_objective"], hc["final_objective"], tilt), file=sys.stderr)
+        self.assertLess(tilt, 1e-12)
+        ball = Part.makeSphere(10)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "draft face Face1 is a sphere"):
+            optimize_feature.build_job(ball, dict(opts, parameters="auto", ties=[], draft_faces=["Face1"]), FreeCAD.Placement())
         with self.assertRaisesRegex(optimize_feature.OptimizeError, "pull\\) direction is zero"):
             optimize_feature.build_job(shape, dict(opts, draft_direction=(0, 0, 0)), self.wheel.Placement)
         tilted = optimize_feature.build_job(shape, dict(opts, draft_direction=(1, 0, 0)), FreeCAD.Placement())

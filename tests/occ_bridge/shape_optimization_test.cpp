@@ -4,6 +4,8 @@
 // finite differences, BRepCheck, and a STEP round trip.
 #include <gtest/gtest.h>
 
+#include <BRepPrimAPI_MakeCone.hxx>
+#include <BRepPrimAPI_MakeSphere.hxx>
 #include <cmath>
 #include <cstdio>
 
@@ -95,6 +97,52 @@ TEST(ShapeParameters, SamplePartsSatisfyTheirConstraintsAndJacobiansAreExact) {
   EXPECT_EQ(l.sp.names[parameter_index(l.sp, hole, "radius")], "face " + std::to_string(hole) + " cylinder radius");
   EXPECT_GT(l.sp.relation_equations, 0);
   EXPECT_THROW(parameter_index(l.sp, hole, "offset"), Error);
+}
+
+// Draft on curved faces: a cone (axis z) and a cylinder keep their axis parallel to the pull
+// direction. Two independent rows each; they vanish at the start, change by exactly the axis
+// tilt's cross product with the pull direction, and a wrong direction, a sphere or a zero axis
+// is refused naming the entry.
+TEST(ShapeParameters, DraftKeepsConeAndCylinderAxesParallelToThePull) {
+  const auto cone = make_part(BRepPrimAPI_MakeCone(gp_Ax2(gp_Pnt(1, 2, 0), gp_Dir(0, 0, 1)), 20, 8, 30).Shape(), "cone");
+  const FaceModel model = build_face_model(*cone);
+  const int lateral = find_face(model, SurfaceType::cone, [](const Primitive&) { return true; });
+  ShapeParameterOptions o;
+  o.orthogonal.push_back({lateral, Vec3(0, 0, 2)});
+  const ShapeParameters plain = build_shape_parameters(model);
+  const ShapeParameters sp = build_shape_parameters(model, o);
+  ASSERT_EQ(sp.constraints.size(), plain.constraints.size() + 2);
+  EXPECT_LT(sp.constraints.values(sp.initial).tail(2).cwiseAbs().maxCoeff(), 1e-15);
+  // Tilt the axis: the rows are (v × a) x and y for a = z, i.e. v_y and −v_x.
+  Eigen::VectorXd p = sp.initial;
+  const int ax = parameter_index(sp, lateral, "axis x"), ay = parameter_index(sp, lateral, "axis y");
+  p[ax] += 0.01, p[ay] -= 0.02;
+  const Eigen::Vector2d rows = sp.constraints.values(p).tail(2);
+  EXPECT_NEAR(std::abs(rows[0]) + std::abs(rows[1]), 0.03, 1e-15);
+  EXPECT_NEAR(std::abs(rows[0]), 0.02, 1e-15);  // x of v × a = v_y a_z
+  // A pull direction the axis does not follow at the start, a sphere, a zero axis.
+  ShapeParameterOptions tilted;
+  tilted.orthogonal.push_back({lateral, Vec3(0.1, 0, 1)});
+  try {
+    build_shape_parameters(model, tilted);
+    ADD_FAILURE() << "a tilted pull direction was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("orthogonal[0]: face " + std::to_string(lateral) + "'s axis is not parallel"),
+              std::string::npos) << e.what();
+  }
+  const auto ball = make_part(BRepPrimAPI_MakeSphere(10).Shape(), "sphere");
+  const FaceModel ball_model = build_face_model(*ball);
+  ShapeParameterOptions on_ball;
+  on_ball.orthogonal.push_back({0, Vec3(0, 0, 1)});
+  try {
+    build_shape_parameters(ball_model, on_ball);
+    ADD_FAILURE() << "a sphere was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("orthogonal[0]: face 0 is sphere"), std::string::npos) << e.what();
+  }
+  ShapeParameterOptions zero;
+  zero.orthogonal.push_back({lateral, Vec3::Zero()});
+  EXPECT_THROW(build_shape_parameters(model, zero), Error);
 }
 
 TEST(ShapeParameters, ProjectionOfAPerturbedFilletPartRestoresTangency) {

@@ -195,7 +195,7 @@ def default_options():
         "parameters": "auto",                 # or [("FaceN", "radius"), ...]
         "ties": [],                           # [[("FaceN", "radius"), ("FaceM", "radius")], ...]
         "fixed_faces": [],                    # ["FaceN", ...]
-        "draft_faces": [],                    # ["FaceN", ...]: planes whose normal stays ⊥ the pull direction
+        "draft_faces": [],                    # ["FaceN", ...]: planes (normal ⊥ pull), cylinders/cones (axis ∥ pull)
         "draft_direction": (0.0, 0.0, 1.0),   # pull direction (global), for draft_faces
         "supports": [],                       # ["FaceN", ...]
         "loads": [],                          # ["FaceN", ...]
@@ -267,8 +267,11 @@ def build_job(shape, options, placement=None):
         if pull.Length < 1e-12:
             raise OptimizeError("the draft (pull) direction is zero")
         for f in opts["draft_faces"]:
-            if shape.Faces[face_index(f, n, "draft faces")].Surface.TypeId != "Part::GeomPlane":
-                raise OptimizeError("draft face %s is not planar (only plane normals can be kept orthogonal)" % f)
+            kind = shape.Faces[face_index(f, n, "draft faces")].Surface.TypeId
+            if kind not in ("Part::GeomPlane", "Part::GeomCylinder", "Part::GeomCone"):
+                raise OptimizeError("draft face %s is a %s: planes keep their normal orthogonal to the pull "
+                                    "direction, cylinders and cones their axis parallel to it; no other surface"
+                                    % (f, kind.replace("Part::Geom", "").lower()))
         d = (placement or FreeCAD.Placement()).inverse().Rotation.multVec(pull)  # into the part's frame
         job["orthogonal"] = [{"face": face_index(f, n, "draft faces"), "axis": [d.x, d.y, d.z]}
                              for f in opts["draft_faces"]]

@@ -165,11 +165,12 @@ class OptimizeTaskPanel(object):
         lay.addLayout(force)
         layout.addWidget(loads)
 
-        draft = QtGui.QGroupBox("Draft (planes stay parallel to the pull direction)")
+        draft = QtGui.QGroupBox("Draft (walls stay parallel to the pull direction)")
         lay = QtGui.QVBoxLayout(draft)
-        self.draft_faces = analysis_panel.FaceList("Draft faces (planar)", [], [self.obj])
-        self.draft_faces.setToolTip("Planar faces whose normal stays orthogonal to the pull direction "
-                                    "(undercut-free for casting or moulding along it)")
+        self.draft_faces = analysis_panel.FaceList("Draft faces (planes, cylinders, cones)", [], [self.obj])
+        self.draft_faces.setToolTip("Planar faces whose normal stays orthogonal to the pull direction, cylinders "
+                                    "and cones whose axis stays parallel to it (undercut-free for casting or "
+                                    "moulding along it)")
         lay.addWidget(self.draft_faces)
         row = QtGui.QHBoxLayout()
         self.draft_dir = [_spin(-1, 1, v, 4) for v in defaults["draft_direction"]]
