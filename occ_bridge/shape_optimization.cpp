@@ -342,8 +342,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     grad.resize(nd);
     last.volume_gradient.resize(nd);
     for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]], last.volume_gradient[k] = v_target[design[k]];
-    grad += dpsi_dV * last.volume_gradient;
     if (compliance && !volume_only) grad += compliance_gradient;
+    if (result.initial_gradient.size() == 0 && !volume_only) result.initial_gradient = grad;  // of f, without the penalty
+    grad += dpsi_dV * last.volume_gradient;
     last.ok = true;
     last.objective = f;
     last.penalized = F;

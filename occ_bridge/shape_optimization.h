@@ -131,6 +131,9 @@ struct ShapeOptimizationResult {
   std::vector<ShapeIterate> iterations;
   std::vector<std::string> design_names;
   Eigen::VectorXd design_initial, design_final;
+  /// d objective / d design entry at the start (the sensitivities of the part as read; the
+  /// volume bound's penalty not included), by the route `gradient` names.
+  Eigen::VectorXd initial_gradient;
   Eigen::VectorXd p_initial, p_final;  ///< p⊥ at the start and at the end
   double tangency_residual_max = 0;    ///< face model relations on the final part
   std::shared_ptr<const PartShape> part;  ///< the final valid model

@@ -392,8 +392,12 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
                                {"seconds", it.seconds}});
   }
   h["parameters"] = json::array();
-  for (size_t k = 0; k < r.design_names.size(); ++k)
-    h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
+  for (size_t k = 0; k < r.design_names.size(); ++k) {
+    json entry{{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}};
+    // d objective / d parameter of the part as read (sensitivity; null if the start failed).
+    entry["gradient_initial"] = k < static_cast<size_t>(r.initial_gradient.size()) ? json(r.initial_gradient[k]) : json();
+    h["parameters"].push_back(entry);
+  }
   if (!out_dir.empty()) {
     std::filesystem::create_directories(out_dir);
     const std::string step = out_dir + "/optimized.step";
