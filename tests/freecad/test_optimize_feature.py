@@ -32,6 +32,7 @@ from parafab_wb import optimize_runner  # noqa: E402
 from PySide import QtCore  # noqa: E402
 
 WHEEL = os.path.join(_REPO, "samples", "parts", "wheel.step")
+FLANGE = os.path.join(_REPO, "samples", "parts", "flange.step")
 ITERATIONS = 3
 #: The wheel is placed here; the axis of the objective is the wheel's own z axis, in global terms.
 PLACEMENT = FreeCAD.Placement(FreeCAD.Vector(100, 50, -20), FreeCAD.Rotation(FreeCAD.Vector(1, 0, 0), 90))
@@ -312,6 +313,44 @@ class OptimizeFeatureTest(unittest.TestCase):
         with self.assertRaises(parafab.Error) as e:
             parafab.optimize(WHEEL, dict(tilted, max_iterations=0))
         self.assertIn("not orthogonal to the axis at the start", str(e.exception))
+
+    def test_pattern_faces_become_a_rotation_entry_in_the_parts_frame(self):
+        """The panel's pattern: bolt holes of the flange picked in any order become one "rotations"
+        entry sorted about the axis (given globally, mapped into the part's frame) with the step
+        60°; the engine runs it and the written holes stay equal. Unevenly spaced faces, a face on
+        the axis and a single face are refused by the panel."""
+        import parafab
+        local = Part.read(FLANGE)
+        holes = ["Face%d" % (i + 1) for i, f in enumerate(local.Faces)
+                 if f.Surface.TypeId == "Part::GeomCylinder" and abs(f.Surface.Radius - 5) < 1e-9]
+        bore = ["Face%d" % (i + 1) for i, f in enumerate(local.Faces)
+                if f.Surface.TypeId == "Part::GeomCylinder" and abs(f.Surface.Radius - 12) < 1e-9]
+        self.assertEqual(len(holes), 6)
+        axis_dir = PLACEMENT.Rotation.multVec(FreeCAD.Vector(0, 0, 1))
+        opts = dict(self.options, parameters="auto", ties=[], pattern_faces=list(reversed(holes)),
+                    pattern_axis_point=tuple(PLACEMENT.Base), pattern_axis_direction=tuple(axis_dir))
+        job = optimize_feature.build_job(local, opts, PLACEMENT)
+        (rot,) = job["rotations"]
+        self.assertAlmostEqual(rot["degrees"], 60.0, delta=1e-9)
+        for a, b in zip(rot["axis"]["point"] + rot["axis"]["direction"], (0, 0, 0, 0, 0, 1)):
+            self.assertAlmostEqual(a, b, delta=1e-9)
+        centres = [local.Faces[i].CenterOfMass for i in rot["faces"]]
+        angles = [math.degrees(math.atan2(c.y, c.x)) % 360 for c in centres]
+        for a, b in zip(angles, angles[1:]):
+            self.assertAlmostEqual((b - a) % 360, 60.0, delta=1e-6)
+        h = parafab.optimize(FLANGE, dict(job, objective={"type": "mass", "density": 1.0}, max_iterations=3,
+                                          parameters=[{"face": rot["faces"][0], "parameter": "radius"}]),
+                             out_dir=tempfile.mkdtemp())
+        radii = [f["parameters"]["r"] for f in parafab.inspect_part(h["optimized_step"])["faces"]
+                 if f["type"] == "cylinder" and math.hypot(*f["parameters"]["c"][:2]) > 20]
+        print("\n[optimize] flange pattern %s -> radii %s" % (rot["faces"], ["%.6f" % r for r in radii]), file=sys.stderr)
+        self.assertEqual(len(radii), 6)
+        self.assertGreater(min(radii), 5.1)
+        self.assertLess(max(radii) - min(radii), 1e-10)
+        for faces, text in ((holes[:2] + holes[3:4], "not equally spaced"), (holes[:1] + bore, "lies on the pattern axis"),
+                            (holes[:1], "at least two faces")):
+            with self.assertRaisesRegex(optimize_feature.OptimizeError, text):
+                optimize_feature.build_job(local, dict(opts, pattern_faces=faces), PLACEMENT)
 
     def test_objective_list_is_extensible(self):
         types = [o.type for o in optimize_feature.OBJECTIVES]

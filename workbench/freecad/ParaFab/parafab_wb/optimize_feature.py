@@ -17,6 +17,7 @@ new object gets the original's placement.
 """
 
 import json
+import math
 import os
 import re
 import shutil
@@ -197,6 +198,9 @@ def default_options():
         "fixed_faces": [],                    # ["FaceN", ...]
         "draft_faces": [],                    # ["FaceN", ...]: planes (normal ⊥ pull), cylinders/cones (axis ∥ pull)
         "draft_direction": (0.0, 0.0, 1.0),   # pull direction (global), for draft_faces
+        "pattern_faces": [],                  # ["FaceN", ...]: equal faces turned about the pattern axis
+        "pattern_axis_point": (0.0, 0.0, 0.0),      # global [mm]
+        "pattern_axis_direction": (0.0, 0.0, 1.0),  # global
         "supports": [],                       # ["FaceN", ...]
         "loads": [],                          # ["FaceN", ...]
         "force": (0.0, 0.0, 0.0),             # total force on the loaded faces [N]
@@ -210,6 +214,44 @@ def default_options():
         "bound": 0.3,
         "relative_improvement": 1e-9,
     }
+
+
+def pattern_rotation(shape, opts, placement=None):
+    """The job's "rotations" entry for the picked pattern faces: sorted by their angle about the
+    pattern axis (centres of mass, in the part's frame), the step angle from consecutive
+    centres, which must be equally spaced (to 1e-6 rad). Raises :class:`OptimizeError` naming
+    the faces that do not fit."""
+    names = list(opts["pattern_faces"])
+    n = len(shape.Faces)
+    if len(names) < 2:
+        raise OptimizeError("a pattern needs at least two faces, got %d" % len(names))
+    inv = (placement or FreeCAD.Placement()).inverse()
+    direction = FreeCAD.Vector(*opts.get("pattern_axis_direction", (0.0, 0.0, 1.0)))
+    if direction.Length < 1e-12:
+        raise OptimizeError("the pattern axis direction is zero")
+    o = inv.multVec(FreeCAD.Vector(*opts.get("pattern_axis_point", (0.0, 0.0, 0.0))))
+    w = inv.Rotation.multVec(direction)
+    w.normalize()
+    size = shape.BoundBox.DiagonalLength
+    placed = []
+    for name in names:
+        i = face_index(name, n, "pattern faces")
+        r = shape.Faces[i].CenterOfMass - o
+        r = r - w * r.dot(w)
+        if r.Length < 1e-9 * size:
+            raise OptimizeError("pattern face %s lies on the pattern axis (nothing to turn)" % name)
+        placed.append((i, name, r))
+    e1 = FreeCAD.Vector(placed[0][2])
+    e1.normalize()
+    e2 = w.cross(e1)
+    placed.sort(key=lambda f: math.atan2(f[2].dot(e2), f[2].dot(e1)) % (2 * math.pi))
+    angles = [math.atan2(f[2].dot(e2), f[2].dot(e1)) % (2 * math.pi) for f in placed]
+    steps = [b - a for a, b in zip(angles, angles[1:])]
+    if max(steps) - min(steps) > 1e-6:
+        raise OptimizeError("pattern faces are not equally spaced about the axis: %s at %s°"
+                            % (", ".join(f[1] for f in placed), ", ".join("%.4g" % math.degrees(a) for a in angles)))
+    return {"faces": [f[0] for f in placed], "axis": {"point": [o.x, o.y, o.z], "direction": [w.x, w.y, w.z]},
+            "degrees": math.degrees(sum(steps) / len(steps))}
 
 
 def build_job(shape, options, placement=None):
@@ -275,6 +317,8 @@ def build_job(shape, options, placement=None):
         d = (placement or FreeCAD.Placement()).inverse().Rotation.multVec(pull)  # into the part's frame
         job["orthogonal"] = [{"face": face_index(f, n, "draft faces"), "axis": [d.x, d.y, d.z]}
                              for f in opts["draft_faces"]]
+    if opts.get("pattern_faces"):
+        job["rotations"] = [pattern_rotation(shape, opts, placement)]
     if opts["supports"]:
         job["supports"] = [{"face": face_index(f, n, "supports")} for f in opts["supports"]]
     loaded = [face_index(f, n, "loads") for f in opts["loads"]]

@@ -181,6 +181,24 @@ class OptimizeTaskPanel(object):
         lay.addLayout(pull)
         layout.addWidget(draft)
 
+        pattern = QtGui.QGroupBox("Pattern (faces turned about an axis change alike)")
+        lay = QtGui.QVBoxLayout(pattern)
+        self.pattern_faces = analysis_panel.FaceList("Pattern faces (one of each copy)", [], [self.obj])
+        self.pattern_faces.setToolTip("Equal faces spaced evenly about the axis (bolt holes, spokes): the design "
+                                      "of one is copied to all; pick them in any order")
+        lay.addWidget(self.pattern_faces)
+        axis_rows = QtGui.QFormLayout()
+        for label, key, attr, lo, digits in (("Axis point", "pattern_axis_point", "pattern_point", -1e6, 3),
+                                             ("Axis direction", "pattern_axis_direction", "pattern_dir", -1, 4)):
+            row = QtGui.QHBoxLayout()
+            boxes = [_spin(lo, -lo, v, digits) for v in defaults[key]]
+            for b in boxes:
+                row.addWidget(b)
+            setattr(self, attr, boxes)
+            axis_rows.addRow(label, row)
+        lay.addLayout(axis_rows)
+        layout.addWidget(pattern)
+
         out = QtGui.QFormLayout()
         self.output_dir = analysis_panel._narrow(QtGui.QLineEdit())
         self.output_dir.setPlaceholderText(optimize_feature.default_output_dir(self.obj))
@@ -275,6 +293,9 @@ class OptimizeTaskPanel(object):
                 "supports": self.supports.faces(), "loads": self.loads.faces(),
                 "draft_faces": self.draft_faces.faces(),
                 "draft_direction": tuple(b.value() for b in self.draft_dir),
+                "pattern_faces": self.pattern_faces.faces(),
+                "pattern_axis_point": tuple(b.value() for b in self.pattern_point),
+                "pattern_axis_direction": tuple(b.value() for b in self.pattern_dir),
                 "force": tuple(b.value() for b in self.force),
                 "max_iterations": self.iterations.value(),
                 "max_volume_ratio": ratio if ratio > 0 else None}
