@@ -46,10 +46,12 @@ PointClassifier::PointClassifier(const PartShape& part, double tolerance) : impl
 
 PointClassifier::~PointClassifier() = default;
 
-bool PointClassifier::in_material(const xfem::Vec3& X) const {
+bool PointClassifier::in_material(const xfem::Vec3& X) const { return state(X) != State::Out; }
+
+PointClassifier::State PointClassifier::state(const xfem::Vec3& X) const {
   impl_->classifier.Perform(gp_Pnt(X.x(), X.y(), X.z()), impl_->tolerance);
   const TopAbs_State s = impl_->classifier.State();
-  return s == TopAbs_IN || s == TopAbs_ON;
+  return s == TopAbs_IN ? State::In : s == TopAbs_ON ? State::On : State::Out;
 }
 
 }  // namespace parafab::occ

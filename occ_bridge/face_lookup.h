@@ -26,6 +26,8 @@ class PointClassifier {
   PointClassifier(const PartShape& part, double tolerance);
   ~PointClassifier();
   bool in_material(const xfem::Vec3& X) const;
+  enum class State { In, Out, On };
+  State state(const xfem::Vec3& X) const;
 
  private:
   struct Impl;

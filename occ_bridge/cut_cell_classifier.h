@@ -1,0 +1,49 @@
+// In/out of points inside cut grid cells from the cell's own boundary patches (thesis §6.3: the
+// face cut knows ∂Ω ∩ cell as trimmed patches of B-rep faces): the segment from a cell corner
+// whose state OCCT gave once to the point crosses ∂Ω ∩ cell an even number of times exactly when
+// both have the same state. The crossings are closed forms (line ∩ plane, cylinder, sphere) and
+// a winding-number test of the hit's (u, v) in the patch loops. Anything not decided beyond
+// doubt (another surface type, a hit near a loop, an end point or a grazing hit) goes to OCCT's
+// classifier, whose verdict is the reference: a test compares both on every candidate point.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "face_lookup.h"
+#include "xfem/cut_geometry.h"
+
+namespace parafab::occ {
+
+struct GridCut;
+struct PartShape;
+
+class CutCellClassifier {
+ public:
+  /// `cut` must outlive the classifier; `tolerance` as PointClassifier's (ON counts as in).
+  CutCellClassifier(const PartShape& part, const GridCut& cut, double tolerance);
+  ~CutCellClassifier();
+  /// X in the (closed) box of cut cell `cell`: in the material (inside or on the boundary)?
+  /// Cells that are not cut, and undecided points, are classified by OCCT.
+  bool in_material(const std::array<int, 3>& cell, const xfem::Vec3& X) const;
+
+  struct Counts {
+    long by_crossings = 0;  ///< decided by the crossing parity
+    long by_occt = 0;       ///< sent to OCCT (reference corners included)
+  };
+  const Counts& counts() const { return counts_; }
+
+ private:
+  struct Cell;
+  const Cell& cell_data(const std::array<int, 3>& cell) const;
+  const GridCut& cut_;
+  double tolerance_;
+  PointClassifier occt_;
+  std::unordered_map<long long, int> cut_cell_of_;  ///< linear cell index → index in cut.cut_cells
+  mutable std::unordered_map<long long, std::unique_ptr<Cell>> cells_;
+  mutable Counts counts_;
+};
+
+}  // namespace parafab::occ
