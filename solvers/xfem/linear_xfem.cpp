@@ -910,6 +910,45 @@ void displacement_and_gradient(const LinearXfemResult& result, const std::vector
   }
 }
 
+FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e) {
+  const auto& node = result.node[e];
+  const int nodes = static_cast<int>(node.size());
+  PARAFAB_VERIFY(nodes == 8 || nodes == 27, "element " << e << " with " << nodes << " nodes (8 or 27 expected)");
+  const int n = nodes == 8 ? 2 : 3;  // nodes per axis
+  // Bernstein control points b[i][j][k] of u on the box (degree n − 1 per axis): the nodal values
+  // for trilinear cells; for triquadratic ones, per axis b0 = f0, b1 = 2 f½ − (f0 + f1)/2, b2 = f1.
+  Vec3 b[3][3][3];
+  for (int k = 0; k < nodes; ++k) {
+    const std::array<int, 3> o = node_offset(nodes, k);  // in half cells: 0, 2 (hex8) or 0, 1, 2
+    const int step = nodes == 8 ? 2 : 1;
+    b[o[0] / step][o[1] / step][o[2] / step] = result.u.segment<3>(3 * node[k]);
+  }
+  if (n == 3)
+    for (int axis = 0; axis < 3; ++axis)
+      for (int p = 0; p < 3; ++p)
+        for (int q = 0; q < 3; ++q) {
+          auto at = [&](int i) -> Vec3& {
+            return axis == 0 ? b[i][p][q] : axis == 1 ? b[p][i][q] : b[p][q][i];
+          };
+          at(1) = 2 * at(1) - 0.5 * (at(0) + at(2));
+        }
+  // u is a convex combination of the b (Bernstein functions are ≥ 0 and sum to 1); ∂u/∂X_d one of
+  // the differences along d times (n − 1)/h_d.
+  const Vec3 h = elements[e].box.size();
+  FieldBounds out;
+  double column[3] = {0, 0, 0};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      for (int k = 0; k < n; ++k) {
+        out.displacement = std::max(out.displacement, b[i][j][k].norm());
+        if (i + 1 < n) column[0] = std::max(column[0], (b[i + 1][j][k] - b[i][j][k]).norm() * (n - 1) / h[0]);
+        if (j + 1 < n) column[1] = std::max(column[1], (b[i][j + 1][k] - b[i][j][k]).norm() * (n - 1) / h[1]);
+        if (k + 1 < n) column[2] = std::max(column[2], (b[i][j][k + 1] - b[i][j][k]).norm() * (n - 1) / h[2]);
+      }
+  out.gradient = std::sqrt(column[0] * column[0] + column[1] * column[1] + column[2] * column[2]);
+  return out;
+}
+
 Eigen::Matrix<double, 6, 1> stress_from_gradient(const ElasticMaterial& material, const Eigen::Matrix3d& H) {
   Eigen::Matrix<double, 6, 1> eps;  // Voigt, engineering shears
   eps << H(0, 0), H(1, 1), H(2, 2), H(0, 1) + H(1, 0), H(1, 2) + H(2, 1), H(0, 2) + H(2, 0);

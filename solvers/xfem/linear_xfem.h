@@ -313,6 +313,17 @@ Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std:
 void displacement_and_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
                                const std::vector<Vec3>& X, std::vector<Vec3>& u, std::vector<Eigen::Matrix3d>& H);
 
+/// Upper bounds over element e's box of |u| and of ‖∇u‖_F by the convex-hull property of the
+/// Bernstein form of its shape functions (trilinear: the nodal values; triquadratic: per axis
+/// b1 = 2 f½ − (f0 + f1)/2): |u| ≤ max |b|, |∂u/∂X_d| ≤ (degree/h_d) max |Δ_d b|. The results
+/// pass skips cut elements whose bounds cannot beat the maxima of the uncut ones. Valid for
+/// points in the box only.
+struct FieldBounds {
+  double displacement = 0;  ///< ≥ max |u| over the box
+  double gradient = 0;      ///< ≥ max ‖∇u‖_F over the box
+};
+FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e);
+
 /// Small-strain Cauchy stress σ = D ε(∇u) (Voigt xx, yy, zz, xy, yz, xz).
 Eigen::Matrix<double, 6, 1> stress_from_gradient(const ElasticMaterial& material, const Eigen::Matrix3d& H);
 

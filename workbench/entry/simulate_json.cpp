@@ -652,7 +652,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   // Largest displacement (at element corners and quadrature points) and von Mises stress (at
   // quadrature points), from points in the material only: uncut cells lie inside; the corners
   // of cut cells and the rule points of cut subvolumes (which fill the fitting box, not the
-  // subvolume) count only where OCCT classifies them inside or on the part. The field
+  // subvolume) count only where they lie inside or on the part (CutCellClassifier). The field
   // extrapolated outside the part can exceed anything the material sees.
   struct Candidate {
     double value;
@@ -662,47 +662,67 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   };
   xfem::MassAccumulator acc;
   for (const auto& el : grid.elements) acc.add(el.rule.points, el.rule.weights);
-  // Field evaluation in parallel (TBB), one partial result per chunk of elements: the maxima
-  // over uncut elements and every cut-element point above its chunk's running maximum. The
-  // final values do not depend on the chunking: a candidate at or below the overall uncut
-  // maximum is discarded below.
+  std::vector<Candidate> cut_u, cut_vm;
+  // Field evaluation in parallel (TBB), one partial result per chunk of elements, in two passes:
+  // the maxima over uncut elements first, then every cut-element point above them. A cut
+  // element whose bounds (xfem::field_bounds; linear elasticity: σ_vm ≤ √6 μ ‖∇u‖_F) cannot
+  // exceed those maxima is skipped: none of its points could be a candidate. The final values
+  // do not depend on the chunking or the skipping.
   struct Partial {
     double umax = 0, vmmax = 0;
     std::vector<Candidate> cut_u, cut_vm;
   };
   const size_t n_el = grid.elements.size();
   const size_t grain = 64;
-  std::vector<Partial> partial((n_el + grain - 1) / grain);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, partial.size()), [&](const tbb::blocked_range<size_t>& range) {
-    std::vector<Vec3> X, U;
-    std::vector<Eigen::Matrix3d> H;
-    for (size_t c = range.begin(); c != range.end(); ++c) {
-      Partial& P = partial[c];
-      for (size_t e = c * grain; e < std::min(n_el, (c + 1) * grain); ++e) {
-        const auto& el = grid.elements[e];
-        const int ei = static_cast<int>(e);
-        X.clear();
-        for (int k = 0; k < 8; ++k) X.push_back(xfem::corner(el.box, k));
-        X.insert(X.end(), el.rule.points.begin(), el.rule.points.end());
-        xfem::displacement_and_gradient(r, grid.elements, ei, X, U, H);
-        for (size_t i = 0; i < X.size(); ++i) {
-          const double u = U[i].norm();
-          if (!el.subvolume) P.umax = std::max(P.umax, u);
-          else if (u > P.umax) P.cut_u.push_back({u, ei, static_cast<int>(i), X[i]});
-          if (i < 8) continue;  // von Mises at the rule points only
-          const double vm = xfem::von_mises(stress_of_gradient(H[i]));
-          if (!el.subvolume) P.vmmax = std::max(P.vmmax, vm);
-          else if (vm > P.vmmax) P.cut_vm.push_back({vm, ei, static_cast<int>(i), X[i]});
+  const bool linear = model_name_is_linear(S.model);
+  const double mu = mat.youngs_modulus / (2 * (1 + mat.poisson_ratio));
+  double umax = 0, vmmax = 0;
+  int skipped_elements = 0;
+  for (const bool cut_pass : {false, true}) {
+    std::vector<Partial> partial((n_el + grain - 1) / grain);
+    std::vector<char> skipped(n_el, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, partial.size()), [&](const tbb::blocked_range<size_t>& range) {
+      std::vector<Vec3> X, U;
+      std::vector<Eigen::Matrix3d> H;
+      for (size_t c = range.begin(); c != range.end(); ++c) {
+        Partial& P = partial[c];
+        for (size_t e = c * grain; e < std::min(n_el, (c + 1) * grain); ++e) {
+          const auto& el = grid.elements[e];
+          if ((el.subvolume != nullptr) != cut_pass) continue;
+          const int ei = static_cast<int>(e);
+          if (cut_pass && linear) {
+            bool in_box = true;  // the bounds hold in the box (rule points of a fitting box lie in it)
+            const Vec3 slack = 1e-12 * el.box.size();
+            for (const Vec3& q : el.rule.points)
+              in_box &= (q.array() >= (el.box.min - slack).array()).all() && (q.array() <= (el.box.max + slack).array()).all();
+            const xfem::FieldBounds b = xfem::field_bounds(r, grid.elements, ei);
+            if (in_box && b.displacement * (1 + 1e-9) < umax && std::sqrt(6.0) * mu * b.gradient * (1 + 1e-9) < vmmax) {
+              skipped[e] = 1;
+              continue;
+            }
+          }
+          X.clear();
+          for (int k = 0; k < 8; ++k) X.push_back(xfem::corner(el.box, k));
+          X.insert(X.end(), el.rule.points.begin(), el.rule.points.end());
+          xfem::displacement_and_gradient(r, grid.elements, ei, X, U, H);
+          for (size_t i = 0; i < X.size(); ++i) {
+            const double u = U[i].norm();
+            if (!cut_pass) P.umax = std::max(P.umax, u);
+            else if (u > umax) P.cut_u.push_back({u, ei, static_cast<int>(i), X[i]});
+            if (i < 8) continue;  // von Mises at the rule points only
+            const double vm = xfem::von_mises(stress_of_gradient(H[i]));
+            if (!cut_pass) P.vmmax = std::max(P.vmmax, vm);
+            else if (vm > vmmax) P.cut_vm.push_back({vm, ei, static_cast<int>(i), X[i]});
+          }
         }
       }
+    });
+    for (char k : skipped) skipped_elements += k;
+    for (Partial& P : partial) {
+      umax = std::max(umax, P.umax), vmmax = std::max(vmmax, P.vmmax);
+      cut_u.insert(cut_u.end(), P.cut_u.begin(), P.cut_u.end());
+      cut_vm.insert(cut_vm.end(), P.cut_vm.begin(), P.cut_vm.end());
     }
-  });
-  double umax = 0, vmmax = 0;
-  std::vector<Candidate> cut_u, cut_vm;
-  for (Partial& P : partial) {
-    umax = std::max(umax, P.umax), vmmax = std::max(vmmax, P.vmmax);
-    cut_u.insert(cut_u.end(), P.cut_u.begin(), P.cut_u.end());
-    cut_vm.insert(cut_vm.end(), P.cut_vm.begin(), P.cut_vm.end());
   }
   // The largest candidate inside the material: candidates in decreasing order (ties by element
   // and position, so the order is that of any thread count), classified by OCCT a batch at a
@@ -787,6 +807,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"points_classified", classified},
            {"points_classified_before", reused_verdicts},  // verdicts reused from earlier runs of the session
            {"points_classified_by_occt", occt_calls},      // the rest by crossing parity in their cut cell
+           {"cut_elements_skipped", skipped_elements},     // bounded below the uncut maxima: not evaluated
            {"status", grid.rule_failures.empty() ? "ok" : "rule_failures"},
            {"rule_failures", rule_failures},
            {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant
