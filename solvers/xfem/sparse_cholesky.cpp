@@ -33,6 +33,12 @@ void SparseCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
   const auto t0 = std::chrono::steady_clock::now();
   Eigen::SparseMatrix<double> P = pattern;
   P.makeCompressed();
+  cholmod_common& c = impl_->llt.cholmod();
+  if (P.rows() >= metis_from) {
+    c.nmethods = 1, c.method[0].ordering = CHOLMOD_METIS, c.postorder = 1;
+  } else {
+    c.nmethods = 0;  // CHOLMOD's default: AMD (METIS only when AMD's fill is very poor)
+  }
   impl_->llt.analyzePattern(P);
   impl_->lu.reset();
   rows_ = static_cast<int>(P.rows());
