@@ -910,7 +910,8 @@ void displacement_and_gradient(const LinearXfemResult& result, const std::vector
   }
 }
 
-FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e) {
+FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
+                         const ElasticMaterial* material) {
   const auto& node = result.node[e];
   const int nodes = static_cast<int>(node.size());
   PARAFAB_VERIFY(nodes == 8 || nodes == 27, "element " << e << " with " << nodes << " nodes (8 or 27 expected)");
@@ -932,20 +933,37 @@ FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridE
           };
           at(1) = 2 * at(1) - 0.5 * (at(0) + at(2));
         }
-  // u is a convex combination of the b (Bernstein functions are ≥ 0 and sum to 1); ∂u/∂X_d one of
-  // the differences along d times (n − 1)/h_d.
+  // u is a convex combination of the b (Bernstein functions are ≥ 0 and sum to 1). Column d of
+  // ∇u has the control points (n − 1)/h_d Δ_d b (degree n − 2 along d); raised to degree n − 1
+  // along d, all three columns share the basis of u, so ∇u(X) is a convex combination of
+  // control matrices G[i][j][k], and any convex function of ∇u (a norm, σ_vm of the linear
+  // stress) is at most its largest value at them.
   const Vec3 h = elements[e].box.size();
+  Eigen::Matrix3d G[3][3][3];
+  auto diff = [&](int d, int i, int j, int k, int along) -> Vec3 {  // (n − 1)/h_d Δ_d at index `along` of d
+    int lo[3] = {i, j, k}, hi[3] = {i, j, k};
+    lo[d] = along, hi[d] = along + 1;
+    return (b[hi[0]][hi[1]][hi[2]] - b[lo[0]][lo[1]][lo[2]]) * ((n - 1) / h[d]);
+  };
   FieldBounds out;
-  double column[3] = {0, 0, 0};
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
       for (int k = 0; k < n; ++k) {
         out.displacement = std::max(out.displacement, b[i][j][k].norm());
-        if (i + 1 < n) column[0] = std::max(column[0], (b[i + 1][j][k] - b[i][j][k]).norm() * (n - 1) / h[0]);
-        if (j + 1 < n) column[1] = std::max(column[1], (b[i][j + 1][k] - b[i][j][k]).norm() * (n - 1) / h[1]);
-        if (k + 1 < n) column[2] = std::max(column[2], (b[i][j][k + 1] - b[i][j][k]).norm() * (n - 1) / h[2]);
+        const int idx[3] = {i, j, k};
+        for (int d = 0; d < 3; ++d) {
+          // Degree elevation along d: from n − 1 differences to n control points.
+          const int m = idx[d];
+          Vec3 c;
+          if (n == 2) c = diff(d, i, j, k, 0);  // a constant along d
+          else if (m == 0) c = diff(d, i, j, k, 0);
+          else if (m == 2) c = diff(d, i, j, k, 1);
+          else c = 0.5 * (diff(d, i, j, k, 0) + diff(d, i, j, k, 1));
+          G[i][j][k].col(d) = c;
+        }
+        out.gradient = std::max(out.gradient, G[i][j][k].norm());
+        if (material) out.von_mises = std::max(out.von_mises, von_mises(stress_from_gradient(*material, G[i][j][k])));
       }
-  out.gradient = std::sqrt(column[0] * column[0] + column[1] * column[1] + column[2] * column[2]);
   return out;
 }
 

@@ -313,16 +313,20 @@ Eigen::Matrix3d displacement_gradient(const LinearXfemResult& result, const std:
 void displacement_and_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
                                const std::vector<Vec3>& X, std::vector<Vec3>& u, std::vector<Eigen::Matrix3d>& H);
 
-/// Upper bounds over element e's box of |u| and of ‖∇u‖_F by the convex-hull property of the
-/// Bernstein form of its shape functions (trilinear: the nodal values; triquadratic: per axis
-/// b1 = 2 f½ − (f0 + f1)/2): |u| ≤ max |b|, |∂u/∂X_d| ≤ (degree/h_d) max |Δ_d b|. The results
-/// pass skips cut elements whose bounds cannot beat the maxima of the uncut ones. Valid for
-/// points in the box only.
+/// Upper bounds over element e's box of |u|, ‖∇u‖_F and (with `material`) the von Mises stress
+/// of the linear-elastic stress, by the convex-hull property of the Bernstein form of the
+/// element's field (trilinear: the nodal values; triquadratic: per axis b1 = 2 f½ − (f0 + f1)/2):
+/// u is a convex combination of the control points b, ∇u one of control matrices (the scaled
+/// differences Δ_d b, degree-raised along d), and each bound is the largest value of a convex
+/// function at them. The results pass skips cut elements whose bounds cannot beat the maxima of
+/// the uncut ones. Valid for points in the box only.
 struct FieldBounds {
   double displacement = 0;  ///< ≥ max |u| over the box
   double gradient = 0;      ///< ≥ max ‖∇u‖_F over the box
+  double von_mises = 0;     ///< ≥ max σ_vm(D ε(∇u)) over the box (0 without a material)
 };
-FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e);
+FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
+                         const ElasticMaterial* material = nullptr);
 
 /// Small-strain Cauchy stress σ = D ε(∇u) (Voigt xx, yy, zz, xy, yz, xz).
 Eigen::Matrix<double, 6, 1> stress_from_gradient(const ElasticMaterial& material, const Eigen::Matrix3d& H);

@@ -665,7 +665,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   std::vector<Candidate> cut_u, cut_vm;
   // Field evaluation in parallel (TBB), one partial result per chunk of elements, in two passes:
   // the maxima over uncut elements first, then every cut-element point above them. A cut
-  // element whose bounds (xfem::field_bounds; linear elasticity: σ_vm ≤ √6 μ ‖∇u‖_F) cannot
+  // element whose bounds (xfem::field_bounds: Bernstein control points of u and ∇u) cannot
   // exceed those maxima is skipped: none of its points could be a candidate. The final values
   // do not depend on the chunking or the skipping.
   struct Partial {
@@ -675,7 +675,6 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   const size_t n_el = grid.elements.size();
   const size_t grain = 64;
   const bool linear = model_name_is_linear(S.model);
-  const double mu = mat.youngs_modulus / (2 * (1 + mat.poisson_ratio));
   double umax = 0, vmmax = 0;
   int skipped_elements = 0;
   for (const bool cut_pass : {false, true}) {
@@ -695,8 +694,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
             const Vec3 slack = 1e-12 * el.box.size();
             for (const Vec3& q : el.rule.points)
               in_box &= (q.array() >= (el.box.min - slack).array()).all() && (q.array() <= (el.box.max + slack).array()).all();
-            const xfem::FieldBounds b = xfem::field_bounds(r, grid.elements, ei);
-            if (in_box && b.displacement * (1 + 1e-9) < umax && std::sqrt(6.0) * mu * b.gradient * (1 + 1e-9) < vmmax) {
+            const xfem::FieldBounds b = xfem::field_bounds(r, grid.elements, ei, &mat);
+            if (in_box && b.displacement * (1 + 1e-9) < umax && b.von_mises * (1 + 1e-9) < vmmax) {
               skipped[e] = 1;
               continue;
             }
