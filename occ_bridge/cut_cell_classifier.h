@@ -1,10 +1,12 @@
 // In/out of points inside cut grid cells from the cell's own boundary patches (thesis §6.3: the
-// face cut knows ∂Ω ∩ cell as trimmed patches of B-rep faces): the segment from a cell corner
-// whose state OCCT gave once to the point crosses ∂Ω ∩ cell an even number of times exactly when
-// both have the same state. The crossings are closed forms (line ∩ plane, cylinder, sphere) and
+// face cut knows ∂Ω ∩ cell as trimmed patches of B-rep faces): the segment from a reference point
+// of the cell (a corner, or an inner point when the corners lie on the part's surfaces) whose
+// state OCCT gave once to the point crosses ∂Ω ∩ cell an even number of times exactly when both
+// have the same state. The crossings are closed forms (line ∩ plane, cylinder, sphere) and
 // a winding-number test of the hit's (u, v) in the patch loops. Anything not decided beyond
 // doubt (another surface type, a hit near a loop, an end point or a grazing hit) goes to OCCT's
-// classifier, whose verdict is the reference: a test compares both on every candidate point.
+// classifier, whose verdict is the reference (tests/occ_bridge/cut_cell_classifier_test.cpp
+// compares both on 56,000 points of cut cells of six parts, as they are and turned).
 #pragma once
 
 #include <array>
