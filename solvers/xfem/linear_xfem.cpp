@@ -898,6 +898,37 @@ void displacement_and_gradient_n(const LinearXfemResult& result, const GridEleme
 }
 }  // namespace
 
+void displacement_at(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
+                     const std::vector<Vec3>& X, std::vector<Vec3>& u) {
+  const auto& node = result.node[e];
+  const int nodes = static_cast<int>(node.size());
+  PARAFAB_VERIFY(nodes == 8 || nodes == 27, "element " << e << " with " << nodes << " nodes (8 or 27 expected)");
+  const Box3& box = elements[e].box;
+  const Vec3 h = box.size();
+  u.resize(X.size());
+  for (size_t p = 0; p < X.size(); ++p) {
+    const Vec3 xi = (X[p] - box.min).cwiseQuotient(h);
+    Vec3 sum = Vec3::Zero();
+    if (nodes == 8) {  // the values of trilinear_shape
+      for (int k = 0; k < 8; ++k) {
+        const double fx = (k & 1) ? xi.x() : 1 - xi.x(), fy = (k & 2) ? xi.y() : 1 - xi.y(), fz = (k & 4) ? xi.z() : 1 - xi.z();
+        sum += (fx * fy * fz) * result.u.segment<3>(3 * node[k]);
+      }
+    } else {  // the values of triquadratic_shape
+      double L[3][3];
+      for (int d = 0; d < 3; ++d) {
+        const double t = xi[d];
+        L[d][0] = (1 - t) * (1 - 2 * t), L[d][1] = 4 * t * (1 - t), L[d][2] = t * (2 * t - 1);
+      }
+      for (int l = 0; l < 3; ++l)
+        for (int j = 0; j < 3; ++j)
+          for (int i = 0; i < 3; ++i)
+            sum += (L[0][i] * L[1][j] * L[2][l]) * result.u.segment<3>(3 * node[i + 3 * j + 9 * l]);
+    }
+    u[p] = sum;
+  }
+}
+
 void displacement_and_gradient(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
                                const std::vector<Vec3>& X, std::vector<Vec3>& u, std::vector<Eigen::Matrix3d>& H) {
   const auto& node = result.node[e];

@@ -328,6 +328,10 @@ struct FieldBounds {
 FieldBounds field_bounds(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
                          const ElasticMaterial* material = nullptr);
 
+/// u alone at several points of element e (the same shape functions, no gradients).
+void displacement_at(const LinearXfemResult& result, const std::vector<GridElement>& elements, int e,
+                     const std::vector<Vec3>& X, std::vector<Vec3>& u);
+
 /// Small-strain Cauchy stress σ = D ε(∇u) (Voigt xx, yy, zz, xy, yz, xz).
 Eigen::Matrix<double, 6, 1> stress_from_gradient(const ElasticMaterial& material, const Eigen::Matrix3d& H);
 

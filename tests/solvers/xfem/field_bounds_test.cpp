@@ -71,5 +71,29 @@ TEST(FieldBounds, HoldEverywhereInTheBoxAndAreExactForAffineFields) {
   }
 }
 
+// displacement_at (values only, for cells whose stress cannot reach the maximum) gives the u of
+// displacement_and_gradient.
+TEST(FieldBounds, DisplacementAtEqualsDisplacementAndGradient) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> uni(-1, 1), unit(0, 1);
+  GridElement el;
+  el.box.min = Vec3(-1.0, 0.0, 2.0);
+  el.box.max = Vec3(0.5, 2.0, 2.7);
+  const std::vector<GridElement> elements = {el};
+  for (const int nodes : {8, 27}) {
+    LinearXfemResult r;
+    r.node = {std::vector<int>(nodes)};
+    r.u.resize(3 * nodes);
+    for (int k = 0; k < nodes; ++k) r.node[0][k] = k;
+    for (int i = 0; i < 3 * nodes; ++i) r.u[i] = uni(rng);
+    std::vector<Vec3> X, u, v;
+    std::vector<Eigen::Matrix3d> H;
+    for (int s = 0; s < 200; ++s) X.push_back(el.box.min + Vec3(unit(rng), unit(rng), unit(rng)).cwiseProduct(el.box.size()));
+    displacement_and_gradient(r, elements, 0, X, u, H);
+    displacement_at(r, elements, 0, X, v);
+    for (size_t i = 0; i < X.size(); ++i) EXPECT_LT((u[i] - v[i]).norm(), 1e-14 * (1 + u[i].norm())) << nodes;
+  }
+}
+
 }  // namespace
 }  // namespace parafab::xfem
