@@ -662,75 +662,57 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   };
   xfem::MassAccumulator acc;
   for (const auto& el : grid.elements) acc.add(el.rule.points, el.rule.weights);
-  std::vector<Candidate> cut_u, cut_vm;
-  // Field evaluation in parallel (TBB), one partial result per chunk of elements, in two passes:
-  // the maxima over uncut elements first, then every cut-element point above them. A cut
-  // element whose bounds (xfem::field_bounds: Bernstein control points of u and ∇u) cannot
-  // exceed those maxima is skipped: none of its points could be a candidate. The final values
-  // do not depend on the chunking or the skipping.
-  struct Partial {
-    double umax = 0, vmmax = 0;
-    std::vector<Candidate> cut_u, cut_vm;
-  };
+  // The maxima over uncut elements first (they lie inside), in parallel (TBB), one partial
+  // result per chunk of elements.
   const size_t n_el = grid.elements.size();
   const size_t grain = 64;
-  const bool linear = model_name_is_linear(S.model);
   double umax = 0, vmmax = 0;
-  int skipped_elements = 0, displacement_only_elements = 0;
-  for (const bool cut_pass : {false, true}) {
-    std::vector<Partial> partial((n_el + grain - 1) / grain);
-    std::vector<char> skipped(n_el, 0), displacement_only(n_el, 0);
+  {
+    std::vector<std::array<double, 2>> partial((n_el + grain - 1) / grain, {0.0, 0.0});
     tbb::parallel_for(tbb::blocked_range<size_t>(0, partial.size()), [&](const tbb::blocked_range<size_t>& range) {
       std::vector<Vec3> X, U;
       std::vector<Eigen::Matrix3d> H;
-      for (size_t c = range.begin(); c != range.end(); ++c) {
-        Partial& P = partial[c];
+      for (size_t c = range.begin(); c != range.end(); ++c)
         for (size_t e = c * grain; e < std::min(n_el, (c + 1) * grain); ++e) {
           const auto& el = grid.elements[e];
-          if ((el.subvolume != nullptr) != cut_pass) continue;
-          const int ei = static_cast<int>(e);
-          bool need_u = true, need_vm = true;  // can this element hold a candidate of either maximum?
-          if (cut_pass && linear) {
-            bool in_box = true;  // the bounds hold in the box (rule points of a fitting box lie in it)
-            const Vec3 slack = 1e-12 * el.box.size();
-            for (const Vec3& q : el.rule.points)
-              in_box &= (q.array() >= (el.box.min - slack).array()).all() && (q.array() <= (el.box.max + slack).array()).all();
-            const xfem::FieldBounds b = xfem::field_bounds(r, grid.elements, ei, &mat);
-            need_u = !(in_box && b.displacement * (1 + 1e-9) < umax);
-            need_vm = !(in_box && b.von_mises * (1 + 1e-9) < vmmax);
-            if (!need_u && !need_vm) {
-              skipped[e] = 1;
-              continue;
-            }
-          }
+          if (el.subvolume) continue;
           X.clear();
           for (int k = 0; k < 8; ++k) X.push_back(xfem::corner(el.box, k));
           X.insert(X.end(), el.rule.points.begin(), el.rule.points.end());
-          if (need_vm) {
-            xfem::displacement_and_gradient(r, grid.elements, ei, X, U, H);
-          } else {
-            xfem::displacement_at(r, grid.elements, ei, X, U);  // only |u| can beat the maximum here
-            displacement_only[e] = 1;
-          }
+          xfem::displacement_and_gradient(r, grid.elements, static_cast<int>(e), X, U, H);
           for (size_t i = 0; i < X.size(); ++i) {
-            const double u = U[i].norm();
-            if (!cut_pass) P.umax = std::max(P.umax, u);
-            else if (need_u && u > umax) P.cut_u.push_back({u, ei, static_cast<int>(i), X[i]});
-            if (i < 8 || !need_vm) continue;  // von Mises at the rule points only
-            const double vm = xfem::von_mises(stress_of_gradient(H[i]));
-            if (!cut_pass) P.vmmax = std::max(P.vmmax, vm);
-            else if (vm > vmmax) P.cut_vm.push_back({vm, ei, static_cast<int>(i), X[i]});
+            partial[c][0] = std::max(partial[c][0], U[i].norm());
+            if (i >= 8) partial[c][1] = std::max(partial[c][1], xfem::von_mises(stress_of_gradient(H[i])));
           }
         }
-      }
     });
-    for (size_t e = 0; e < n_el; ++e) skipped_elements += skipped[e], displacement_only_elements += displacement_only[e];
-    for (Partial& P : partial) {
-      umax = std::max(umax, P.umax), vmmax = std::max(vmmax, P.vmmax);
-      cut_u.insert(cut_u.end(), P.cut_u.begin(), P.cut_u.end());
-      cut_vm.insert(cut_vm.end(), P.cut_vm.begin(), P.cut_vm.end());
-    }
+    for (const auto& p : partial) umax = std::max(umax, p[0]), vmmax = std::max(vmmax, p[1]);
   }
+  // Cut elements by branch and bound: bounds of |u| and σ_vm over each cut cell
+  // (xfem::field_bounds: Bernstein control points of u and ∇u; linear elasticity, points in the
+  // cell's box), cells in decreasing bound, evaluated a batch at a time; after each batch the
+  // largest candidate inside the material (below) raises the maximum, and the search stops at
+  // the first cell whose bound cannot beat it. Cells without a bound (hyperelastic, points
+  // outside the box) come first. The maxima do not depend on the batches.
+  const bool linear = model_name_is_linear(S.model);
+  std::vector<int> cut_elements;
+  for (size_t e = 0; e < n_el; ++e)
+    if (grid.elements[e].subvolume) cut_elements.push_back(static_cast<int>(e));
+  std::vector<std::array<double, 2>> bound(n_el, {HUGE_VAL, HUGE_VAL});  // |u|, σ_vm
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, cut_elements.size(), 16), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t k = range.begin(); k != range.end(); ++k) {
+      const int e = cut_elements[k];
+      const auto& el = grid.elements[e];
+      if (!linear) continue;
+      const Vec3 slack = 1e-12 * el.box.size();
+      bool in_box = true;  // the bounds hold in the box (rule points of a fitting box lie in it)
+      for (const Vec3& q : el.rule.points)
+        in_box &= (q.array() >= (el.box.min - slack).array()).all() && (q.array() <= (el.box.max + slack).array()).all();
+      if (!in_box) continue;
+      const xfem::FieldBounds b = xfem::field_bounds(r, grid.elements, e, &mat);
+      bound[e] = {b.displacement * (1 + 1e-9), b.von_mises * (1 + 1e-9)};  // round-off margin
+    }
+  });
   // The largest candidate inside the material: candidates in decreasing order (ties by element
   // and position, so the order is that of any thread count), classified by OCCT a batch at a
   // time in parallel, one classifier per task; the first inside in that order wins. Verdicts
@@ -778,8 +760,50 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
       }
     }
   };
-  largest_inside(cut_u, umax);
-  largest_inside(cut_vm, vmmax);
+  std::vector<char> evaluated(n_el, 0);  // bit 0: for |u|, bit 1: for σ_vm
+  auto maximize = [&](int q, double& best) {
+    std::vector<int> order = cut_elements;
+    std::sort(order.begin(), order.end(), [&](int x, int y) {
+      return bound[x][q] != bound[y][q] ? bound[x][q] > bound[y][q] : x < y;
+    });
+    size_t next = 0, batch = 16;
+    while (next < order.size() && !(bound[order[next]][q] < best)) {
+      size_t end = next;
+      while (end < order.size() && end - next < batch && !(bound[order[end]][q] < best)) ++end;
+      std::vector<std::vector<Candidate>> found(end - next);
+      tbb::parallel_for(tbb::blocked_range<size_t>(next, end, 1), [&](const tbb::blocked_range<size_t>& range) {
+        std::vector<Vec3> X, U;
+        std::vector<Eigen::Matrix3d> H;
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const int e = order[k];
+          const auto& el = grid.elements[e];
+          X.clear();
+          if (q == 0)
+            for (int c = 0; c < 8; ++c) X.push_back(xfem::corner(el.box, c));
+          X.insert(X.end(), el.rule.points.begin(), el.rule.points.end());
+          const int first = q == 0 ? 0 : 8;  // point numbering: corners 0–7, rule point i at 8 + i
+          if (q == 0) xfem::displacement_at(r, grid.elements, e, X, U);
+          else xfem::displacement_and_gradient(r, grid.elements, e, X, U, H);
+          for (size_t i = 0; i < X.size(); ++i) {
+            const double v = q == 0 ? U[i].norm() : xfem::von_mises(stress_of_gradient(H[i]));
+            if (v > best) found[k - next].push_back({v, e, first + static_cast<int>(i), X[i]});
+          }
+        }
+      });
+      std::vector<Candidate> candidates;
+      for (size_t k = next; k < end; ++k) {
+        evaluated[order[k]] |= 1 << q;
+        candidates.insert(candidates.end(), found[k - next].begin(), found[k - next].end());
+      }
+      largest_inside(candidates, best);
+      next = end;
+      batch = std::min<size_t>(2 * batch, 256);
+    }
+  };
+  maximize(0, umax);
+  maximize(1, vmmax);
+  int skipped_elements = 0, displacement_only_elements = 0;
+  for (int e : cut_elements) skipped_elements += evaluated[e] == 0, displacement_only_elements += evaluated[e] == 1;
   long occt_calls = 0;  // OCCT classifications, the cells' reference corners included
   for (const auto& mine : classifiers)
     if (mine) occt_calls += mine->counts().by_occt;
