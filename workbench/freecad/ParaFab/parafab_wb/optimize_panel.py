@@ -44,6 +44,14 @@ def _spin(lo, hi, value, decimals=3, suffix=""):
     return analysis_panel._spin(lo, hi, value, decimals, suffix)
 
 
+def _vector_row(form, label, boxes):
+    """Adds the spin boxes of one vector (x, y, z) side by side as a row of ``form``."""
+    row = QtGui.QHBoxLayout()
+    for b in boxes:
+        row.addWidget(b)
+    form.addRow(label, row)
+
+
 class OptimizeTaskPanel(object):
     """The task dialog (``form`` + accept/reject) for optimizing one solid."""
 
@@ -128,11 +136,8 @@ class OptimizeTaskPanel(object):
         grid.addRow("Minimize", self.objective)
         self.axis_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["axis_point"]]
         self.axis_dir = [_spin(-1, 1, v, 4) for v in defaults["axis_direction"]]
-        for label, boxes in (("Axis point", self.axis_point), ("Axis direction", self.axis_dir)):
-            row = QtGui.QHBoxLayout()
-            for b in boxes:
-                row.addWidget(b)
-            grid.addRow(label, row)
+        _vector_row(grid, "Axis point", self.axis_point)
+        _vector_row(grid, "Axis direction", self.axis_dir)
         self.density = _spin(0.0, 1e6, defaults["density"], 1, " kg/m³")
         grid.addRow("Density", self.density)
         self.yield_stress = _spin(0.0, 1e6, defaults["yield_stress"], 1, " MPa")
@@ -172,12 +177,9 @@ class OptimizeTaskPanel(object):
                                     "and cones whose axis stays parallel to it (undercut-free for casting or "
                                     "moulding along it)")
         lay.addWidget(self.draft_faces)
-        row = QtGui.QHBoxLayout()
         self.draft_dir = [_spin(-1, 1, v, 4) for v in defaults["draft_direction"]]
-        for b in self.draft_dir:
-            row.addWidget(b)
         pull = QtGui.QFormLayout()
-        pull.addRow("Pull direction", row)
+        _vector_row(pull, "Pull direction", self.draft_dir)
         lay.addLayout(pull)
         layout.addWidget(draft)
 
@@ -187,15 +189,11 @@ class OptimizeTaskPanel(object):
         self.pattern_faces.setToolTip("Equal faces spaced evenly about the axis (bolt holes, spokes): the design "
                                       "of one is copied to all; pick them in any order")
         lay.addWidget(self.pattern_faces)
+        self.pattern_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["pattern_axis_point"]]
+        self.pattern_dir = [_spin(-1, 1, v, 4) for v in defaults["pattern_axis_direction"]]
         axis_rows = QtGui.QFormLayout()
-        for label, key, attr, lo, digits in (("Axis point", "pattern_axis_point", "pattern_point", -1e6, 3),
-                                             ("Axis direction", "pattern_axis_direction", "pattern_dir", -1, 4)):
-            row = QtGui.QHBoxLayout()
-            boxes = [_spin(lo, -lo, v, digits) for v in defaults[key]]
-            for b in boxes:
-                row.addWidget(b)
-            setattr(self, attr, boxes)
-            axis_rows.addRow(label, row)
+        _vector_row(axis_rows, "Axis point", self.pattern_point)
+        _vector_row(axis_rows, "Axis direction", self.pattern_dir)
         lay.addLayout(axis_rows)
         layout.addWidget(pattern)
 
