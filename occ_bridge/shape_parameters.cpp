@@ -6,6 +6,7 @@
 #include <cmath>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "common/error.h"
 
@@ -154,18 +155,11 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
                            "tie " + sp.names[first] + " = " + sp.names[other]);
     }
   }
-  // A symmetric copy must hold for the part as read: the equations just added vanish at p0 up to
-  // round-off of the STEP data (lengths relative to the blocks' largest entry).
-  auto holds_at_start = [&](int first_row, const std::string& what) {
-    const Eigen::VectorXd c = sp.constraints.values(sp.initial);
-    for (int i = first_row; i < c.size(); ++i) {
-      double scale = 1;
-      for (int v : sp.constraints.constraints()[i].vars) scale = std::max(scale, std::abs(sp.initial[v]));
-      if (!(std::abs(c[i]) <= 1e-7 * scale))
-        PARAFAB_INPUT_ERROR(what << " does not hold for the part as read: '" << sp.constraints.constraints()[i].name
-                                 << "' is " << c[i]);
-    }
-  };
+  // A symmetric copy must hold for the part as read: its equations (rows from `first` on, until
+  // the next copy's) vanish at p0 up to round-off of the STEP data (lengths relative to the
+  // blocks' largest entry). Checked once all copies are added, in one evaluation of c(p0).
+  std::vector<std::pair<int, std::string>> copies;  // (first row, which entry) in row order
+  auto holds_at_start = [&](int first_row, const std::string& what) { copies.emplace_back(first_row, what); };
   for (size_t k = 0; k < options.mirrors.size(); ++k) {
     const auto& m = options.mirrors[k];
     const auto *a = sp.block(m.face_a), *b = sp.block(m.face_b);
@@ -200,6 +194,18 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
       what << at << " (face " << fb << " = face " << fa << " turned by " << r.degrees << "°)";
       holds_at_start(first, what.str());
     }
+  }
+  if (!copies.empty()) {
+    const Eigen::VectorXd c = sp.constraints.values(sp.initial);
+    const int end = sp.constraints.size();
+    for (size_t k = 0; k < copies.size(); ++k)
+      for (int i = copies[k].first; i < (k + 1 < copies.size() ? copies[k + 1].first : end); ++i) {
+        double scale = 1;
+        for (int v : sp.constraints.constraints()[i].vars) scale = std::max(scale, std::abs(sp.initial[v]));
+        if (!(std::abs(c[i]) <= 1e-7 * scale))
+          PARAFAB_INPUT_ERROR(copies[k].second << " does not hold for the part as read: '"
+                                               << sp.constraints.constraints()[i].name << "' is " << c[i]);
+      }
   }
   for (size_t k = 0; k < options.orthogonal.size(); ++k) {
     const auto& o = options.orthogonal[k];
