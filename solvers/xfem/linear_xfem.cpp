@@ -281,6 +281,13 @@ void trilinear_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 8, 1>
   }
 }
 
+namespace {
+// The 1D quadratic Lagrange functions with nodes 0, ½, 1 at t (triquadratic cells are their products).
+void quadratic_lagrange(double t, double L[3]) {
+  L[0] = (1 - t) * (1 - 2 * t), L[1] = 4 * t * (1 - t), L[2] = t * (2 * t - 1);
+}
+}  // namespace
+
 void triquadratic_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 27, 1>& N,
                         Eigen::Matrix<double, 27, 3>& G) {
   const Vec3 h = box.size();
@@ -288,7 +295,7 @@ void triquadratic_shape(const Box3& box, const Vec3& X, Eigen::Matrix<double, 27
   double L[3][3], dL[3][3];  // 1D quadratic Lagrange at 0, ½, 1 and their x-derivatives
   for (int d = 0; d < 3; ++d) {
     const double t = xi[d];
-    L[d][0] = (1 - t) * (1 - 2 * t), L[d][1] = 4 * t * (1 - t), L[d][2] = t * (2 * t - 1);
+    quadratic_lagrange(t, L[d]);
     dL[d][0] = (4 * t - 3) / h[d], dL[d][1] = (4 - 8 * t) / h[d], dL[d][2] = (4 * t - 1) / h[d];
   }
   for (int l = 0; l < 3; ++l)
@@ -916,10 +923,7 @@ void displacement_at(const LinearXfemResult& result, const std::vector<GridEleme
       }
     } else {  // the values of triquadratic_shape
       double L[3][3];
-      for (int d = 0; d < 3; ++d) {
-        const double t = xi[d];
-        L[d][0] = (1 - t) * (1 - 2 * t), L[d][1] = 4 * t * (1 - t), L[d][2] = t * (2 * t - 1);
-      }
+      for (int d = 0; d < 3; ++d) quadratic_lagrange(xi[d], L[d]);
       for (int l = 0; l < 3; ++l)
         for (int j = 0; j < 3; ++j)
           for (int i = 0; i < 3; ++i)
