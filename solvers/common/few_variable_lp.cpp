@@ -5,6 +5,7 @@
 #include <limits>
 #include <vector>
 
+#include "common/dense_dual_simplex.h"
 #include "common/error.h"
 
 namespace parafab {
@@ -15,6 +16,15 @@ const char* to_string(LpStatus status) {
     case LpStatus::Infeasible: return "infeasible";
     case LpStatus::Unbounded: return "unbounded";
     case LpStatus::Failed: return "failed";
+  }
+  return "unknown";
+}
+
+const char* to_string(LpForm form) {
+  switch (form) {
+    case LpForm::Dense: return "dense simplex";
+    case LpForm::Dual: return "Clp (dual form)";
+    case LpForm::Primal: return "Clp (primal form)";
   }
   return "unknown";
 }
@@ -150,6 +160,31 @@ void solve_primal(const FewVariableLp& lp, const FewVariableLpOptions& options,
   }
 }
 
+// One form, its solution checked against the rows.
+FewVariableLpResult solve_checked(const FewVariableLp& lp, const FewVariableLpOptions& options,
+                                  LpForm form) {
+  FewVariableLpResult r;
+  r.solved_by = form;
+  if (form == LpForm::Dense) solve_dense_dual_simplex(lp, options, r);
+  else if (form == LpForm::Dual) solve_dual(lp, options, r);
+  else solve_primal(lp, options, r);
+  if (r.ok()) {
+    r.objective = lp.c.dot(r.x);
+    double viol = 0.0;
+    if (lp.G.rows() > 0) viol = std::max(viol, (lp.h - lp.G * r.x).maxCoeff());
+    if (lp.E.rows() > 0) viol = std::max(viol, (lp.E * r.x - lp.f).cwiseAbs().maxCoeff());
+    r.max_violation = std::max(0.0, viol);
+    if (!(r.max_violation <= options.max_violation)) {
+      r.status = LpStatus::Failed;
+      r.message = std::string(to_string(form)) +
+                  " reported optimal, but the solution violates a constraint by " +
+                  std::to_string(r.max_violation) + " (limit " +
+                  std::to_string(options.max_violation) + ")";
+    }
+  }
+  return r;
+}
+
 }  // namespace
 
 FewVariableLpResult solve_few_variable_lp(const FewVariableLp& lp,
@@ -164,23 +199,19 @@ FewVariableLpResult solve_few_variable_lp(const FewVariableLp& lp,
   PARAFAB_VERIFY(lp.E.rows() == lp.f.size(), "LP equality block has " << lp.E.rows()
                                                  << " rows but " << lp.f.size() << " values");
   const auto t0 = std::chrono::steady_clock::now();
-  FewVariableLpResult r;
-  if (options.form == LpForm::Dual) solve_dual(lp, options, r);
-  else solve_primal(lp, options, r);
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (r.ok()) {
-    r.objective = lp.c.dot(r.x);
-    double viol = 0.0;
-    if (lp.G.rows() > 0) viol = std::max(viol, (lp.h - lp.G * r.x).maxCoeff());
-    if (lp.E.rows() > 0) viol = std::max(viol, (lp.E * r.x - lp.f).cwiseAbs().maxCoeff());
-    r.max_violation = std::max(0.0, viol);
-    if (!(r.max_violation <= options.max_violation)) {
-      r.status = LpStatus::Failed;
-      r.message = "Clp reported optimal, but the solution violates a constraint by " +
-                  std::to_string(r.max_violation) + " (limit " +
-                  std::to_string(options.max_violation) + ")";
-    }
+  FewVariableLpResult r = solve_checked(lp, options, options.form);
+  if (options.form == LpForm::Dense && r.status != LpStatus::Optimal) {
+    // A numerical breakdown, or an infeasible / unbounded verdict: Clp's dual form decides
+    // (the verdicts are user-facing errors, so they are never the dense solver's alone).
+    FewVariableLpOptions clp = options;
+    clp.form = LpForm::Dual;
+    const std::string why = std::string(to_string(r.status)) + ": " + r.message;
+    const int dense_iterations = r.iterations;
+    r = solve_checked(lp, clp, LpForm::Dual);
+    r.fallback = "dense simplex " + why;
+    r.iterations += dense_iterations;
   }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
 

@@ -1,7 +1,9 @@
-// Linear programs with a handful of variables and many constraints, solved with COIN-OR Clp.
-// The strip LP (thesis Eq. 4.4, 4 variables) and the rod LP (Eq. 5.19, 7 variables) have this
-// shape. Solving the dual (d equality rows, one column per primal row) keeps the simplex basis
-// d×d, so the cost grows linearly with the number of constraints.
+// Linear programs with a handful of variables and many constraints. The strip LP (thesis
+// Eq. 4.4, 4 variables) and the rod LP (Eq. 5.19, 7 variables) have this shape. Solving the
+// dual (d equality rows, one column per primal row) keeps the simplex basis d×d, so the cost
+// grows linearly with the number of constraints. ParaFab's dense dual simplex does this
+// without any set-up (dense_dual_simplex.h); COIN-OR Clp on the dual or the primal program is
+// the reference and the fallback.
 #pragma once
 
 #include <Eigen/Core>
@@ -20,23 +22,26 @@ struct FewVariableLp {
 };
 
 enum class LpForm {
-  Dual,   ///< Clp solves the dual: d rows, n + m columns (default; linear growth)
+  Dense,  ///< ParaFab's dense dual simplex, d×d basis (default); Clp's dual form if it fails
+  Dual,   ///< Clp solves the dual: d rows, n + m columns (linear growth; the reference)
   Primal  ///< Clp solves the row-wise primal: n + m rows, d columns (baseline for benchmarks)
 };
+const char* to_string(LpForm form);
 
 enum class LpStatus { Optimal, Infeasible, Unbounded, Failed };
 const char* to_string(LpStatus status);
 
 struct FewVariableLpOptions {
-  LpForm form = LpForm::Dual;
+  LpForm form = LpForm::Dense;
   int max_iterations = 1000000;
   double tolerance = 1e-10;      ///< Clp primal and dual feasibility tolerance
   /// A solution violating a row by more than this is reported as Failed, never returned
   /// as optimal (rows should be scaled to O(1) by the caller).
   double max_violation = 1e-8;
-  /// Dual form only: start Clp from a basis containing these dual columns (indices of rows of
-  /// [G; E], e.g. the rows active at the optimum of a similar LP), the rest from slacks. A warm
-  /// start changes Clp's path, so the optimum can differ in the last bits (off when empty).
+  /// Dense and dual forms: start from a basis containing these rows of [G; E] (e.g. the rows
+  /// active at the optimum of a similar LP). A warm start changes Clp's path, so its optimum
+  /// can differ in the last bits; the dense solver computes x from the final basis, so it
+  /// returns the same bits whenever it ends on the same basis (off when empty).
   std::vector<int> basic_hint;
 };
 
@@ -49,11 +54,13 @@ struct FewVariableLpResult {
   /// a program whose rows depend on a parameter θ has dV/dθ = −yᵀ ∂(Gx − h)/∂θ − zᵀ ∂(Ex − f)/∂θ
   /// (envelope theorem; used for dR/dP in strips/strip_improve).
   Eigen::VectorXd y, z;
-  std::vector<int> basic;      ///< Dual form: rows of [G; E] whose dual columns are basic at the end
-  int iterations = 0;          ///< simplex iterations reported by Clp
+  std::vector<int> basic;      ///< Dense, dual form: rows of [G; E] whose dual columns are basic at the end
+  int iterations = 0;          ///< simplex iterations (of the solver that gave the result)
+  LpForm solved_by = LpForm::Dense;  ///< the form that gave the result (Dual after a fallback)
+  std::string fallback;        ///< why the dense solver handed over to Clp (empty: it did not)
   double max_violation = 0;    ///< max over rows of (h − Gx)⁺ and |Ex − f| at x
   double seconds = 0;          ///< wall time of load + solve
-  std::string message;         ///< Clp's status in words when not Optimal
+  std::string message;         ///< the solver's status in words when not Optimal
   bool ok() const { return status == LpStatus::Optimal; }
 };
 

@@ -18,7 +18,7 @@ namespace parafab {
 struct FramedEquilibriumOptions {
   /// |τ|·length at or below this counts as a zero of the twist.
   double zero_twist_tolerance = 1e-12;
-  LpForm form = LpForm::Dual;
+  LpForm form = LpForm::Dense;
 };
 
 struct FramedEquilibriumResult {

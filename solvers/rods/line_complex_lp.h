@@ -30,7 +30,7 @@ struct LineComplexLpOptions {
   /// On infeasibility, find a minimal set of samples whose binormal lines no complex avoids
   /// (deletion filter over LPs; at most 7 samples by Helly's theorem in R⁶).
   bool find_binding_samples = true;
-  LpForm form = LpForm::Dual;
+  LpForm form = LpForm::Dense;
 };
 
 enum class LineComplexStatus { Feasible, Infeasible, SolverFailed };

@@ -53,7 +53,7 @@ struct GravityLpOptions {
   /// With three or more equality rows (zeros, boundary rows) they must have rank ≤ 2:
   /// σ₃/σ₁ of the normalized rows above this is reported as infeasible.
   double zero_consistency_tolerance = 1e-4;
-  LpForm form = LpForm::Dual;
+  LpForm form = LpForm::Dense;
   /// Warm start of phase one (opt-in, see StripDesignOptions::warm_start): rows active at the
   /// optimum of a similar LP, as (s, 0 for K ≥ 1 / 1 for K ≤ R) of their samples.
   std::vector<std::pair<double, int>> warm_rows;

@@ -11,7 +11,7 @@
 namespace parafab {
 
 struct StiffnessLpOptions {
-  LpForm form = LpForm::Dual;
+  LpForm form = LpForm::Dense;
   /// Warm start (dual form): rows active at the optimum of a similar LP, as
   /// StiffnessLpResult::active_samples / active_other of an earlier call (samples matched by s;
   /// the zeros' and line rows by their index). Empty: a cold start.

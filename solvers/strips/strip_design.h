@@ -49,7 +49,7 @@ struct StripDesignOptions {
   double tolerance = 1e-6;
   int initial_samples = 64;
   int max_samples = (1 << 18) + 1;
-  LpForm lp_form = LpForm::Dual;
+  LpForm lp_form = LpForm::Dense;
   ZeroCurvatureOptions zeros;
   EquilibriumCheckOptions check;
 

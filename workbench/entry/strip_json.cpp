@@ -333,8 +333,9 @@ json design_strip_json(const json& request) {
     o.max_samples = static_cast<int>(number(request["max_samples"], "max_samples"));
   if (request.contains("lp_form")) {
     const std::string f = request["lp_form"].is_string() ? request["lp_form"].get<std::string>() : "";
-    if (f != "dual" && f != "primal") PARAFAB_INPUT_ERROR("lp_form must be \"dual\" or \"primal\"");
-    o.lp_form = f == "dual" ? LpForm::Dual : LpForm::Primal;
+    if (f != "dense" && f != "dual" && f != "primal")
+      PARAFAB_INPUT_ERROR("lp_form must be \"dense\", \"dual\" or \"primal\", got " << request["lp_form"].dump());
+    o.lp_form = f == "dense" ? LpForm::Dense : f == "dual" ? LpForm::Dual : LpForm::Primal;
   }
   StripStabilityOptions stability_options;  // thesis §4.5: on by default (the Jacobi test)
   const bool stability = parse_stability_options(request, stability_options);
