@@ -1,6 +1,6 @@
 // Benchmark of the strip LP (thesis Eq. 4.4): time and accuracy of R against the number of
-// samples, for the dual form (default) and the row-wise primal form as an in-process
-// baseline. Reference: the minimax ratio of an exact rational elliptic arc, computed without
+// samples, for ParaFab's dense dual simplex (default), with Clp on the dual form and on the
+// row-wise primal form as in-process baselines (their R must agree). Reference: the minimax ratio of an exact rational elliptic arc, computed without
 // any LP (golden-section search over the line's one free parameter, which symmetry leaves,
 // with K maximized and minimized on the continuous curve).
 //   bench_strip_lp [--quick] [--out DIR]   → DIR/strip_lp.json (then plot_strip_lp.py)
@@ -122,13 +122,16 @@ int main(int argc, char** argv) {
   const int primal_limit = quick ? 4000 : 40000;
   nlohmann::json rows = nlohmann::json::array();
   std::printf("reference R = %.15f (no LP: golden search on the symmetric line)\n", R_ref);
-  std::printf("%8s %12s %12s %9s %14s %12s\n", "samples", "dual [ms]", "primal [ms]", "ratio", "R error", "sampling[ms]");
+  std::printf("%8s %11s %11s %11s %8s %14s %10s %12s\n", "samples", "dense [ms]", "Clp dual", "Clp primal",
+              "dual/dense", "R error", "dense-dual", "sampling[ms]");
   for (int n : counts) {
     std::vector<CurvePoint> samples;
     const double t_sample = median_seconds(1, [&] { samples = sample_by_arc_length(curve, n, {}); });
     const int repeats = std::max(3, std::min(51, 200000 / n));
-    StiffnessLpResult dual;
+    StiffnessLpResult dense, dual;
     StiffnessLpOptions o;
+    const double t_dense = median_seconds(repeats, [&] { dense = solve_stiffness_lp(samples, {}, {}, curve.length(), o); });
+    o.form = LpForm::Dual;
     const double t_dual = median_seconds(repeats, [&] { dual = solve_stiffness_lp(samples, {}, {}, curve.length(), o); });
     double t_primal = NAN;
     if (n <= primal_limit) {
@@ -140,16 +143,22 @@ int main(int argc, char** argv) {
         return 1;
       }
     }
-    if (!dual.ok()) {
-      std::fprintf(stderr, "dual LP failed at n = %d: %s\n", n, dual.message.c_str());
+    if (!dual.ok() || !dense.ok()) {
+      std::fprintf(stderr, "LP failed at n = %d: %s %s\n", n, dual.message.c_str(), dense.message.c_str());
       return 1;
     }
-    const double err = std::abs(dual.R - R_ref) / R_ref;
-    std::printf("%8d %12.4f %12.4f %9.1f %14.3e %12.3f\n", n, 1e3 * t_dual, 1e3 * t_primal,
-                t_primal / t_dual, err, 1e3 * t_sample);
-    rows.push_back({{"samples", n}, {"dual_seconds", t_dual}, {"repeats", repeats},
+    const double dense_vs_dual = std::abs(dense.R - dual.R) / dual.R;
+    if (dense_vs_dual > 1e-10) {
+      std::fprintf(stderr, "dense and Clp dual disagree at n = %d: %.15g vs %.15g\n", n, dense.R, dual.R);
+      return 1;
+    }
+    const double err = std::abs(dense.R - R_ref) / R_ref;
+    std::printf("%8d %11.4f %11.4f %11.4f %8.1f %14.3e %10.1e %12.3f\n", n, 1e3 * t_dense, 1e3 * t_dual,
+                1e3 * t_primal, t_dual / t_dense, err, dense_vs_dual, 1e3 * t_sample);
+    rows.push_back({{"samples", n}, {"dense_seconds", t_dense}, {"dense_iterations", dense.iterations},
+                    {"dense_vs_dual_R", dense_vs_dual}, {"dual_seconds", t_dual}, {"repeats", repeats},
                     {"primal_seconds", std::isfinite(t_primal) ? nlohmann::json(t_primal) : nlohmann::json(nullptr)},
-                    {"R", dual.R}, {"R_relative_error", err}, {"iterations", dual.iterations},
+                    {"R", dense.R}, {"R_relative_error", err}, {"iterations", dual.iterations},
                     {"sampling_seconds", t_sample}});
   }
   // The adaptive design (sample count chosen from the tolerance on R) on the same curve.
