@@ -352,6 +352,58 @@ class OptimizeFeatureTest(unittest.TestCase):
             with self.assertRaisesRegex(optimize_feature.OptimizeError, text):
                 optimize_feature.build_job(local, dict(opts, pattern_faces=faces), PLACEMENT)
 
+    def test_mirror_faces_become_pairs_in_the_parts_frame(self):
+        """The panel's mirror: four flange holes picked in any order, plane through the axis and
+        a fifth hole (given globally), become two "mirrors" pairs of image faces with the plane in
+        the part's frame; the engine runs it and each pair's written radii stay equal while the
+        unpaired holes keep theirs. A face on the plane, a face without a partner and a single
+        face are refused by the panel."""
+        import parafab
+        local = Part.read(FLANGE)
+        holes = [i for i, f in enumerate(local.Faces)
+                 if f.Surface.TypeId == "Part::GeomCylinder" and abs(f.Surface.Radius - 5) < 1e-9]
+        self.assertEqual(len(holes), 6)
+        angle = {i: math.atan2(local.Faces[i].CenterOfMass.y, local.Faces[i].CenterOfMass.x) for i in holes}
+        on_plane = holes[0]
+        a0 = angle[on_plane]
+        # The mirror plane holds the z axis and hole `on_plane`: local normal (−sin a0, cos a0, 0).
+        n_local = FreeCAD.Vector(-math.sin(a0), math.cos(a0), 0)
+        rel = {i: (angle[i] - a0) % (2 * math.pi) for i in holes}
+        paired = [i for i in holes if abs(math.degrees(rel[i]) - 180) > 1 and i != on_plane]
+        self.assertEqual(len(paired), 4)
+        names = ["Face%d" % (i + 1) for i in reversed(paired)]
+        opts = dict(self.options, parameters="auto", ties=[], mirror_faces=names,
+                    mirror_plane_point=tuple(PLACEMENT.Base),
+                    mirror_plane_normal=tuple(PLACEMENT.Rotation.multVec(n_local)))
+        job = optimize_feature.build_job(local, opts, PLACEMENT)
+        self.assertEqual(len(job["mirrors"]), 2)
+        for m in job["mirrors"]:
+            a, b = m["faces"]
+            self.assertAlmostEqual(m["plane"]["offset"], 0.0, delta=1e-9)
+            for x, y in zip(m["plane"]["normal"], n_local):
+                self.assertAlmostEqual(x, y, delta=1e-9)
+            self.assertAlmostEqual((rel[a] + rel[b]) % (2 * math.pi), 0.0, delta=1e-9)  # images: θ ↔ −θ
+        first = job["mirrors"][0]["faces"]
+        h = parafab.optimize(FLANGE, dict(job, objective={"type": "mass", "density": 1.0}, max_iterations=3,
+                                          parameters=[{"face": first[0], "parameter": "radius"}]),
+                             out_dir=tempfile.mkdtemp())
+        written = {}
+        for f in parafab.inspect_part(h["optimized_step"])["faces"]:
+            c = f["parameters"].get("c", [0, 0, 0])
+            if f["type"] == "cylinder" and math.hypot(*c[:2]) > 20:
+                written[round(math.degrees(math.atan2(c[1], c[0]))) % 360] = f["parameters"]["r"]
+        r = {i: written[round(math.degrees(angle[i])) % 360] for i in holes}
+        print("\n[optimize] flange mirror %s -> radii %s" % (first, ["%.6f" % r[i] for i in holes]), file=sys.stderr)
+        self.assertGreater(r[first[0]], 5.1)
+        self.assertLess(abs(r[first[0]] - r[first[1]]), 1e-10)
+        for i in holes:
+            if i not in first:
+                self.assertAlmostEqual(r[i], 5.0, delta=1e-9)
+        for faces, text in ((names + ["Face%d" % (on_plane + 1)], "lies on the mirror plane"),
+                            (names[:3], "has no picked partner"), (names[:1], "at least two faces")):
+            with self.assertRaisesRegex(optimize_feature.OptimizeError, text):
+                optimize_feature.build_job(local, dict(opts, mirror_faces=faces), PLACEMENT)
+
     def test_objective_list_is_extensible(self):
         types = [o.type for o in optimize_feature.OBJECTIVES]
         self.assertEqual(types[:3], ["center_of_mass", "inertia_alignment", "balance"])

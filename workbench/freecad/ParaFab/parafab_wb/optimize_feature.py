@@ -201,6 +201,9 @@ def default_options():
         "pattern_faces": [],                  # ["FaceN", ...]: equal faces turned about the pattern axis
         "pattern_axis_point": (0.0, 0.0, 0.0),      # global [mm]
         "pattern_axis_direction": (0.0, 0.0, 1.0),  # global
+        "mirror_faces": [],                   # ["FaceN", ...]: faces paired by their image in the mirror plane
+        "mirror_plane_point": (0.0, 0.0, 0.0),      # global [mm]
+        "mirror_plane_normal": (1.0, 0.0, 0.0),     # global
         "supports": [],                       # ["FaceN", ...]
         "loads": [],                          # ["FaceN", ...]
         "force": (0.0, 0.0, 0.0),             # total force on the loaded faces [N]
@@ -252,6 +255,46 @@ def pattern_rotation(shape, opts, placement=None):
                             % (", ".join(f[1] for f in placed), ", ".join("%.4g" % math.degrees(a) for a in angles)))
     return {"faces": [f[0] for f in placed], "axis": {"point": [o.x, o.y, o.z], "direction": [w.x, w.y, w.z]},
             "degrees": math.degrees(sum(steps) / len(steps))}
+
+
+def mirror_pairs(shape, opts, placement=None):
+    """The job's "mirrors" entries for the picked mirror faces: each face is paired with the
+    picked face whose centre of mass is its image in the mirror plane (to 1e-6 of the part's
+    size; plane given globally, written in the part's frame). Raises :class:`OptimizeError`
+    naming a face without a partner or one lying on the plane."""
+    names = list(opts["mirror_faces"])
+    n = len(shape.Faces)
+    if len(names) < 2:
+        raise OptimizeError("a mirror needs at least two faces (pairs of images), got %d" % len(names))
+    inv = (placement or FreeCAD.Placement()).inverse()
+    normal = FreeCAD.Vector(*opts.get("mirror_plane_normal", (1.0, 0.0, 0.0)))
+    if normal.Length < 1e-12:
+        raise OptimizeError("the mirror plane normal is zero")
+    nl = inv.Rotation.multVec(normal)
+    nl.normalize()
+    offset = nl.dot(inv.multVec(FreeCAD.Vector(*opts.get("mirror_plane_point", (0.0, 0.0, 0.0)))))
+    tol = 1e-6 * shape.BoundBox.DiagonalLength
+    centres = []
+    for name in names:
+        i = face_index(name, n, "mirror faces")
+        c = shape.Faces[i].CenterOfMass
+        if abs(nl.dot(c) - offset) < tol:
+            raise OptimizeError("mirror face %s lies on the mirror plane (it is its own image): "
+                                "pick pairs of faces on either side" % name)
+        centres.append((i, name, c))
+    pairs, used = [], set()
+    for k, (i, name, c) in enumerate(centres):
+        if k in used:
+            continue
+        image = c - nl * (2 * (nl.dot(c) - offset))
+        match = [m for m, (_, _, d) in enumerate(centres) if m != k and m not in used and (d - image).Length < tol]
+        if not match:
+            raise OptimizeError("mirror face %s has no picked partner at its image (%.4g, %.4g, %.4g) in the plane"
+                                % (name, image.x, image.y, image.z))
+        used.update((k, match[0]))
+        pairs.append({"faces": [i, centres[match[0]][0]],
+                      "plane": {"normal": [nl.x, nl.y, nl.z], "offset": offset}})
+    return pairs
 
 
 def build_job(shape, options, placement=None):
@@ -319,6 +362,8 @@ def build_job(shape, options, placement=None):
                              for f in opts["draft_faces"]]
     if opts.get("pattern_faces"):
         job["rotations"] = [pattern_rotation(shape, opts, placement)]
+    if opts.get("mirror_faces"):
+        job["mirrors"] = mirror_pairs(shape, opts, placement)
     if opts["supports"]:
         job["supports"] = [{"face": face_index(f, n, "supports")} for f in opts["supports"]]
     loaded = [face_index(f, n, "loads") for f in opts["loads"]]

@@ -197,6 +197,20 @@ class OptimizeTaskPanel(object):
         lay.addLayout(axis_rows)
         layout.addWidget(pattern)
 
+        mirror = QtGui.QGroupBox("Mirror (faces and their images in a plane change alike)")
+        lay = QtGui.QVBoxLayout(mirror)
+        self.mirror_faces = analysis_panel.FaceList("Mirror faces (both of each pair)", [], [self.obj])
+        self.mirror_faces.setToolTip("Pairs of faces that are images of each other in the plane: each pair keeps "
+                                     "its symmetry; pick them in any order")
+        lay.addWidget(self.mirror_faces)
+        self.mirror_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["mirror_plane_point"]]
+        self.mirror_normal = [_spin(-1, 1, v, 4) for v in defaults["mirror_plane_normal"]]
+        plane_rows = QtGui.QFormLayout()
+        _vector_row(plane_rows, "Plane point", self.mirror_point)
+        _vector_row(plane_rows, "Plane normal", self.mirror_normal)
+        lay.addLayout(plane_rows)
+        layout.addWidget(mirror)
+
         out = QtGui.QFormLayout()
         self.output_dir = analysis_panel._narrow(QtGui.QLineEdit())
         self.output_dir.setPlaceholderText(optimize_feature.default_output_dir(self.obj))
@@ -294,6 +308,9 @@ class OptimizeTaskPanel(object):
                 "pattern_faces": self.pattern_faces.faces(),
                 "pattern_axis_point": tuple(b.value() for b in self.pattern_point),
                 "pattern_axis_direction": tuple(b.value() for b in self.pattern_dir),
+                "mirror_faces": self.mirror_faces.faces(),
+                "mirror_plane_point": tuple(b.value() for b in self.mirror_point),
+                "mirror_plane_normal": tuple(b.value() for b in self.mirror_normal),
                 "force": tuple(b.value() for b in self.force),
                 "max_iterations": self.iterations.value(),
                 "max_volume_ratio": ratio if ratio > 0 else None}
