@@ -135,7 +135,8 @@ GridModelOptions rules_for_element(xfem::ElementType element, GridModelOptions o
   if (element == xfem::ElementType::Hex27) {
     o.interior_points = std::max(o.interior_points, 3);
     o.rule.degree = std::max(o.rule.degree, 10);
-    o.rule.points_per_direction = std::max(o.rule.points_per_direction, o.rule.degree + 1);
+    o.rule.max_exponent = 4;  // the triquadratic stiffness needs a, b, c ≤ 4 only
+    o.rule.points_per_direction = std::max(o.rule.points_per_direction, o.rule.max_exponent + 1);
     o.rule.patch.degree = std::max(o.rule.patch.degree, 10);
   }
   return o;

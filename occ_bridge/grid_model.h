@@ -45,11 +45,13 @@ GridModel build_grid_model(const PartShape& part, const GridModelOptions& option
 /// `options` with rules of the degree `element` needs. Hex8: unchanged (2×2×2 Gauss in uncut
 /// cells, moment fitting of degree 4: exact for the trilinear stiffness). Hex27: 3×3×3 Gauss in
 /// uncut cells (exact for the triquadratic stiffness, degree 4 per coordinate) and moment
-/// fitting of total degree 10 on 11³ points in cut cells, flux patches of degree 10: the
-/// stiffness integrand (x⁴y⁴z² and the like) is then integrated exactly. Lower degrees leave
-/// the moment-fitted rules (weights of either sign) inexact for it, and the stiffness of small
-/// cut cells indefinite: with degree 6 or 8, CHOLMOD found turned beams not positive definite
-/// whatever the Nitsche β (measured, tests/occ_bridge/quadratic_xfem_test.cpp).
+/// fitting of total degree 10 with every exponent ≤ 4 (121 functions) on 5³ points in cut
+/// cells, flux patches of degree 10: every product of two gradients of triquadratic functions
+/// (x⁴y⁴z² and the like) lies in that span, so the stiffness is integrated exactly and is
+/// positive semidefinite whatever the signs of the weights. Spans without x⁴y⁴z² (total degree
+/// 6 or 8) left the stiffness of small cut cells indefinite: CHOLMOD found turned beams not
+/// positive definite whatever the Nitsche β (tests/occ_bridge/quadratic_xfem_test.cpp). Until
+/// 2026-11-25 the full total-degree-10 span (286 functions) was fitted on 11³ points.
 GridModelOptions rules_for_element(xfem::ElementType element, GridModelOptions options = {});
 
 /// The model of `part`, a changed `old_part`, on the grid of `old`: only blocks around the

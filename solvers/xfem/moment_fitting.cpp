@@ -2,6 +2,7 @@
 #include "xfem/moment_fitting.h"
 
 #include <Eigen/QR>
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -60,18 +61,21 @@ void legendre_basis_rows(const double* x, int count, int stride, int n, double* 
 
 namespace {
 
-FittingSystem build_system(int dimension, int degree, int q) {
-  PARAFAB_VERIFY(degree >= 0 && q >= degree + 1 && q <= kMaxGaussPoints,
-                 "moment fitting: need 0 ≤ degree and degree + 1 ≤ points per direction ≤ "
-                     << kMaxGaussPoints << ", got degree " << degree << ", " << q << " points");
+FittingSystem build_system(int dimension, int degree, int q, int cap) {
+  // Largest exponent of one coordinate: the degree, or the cap when it is lower.
+  const int top = cap >= 0 ? std::min(degree, cap) : degree;
+  PARAFAB_VERIFY(degree >= 0 && q >= top + 1 && q <= kMaxGaussPoints,
+                 "moment fitting: need 0 ≤ degree and min(degree, cap) + 1 ≤ points per direction ≤ "
+                     << kMaxGaussPoints << ", got degree " << degree << ", cap " << cap << ", " << q << " points");
   FittingSystem s;
-  for (int a = 0; a <= degree; ++a)
-    for (int b = 0; b <= degree; ++b)
+  for (int a = 0; a <= top; ++a)
+    for (int b = 0; b <= top; ++b)
       if (dimension == 2) {
         s.exponents.push_back({a, b, 0});
       } else {
-        for (int c = 0; a + b + c <= degree; ++c) s.exponents.push_back({a, b, c});
+        for (int c = 0; a + b + c <= degree && c <= top; ++c) s.exponents.push_back({a, b, c});
       }
+  degree = top;  // Legendre values up to the largest exponent
   const QuadratureRule1& g = gauss_legendre(q);
   const int n = dimension == 2 ? q * q : q * q * q;
   s.points.resize(dimension, n);
@@ -101,12 +105,13 @@ FittingSystem build_system(int dimension, int degree, int q) {
   return s;
 }
 
-const FittingSystem& cached_system(int dimension, int degree, int q) {
+const FittingSystem& cached_system(int dimension, int degree, int q, int cap = -1) {
   static std::mutex mutex;
-  static std::map<std::tuple<int, int, int>, std::unique_ptr<const FittingSystem>> cache;
+  static std::map<std::tuple<int, int, int, int>, std::unique_ptr<const FittingSystem>> cache;
   const std::lock_guard<std::mutex> lock(mutex);
-  auto& slot = cache[{dimension, degree, q}];
-  if (!slot) slot = std::make_unique<const FittingSystem>(build_system(dimension, degree, q));
+  if (cap >= degree) cap = -1;  // no effect
+  auto& slot = cache[{dimension, degree, q, cap}];
+  if (!slot) slot = std::make_unique<const FittingSystem>(build_system(dimension, degree, q, cap));
   return *slot;
 }
 
@@ -116,8 +121,8 @@ const FittingSystem& square_fitting_system(int degree, int points_per_direction)
   return cached_system(2, degree, points_per_direction);
 }
 
-const FittingSystem& cube_fitting_system(int degree, int points_per_direction) {
-  return cached_system(3, degree, points_per_direction);
+const FittingSystem& cube_fitting_system(int degree, int points_per_direction, int max_exponent) {
+  return cached_system(3, degree, points_per_direction, max_exponent);
 }
 
 WeightFitResult fit_weights(const FittingSystem& system, const Eigen::VectorXd& moments,

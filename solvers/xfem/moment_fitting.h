@@ -30,7 +30,7 @@ enum class WeightFit {
   NonNegative  ///< min ‖A w − b‖ s.t. w ≥ 0 (Lawson–Hanson): moments exact only if feasible
 };
 
-/// The constant moment-fitting system of one (dimension, degree, points per direction).
+/// The constant moment-fitting system of one (dimension, degree, points per direction, cap).
 struct FittingSystem {
   std::vector<std::array<int, 3>> exponents;  ///< basis i is L_a(ξ) L_b(η) L_c(ζ), c = 0 in 2D
   Eigen::MatrixXd points;                     ///< dimension × n tensor Gauss points in [0, 1]^d
@@ -43,7 +43,10 @@ struct FittingSystem {
 /// 0 ≤ degree and degree + 1 ≤ points_per_direction ≤ kMaxGaussPoints.
 const FittingSystem& square_fitting_system(int degree, int points_per_direction);
 /// Volume system: basis a + b + c ≤ degree, points_per_direction³ points. Same conditions.
-const FittingSystem& cube_fitting_system(int degree, int points_per_direction);
+/// With max_exponent ≥ 0 also a, b, c ≤ max_exponent (the capped span: degree 10 capped at 4
+/// holds every product of two gradients of triquadratic functions, x⁴y⁴z² and the like, with
+/// 121 functions instead of 286), and points_per_direction ≥ min(degree, max_exponent) + 1.
+const FittingSystem& cube_fitting_system(int degree, int points_per_direction, int max_exponent = -1);
 
 struct WeightFitResult {
   Eigen::VectorXd weights;  ///< on the system's unit square / cube points

@@ -21,7 +21,7 @@ VolumeRule volume_rule(const Subvolume& sv, const VolumeRuleOptions& o) {
                  "VolumeRuleOptions: flux_tolerance "
                      << o.flux_tolerance << " and residual_tolerance " << o.residual_tolerance
                      << " must be ≥ 0");
-  const FittingSystem& system = cube_fitting_system(o.degree, o.points_per_direction);
+  const FittingSystem& system = cube_fitting_system(o.degree, o.points_per_direction, o.max_exponent);
   std::vector<std::vector<UvLoop>> loops;
   for (size_t k = 0; k < sv.patches.size(); ++k) {
     const CutPatch& patch = sv.patches[k];
@@ -68,7 +68,7 @@ VolumeRule volume_rule(const Subvolume& sv, const VolumeRuleOptions& o) {
   // Flux of F_i through one patch in unit-cube coordinates ξ = S⁻¹(X − min): the area vector
   // maps as dĀ = det(S⁻¹) S dA (Eq. 6.16). Entries m..m+2 accumulate dĀ (closure check).
   const int m = static_cast<int>(system.exponents.size());
-  const int nl = o.degree + 1;
+  const int nl = (o.max_exponent >= 0 ? std::min(o.degree, o.max_exponent) : o.degree) + 1;
   const double third = 1.0 / 3;
   const Vec3 area_scale(1 / (S.y() * S.z()), 1 / (S.x() * S.z()), 1 / (S.x() * S.y()));
   // Basis i = (a, b, c): the flux integrand at point j is

@@ -17,7 +17,10 @@ enum class FittingBox {
 
 struct VolumeRuleOptions {
   int degree = 4;                ///< basis ξ^a η^b ζ^c with a + b + c ≤ degree (35 functions)
-  int points_per_direction = 5;  ///< tensor Gauss points in the unit cube (≥ degree + 1)
+  int points_per_direction = 5;  ///< tensor Gauss points in the unit cube (≥ degree + 1, or cap + 1)
+  /// With a cap ≥ 0 also a, b, c ≤ max_exponent: degree 10 capped at 4 integrates the
+  /// triquadratic stiffness exactly on 5³ points (−1: no cap).
+  int max_exponent = -1;
   FittingBox box = FittingBox::Tight;
   WeightFit fit = WeightFit::MinimalNorm;
   double residual_tolerance = 1e-10;  ///< status ResidualAboveTolerance beyond (NNLS)
@@ -47,7 +50,7 @@ struct VolumeRule {
 };
 
 /// Σ_j w_j g(X_j) ≈ ∫_V g dV; exact (to the moments' accuracy) for polynomials of total
-/// degree ≤ `degree`. Points lie in the fitting box, not necessarily inside V.
+/// degree ≤ `degree` (each exponent ≤ `max_exponent` when capped). Points lie in the fitting box, not necessarily inside V.
 /// Throws parafab::Error for an empty or inverted cell, no patches, or malformed patches.
 VolumeRule volume_rule(const Subvolume& subvolume, const VolumeRuleOptions& options = {});
 
