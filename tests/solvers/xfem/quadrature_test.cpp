@@ -645,6 +645,39 @@ TEST(VolumeRule, CubeCutByPlaneIsExact) {
   }
 }
 
+// The hex27 cut-cell rule (occ::rules_for_element): total degree 10 with every exponent ≤ 4,
+// 121 functions on 5³ points. Exact for every monomial of that span (the products of two
+// gradients of triquadratic functions), on a cube cut by a plane oblique to the axes.
+TEST(VolumeRule, CappedSpanIsExactForTriquadraticStiffnessMonomials) {
+  const Box3 cell{{0, 0, 0}, {1, 1, 1}};
+  const Vec3 n(0.3, 0.5, 0.8);
+  const Faces faces = clip_polyhedron(box_faces(cell.min, cell.max), n, 0.7);
+  const Subvolume sv = polyhedron_subvolume(faces, cell);
+  VolumeRuleOptions o;
+  o.degree = 10;
+  o.max_exponent = 4;
+  o.points_per_direction = 5;
+  o.patch.degree = 10;
+  const VolumeRule r = volume_rule(sv, o);
+  ASSERT_EQ(r.status, RuleStatus::Ok) << to_string(r.status);
+  EXPECT_EQ(r.rule.points.size(), 125u);
+  double worst = 0, scale = 0;
+  int monomials = 0;
+  for (int a = 0; a <= 4; ++a)
+    for (int b = 0; b <= 4; ++b)
+      for (int c = 0; c <= 4 && a + b + c <= 10; ++c) {
+        auto f = [&](const Vec3& x) { return std::pow(x.x(), a) * std::pow(x.y(), b) * std::pow(x.z(), c); };
+        const double exact = polyhedron_integral(faces, f);
+        worst = std::max(worst, std::abs(apply(r.rule, f) - exact));
+        scale = std::max(scale, std::abs(exact));
+        ++monomials;
+      }
+  std::printf("  capped span (degree 10, exponents ≤ 4): %d monomials on %zu points, worst error %.1e "
+              "(largest integral %.2f)\n", monomials, r.rule.points.size(), worst, scale);
+  EXPECT_EQ(monomials, 121);
+  EXPECT_LT(worst, 5e-15);
+}
+
 /// Ball of radius R centred at the corner (1, 1, 1) of the cell [0, 1]³: one octant inside,
 /// bounded by the sphere patch θ ∈ [π, 3π/2], φ ∈ [π/2, π] and three quarter disks on the
 /// faces x, y, z = 1 (on the fitting box's max faces, so their curved loops matter).
