@@ -155,7 +155,7 @@ def main():
         sizes = [20] if a.quick else [20, 14, 10, 8]  # h = 40 mm gives inverted tet10 in the 10 mm wall
     else:
         ref_size = 2.0 if a.quick else 1.5
-        grids = {"hex8": [8, 16] if a.quick else [8, 12, 16, 24, 32], "hex27": [8] if a.quick else [6, 8, 12, 16]}
+        grids = {"hex8": [8, 16] if a.quick else [8, 12, 16, 24, 32], "hex27": [8] if a.quick else [6, 8, 12, 16, 20, 24]}
         sizes = [6, 4] if a.quick else [8, 6, 4, 3, 2]
     reference = calculix(ref_size)
     rows = []
