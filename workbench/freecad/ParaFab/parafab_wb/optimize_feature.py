@@ -219,22 +219,34 @@ def default_options():
     }
 
 
+def _picked_faces(opts, key, need_two):
+    names = list(opts[key])
+    if len(names) < 2:
+        raise OptimizeError("%s, got %d" % (need_two, len(names)))
+    return names
+
+
+def _local_point_and_direction(opts, point_key, direction_key, default_direction, placement, what):
+    """A point and a unit direction given globally in ``opts``, in the part's frame; raises
+    :class:`OptimizeError` "<what> is zero" for a zero direction."""
+    inv = (placement or FreeCAD.Placement()).inverse()
+    direction = FreeCAD.Vector(*opts.get(direction_key, default_direction))
+    if direction.Length < 1e-12:
+        raise OptimizeError("%s is zero" % what)
+    d = inv.Rotation.multVec(direction)
+    d.normalize()
+    return inv.multVec(FreeCAD.Vector(*opts.get(point_key, (0.0, 0.0, 0.0)))), d
+
+
 def pattern_rotation(shape, opts, placement=None):
     """The job's "rotations" entry for the picked pattern faces: sorted by their angle about the
     pattern axis (centres of mass, in the part's frame), the step angle from consecutive
     centres, which must be equally spaced (to 1e-6 rad). Raises :class:`OptimizeError` naming
     the faces that do not fit."""
-    names = list(opts["pattern_faces"])
+    names = _picked_faces(opts, "pattern_faces", "a pattern needs at least two faces")
     n = len(shape.Faces)
-    if len(names) < 2:
-        raise OptimizeError("a pattern needs at least two faces, got %d" % len(names))
-    inv = (placement or FreeCAD.Placement()).inverse()
-    direction = FreeCAD.Vector(*opts.get("pattern_axis_direction", (0.0, 0.0, 1.0)))
-    if direction.Length < 1e-12:
-        raise OptimizeError("the pattern axis direction is zero")
-    o = inv.multVec(FreeCAD.Vector(*opts.get("pattern_axis_point", (0.0, 0.0, 0.0))))
-    w = inv.Rotation.multVec(direction)
-    w.normalize()
+    o, w = _local_point_and_direction(opts, "pattern_axis_point", "pattern_axis_direction", (0.0, 0.0, 1.0),
+                                      placement, "the pattern axis direction")
     size = shape.BoundBox.DiagonalLength
     placed = []
     for name in names:
@@ -262,17 +274,11 @@ def mirror_pairs(shape, opts, placement=None):
     picked face whose centre of mass is its image in the mirror plane (to 1e-6 of the part's
     size; plane given globally, written in the part's frame). Raises :class:`OptimizeError`
     naming a face without a partner or one lying on the plane."""
-    names = list(opts["mirror_faces"])
+    names = _picked_faces(opts, "mirror_faces", "a mirror needs at least two faces (pairs of images)")
     n = len(shape.Faces)
-    if len(names) < 2:
-        raise OptimizeError("a mirror needs at least two faces (pairs of images), got %d" % len(names))
-    inv = (placement or FreeCAD.Placement()).inverse()
-    normal = FreeCAD.Vector(*opts.get("mirror_plane_normal", (1.0, 0.0, 0.0)))
-    if normal.Length < 1e-12:
-        raise OptimizeError("the mirror plane normal is zero")
-    nl = inv.Rotation.multVec(normal)
-    nl.normalize()
-    offset = nl.dot(inv.multVec(FreeCAD.Vector(*opts.get("mirror_plane_point", (0.0, 0.0, 0.0)))))
+    point, nl = _local_point_and_direction(opts, "mirror_plane_point", "mirror_plane_normal", (1.0, 0.0, 0.0),
+                                           placement, "the mirror plane normal")
+    offset = nl.dot(point)
     tol = 1e-6 * shape.BoundBox.DiagonalLength
     centres = []
     for name in names:
