@@ -264,6 +264,10 @@ def run_optimize(check):
     check("optimize_panel_checked", sorted(panel.checked_parameters()) == sorted(
         [(spoke, "offset"), (hole, "radius")]), panel.checked_parameters())
     check("optimize_objective_default", panel.objective.currentData() == "center_of_mass")
+    opts = panel.options()
+    check("optimize_panel_symmetry_groups", opts["mirror_faces"] == [] and opts["pattern_faces"] == []
+          and tuple(opts["mirror_plane_normal"]) == (1.0, 0.0, 0.0)
+          and tuple(opts["pattern_axis_direction"]) == (0.0, 0.0, 1.0), str(opts))
     panel.iterations.setValue(3)
     panel.output_dir.setText(OPTIMIZE_OUT)
     names = sorted(o.Name for o in doc.Objects)

@@ -183,33 +183,16 @@ class OptimizeTaskPanel(object):
         lay.addLayout(pull)
         layout.addWidget(draft)
 
-        pattern = QtGui.QGroupBox("Pattern (faces turned about an axis change alike)")
-        lay = QtGui.QVBoxLayout(pattern)
-        self.pattern_faces = analysis_panel.FaceList("Pattern faces (one of each copy)", [], [self.obj])
-        self.pattern_faces.setToolTip("Equal faces spaced evenly about the axis (bolt holes, spokes): the design "
-                                      "of one is copied to all; pick them in any order")
-        lay.addWidget(self.pattern_faces)
-        self.pattern_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["pattern_axis_point"]]
-        self.pattern_dir = [_spin(-1, 1, v, 4) for v in defaults["pattern_axis_direction"]]
-        axis_rows = QtGui.QFormLayout()
-        _vector_row(axis_rows, "Axis point", self.pattern_point)
-        _vector_row(axis_rows, "Axis direction", self.pattern_dir)
-        lay.addLayout(axis_rows)
-        layout.addWidget(pattern)
-
-        mirror = QtGui.QGroupBox("Mirror (faces and their images in a plane change alike)")
-        lay = QtGui.QVBoxLayout(mirror)
-        self.mirror_faces = analysis_panel.FaceList("Mirror faces (both of each pair)", [], [self.obj])
-        self.mirror_faces.setToolTip("Pairs of faces that are images of each other in the plane: each pair keeps "
-                                     "its symmetry; pick them in any order")
-        lay.addWidget(self.mirror_faces)
-        self.mirror_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["mirror_plane_point"]]
-        self.mirror_normal = [_spin(-1, 1, v, 4) for v in defaults["mirror_plane_normal"]]
-        plane_rows = QtGui.QFormLayout()
-        _vector_row(plane_rows, "Plane point", self.mirror_point)
-        _vector_row(plane_rows, "Plane normal", self.mirror_normal)
-        lay.addLayout(plane_rows)
-        layout.addWidget(mirror)
+        self.pattern_faces, self.pattern_point, self.pattern_dir = self._faces_point_direction_group(
+            layout, "Pattern (faces turned about an axis change alike)", "Pattern faces (one of each copy)",
+            "Equal faces spaced evenly about the axis (bolt holes, spokes): the design of one is copied to all; "
+            "pick them in any order", ("Axis point", defaults["pattern_axis_point"]),
+            ("Axis direction", defaults["pattern_axis_direction"]))
+        self.mirror_faces, self.mirror_point, self.mirror_normal = self._faces_point_direction_group(
+            layout, "Mirror (faces and their images in a plane change alike)", "Mirror faces (both of each pair)",
+            "Pairs of faces that are images of each other in the plane: each pair keeps its symmetry; pick them "
+            "in any order", ("Plane point", defaults["mirror_plane_point"]),
+            ("Plane normal", defaults["mirror_plane_normal"]))
 
         out = QtGui.QFormLayout()
         self.output_dir = analysis_panel._narrow(QtGui.QLineEdit())
@@ -292,6 +275,23 @@ class OptimizeTaskPanel(object):
 
     def checked_parameters(self):
         return [key for key, item in self._param_items.items() if item.checkState(0) == QtCore.Qt.Checked]
+
+    def _faces_point_direction_group(self, layout, title, faces_label, tooltip, point, direction):
+        """A group of picked faces with a point [mm] and a direction (x/y/z rows), added to
+        ``layout``; returns the face list and the two rows of spin boxes."""
+        group = QtGui.QGroupBox(title)
+        lay = QtGui.QVBoxLayout(group)
+        faces = analysis_panel.FaceList(faces_label, [], [self.obj])
+        faces.setToolTip(tooltip)
+        lay.addWidget(faces)
+        point_boxes = [_spin(-1e9, 1e9, v, 3, " mm") for v in point[1]]
+        direction_boxes = [_spin(-1, 1, v, 4) for v in direction[1]]
+        rows = QtGui.QFormLayout()
+        _vector_row(rows, point[0], point_boxes)
+        _vector_row(rows, direction[0], direction_boxes)
+        lay.addLayout(rows)
+        layout.addWidget(group)
+        return faces, point_boxes, direction_boxes
 
     def options(self):
         """The job options of :func:`optimize_feature.build_job` as edited in the panel."""
