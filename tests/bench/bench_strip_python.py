@@ -11,9 +11,11 @@ inflection, and the same ellipse arc under cardboard gravity (the general LP).
 Per case: the median of every phase the call reports (``diagnostics.phases``: interpolation
 of the points, arc-length table, zeros, equilibrium check, sampling, LPs, continuous-ratio
 estimate, widths/outline, stability verdict, and ``entry`` = the whole C++ call), the
-Python<->C++ conversion (call minus entry), and, as the baseline in the same run, the text
+Python<->C++ conversion (call minus entry), and, as baselines in the same run, the text
 route ``json.loads(parafab.design_strip_json(json.dumps(request)))`` (what design_strip did
-before the direct dict conversion; its result is checked equal). With ``--baseline`` (a JSON
+before the direct dict conversion; its result is checked equal) and the call with the LPs
+solved by Clp's dual form (``"lp_form": "dual"``, the solver before the dense one; R checked
+equal to 1e-12). With ``--baseline`` (a JSON
 written by an earlier build), the ratios old / new are reported too.
 """
 
@@ -72,8 +74,9 @@ def main():
     rows = []
     for name, spec in cases():
         parafab.design_strip(spec)  # warm-up
-        wall, cpu, total, lp, text = [], [], [], [], []
+        wall, cpu, total, lp, text, clp, clp_lp = [], [], [], [], [], [], []
         phases = {}
+        clp_spec = dict(spec, lp_form="dual")  # Clp's dual form: the LP solver before the dense one
         for _ in range(repeats):
             t0, c0 = time.perf_counter(), time.process_time()
             r = parafab.design_strip(spec)
@@ -87,6 +90,12 @@ def main():
             t0 = time.perf_counter()
             rt = json.loads(parafab.design_strip_json(json.dumps(spec)))
             text.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            rc = parafab.design_strip(clp_spec)
+            clp.append(time.perf_counter() - t0)
+            clp_lp.append(rc["diagnostics"]["phases"]["lp"])
+        if abs(rc["R"] / r["R"] - 1) > 1e-12:
+            raise SystemExit("%s: R with Clp %.17g differs from the dense LP's %.17g" % (name, rc["R"], r["R"]))
         if untimed(rt) != untimed(r):
             raise SystemExit("%s: the text route's result differs from design_strip's" % name)
         row = {"name": name, "repeats": repeats, "feasible": r["feasible"], "R": r["R"],
@@ -97,8 +106,11 @@ def main():
                "design_ms_median": 1e3 * statistics.median(total),
                "lp_ms_median": 1e3 * statistics.median(lp),
                "text_route_ms_median": 1e3 * statistics.median(text),
+               "clp_python_ms_median": 1e3 * statistics.median(clp),
+               "clp_lp_phase_ms_median": 1e3 * statistics.median(clp_lp), "clp_R": rc["R"],
                "phases_ms_median": {k: 1e3 * statistics.median(v) for k, v in phases.items()}}
         row["text_route_ratio"] = row["text_route_ms_median"] / row["python_ms_median"]
+        row["clp_ratio"] = row["clp_python_ms_median"] / row["python_ms_median"]
         old = baseline.get(name)
         if old:
             row["baseline_python_ms_median"] = old["python_ms_median"]
@@ -113,6 +125,9 @@ def main():
                  row["text_route_ratio"],
                  "  (baseline %.2f ms: %.1fx)" % (old["python_ms_median"], row["speedup"]) if old else ""))
         print("    phases [ms]: " + ", ".join("%s %.3f" % (k, v) for k, v in row["phases_ms_median"].items()))
+        print("    with Clp's dual form (same run): python %.2f ms (%.2fx the dense LP's), LP phase %.3f ms (%.1fx)"
+              % (row["clp_python_ms_median"], row["clp_ratio"], row["clp_lp_phase_ms_median"],
+                 row["clp_lp_phase_ms_median"] / row["phases_ms_median"]["lp"]))
     os.makedirs(args.out, exist_ok=True)
     path = os.path.join(args.out, "strip_python.json")
     with open(path, "w") as f:
@@ -142,7 +157,7 @@ def plot(rows, png):
     import matplotlib.pyplot as plt
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     x = range(len(rows))
-    keys = [("text_route_ms_median", "text route (same run)"),
+    keys = [("text_route_ms_median", "text route (same run)"), ("clp_python_ms_median", "LP by Clp (same run)"),
             ("python_ms_median", "parafab.design_strip (Python)"), ("design_ms_median", "design (C++)"),
             ("lp_ms_median", "final LP")]
     if all("baseline_python_ms_median" in r for r in rows):
