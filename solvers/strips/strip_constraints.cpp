@@ -11,6 +11,10 @@
 namespace parafab {
 
 namespace {
+// |κ'| l² below which a Newton stall is blamed on the inflection (a curve's inflections have
+// |κ'| l² of order 1–10; the rows' round-off reaches the tolerance near 1e-4).
+constexpr double kDegenerateInflection = 1e-3;
+
 double det(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
 // det(γ', γ'') and its u-derivative det(γ', γ''') at u.
@@ -222,7 +226,20 @@ EnforceResult StripConstraints::enforce(BSplineCurve2& curve) {
     }
     if (it >= o_.max_iterations || !std::isfinite(res.residual)) {
       std::ostringstream os;
-      os << "EnforceConstraints: max |G| = " << res.residual << " after " << it << " Newton steps";
+      os << "max |G| = " << res.residual << " after " << it << " Newton steps";
+      if (o_.inflections_on_line && !infl_.empty()) {
+        // The inflection rows' round-off grows like 1/κ' at the inflection: name the worst one,
+        // so a stall on a degenerating inflection says so.
+        size_t worst = 0;
+        double worst_dk = INFINITY;
+        for (size_t k = 0; k < infl_.size(); ++k) {
+          const double dk = std::abs(pole_jet(curve, infl_[k]).dkappa_ds) * length_ * length_;
+          if (dk < worst_dk) worst_dk = dk, worst = k;
+        }
+        os << "; inflection " << worst << " (at u = " << infl_[worst] << ") has |κ'| l² = " << worst_dk;
+        if (worst_dk < kDegenerateInflection)
+          os << ": it cannot be tracked to the tolerance, κ' vanishes there";
+      }
       res.message = os.str();
       break;
     }

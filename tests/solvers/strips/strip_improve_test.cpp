@@ -305,7 +305,10 @@ TEST(StabilityRecoveryLoop, WithoutRmaxKappaPrimeVanishesWithItTheRunConverges) 
   EXPECT_GT(R1, 1000 * R0);    // ... the stiffness ratio explodes ...
   EXPECT_FALSE(free_run.converged);  // ... and the run stalls: the inflection degenerates
   EXPECT_EQ(free_run.status, "stalled");
+  // Whether the inflection's own Newton or the constraints' Newton gives up first depends on
+  // round-off; either way the message names the vanishing κ'.
   EXPECT_NE(free_run.message.find("cannot be tracked"), std::string::npos) << free_run.message;
+  EXPECT_NE(free_run.message.find("κ' vanishes"), std::string::npos) << free_run.message;
   o.R_max = 1.5 * R0;
   const PoleDescentResult bounded = descend_poles(c, flatten_inflection(l), o);
   const double dk2 = bounded.history.back().min_inflection_dkappa, R2 = bounded.history.back().R;
