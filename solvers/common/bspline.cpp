@@ -13,9 +13,10 @@ namespace parafab {
 
 namespace {
 // Basis functions and their derivatives up to order n at u on span i (Piegl & Tiller A2.3).
-// ders[k][j] = d^k N_{i-p+j,p}(u).
+// ders[k][j] = d^k N_{i-p+j,p}(u), n < R.
+template <size_t R>
 void basis_derivatives(int span, double u, int p, const std::vector<double>& U, int n,
-                       std::array<std::array<double, 8>, 4>& ders) {
+                       std::array<std::array<double, 8>, R>& ders) {
   double ndu[8][8], left[8], right[8], a[2][8];
   ndu[0][0] = 1.0;
   for (int j = 1; j <= p; ++j) {
@@ -64,101 +65,47 @@ void basis_derivatives(int span, double u, int p, const std::vector<double>& U, 
   }
 }
 
-// The same algorithm with the degree P and the order ND (≤ P, ≤ 3) known at compile time, so
-// the loops unroll: the same operations in the same order, hence bit-identical results (no
-// FMA contraction on this target), for the evaluation hot path of the strip solvers.
-template <int P, int ND>
-void basis_derivatives_fixed(int span, double u, const double* U, double (&ders)[4][8]) {
-  double ndu[P + 1][P + 1], left[P + 1], right[P + 1], a[2][P + 1];
-  ndu[0][0] = 1.0;
-  for (int j = 1; j <= P; ++j) {
-    left[j] = u - U[span + 1 - j];
-    right[j] = U[span + j] - u;
-    double saved = 0.0;
-    for (int r = 0; r < j; ++r) {
-      ndu[j][r] = right[r + 1] + left[j - r];
-      const double temp = ndu[r][j - 1] / ndu[j][r];
-      ndu[r][j] = saved + right[r + 1] * temp;
-      saved = left[j - r] * temp;
-    }
-    ndu[j][j] = saved;
-  }
-  for (int j = 0; j <= P; ++j) ders[0][j] = ndu[j][P];
-  if constexpr (ND > 0) {
-    for (int r = 0; r <= P; ++r) {
-      int s1 = 0, s2 = 1;
-      a[0][0] = 1.0;
-      for (int k = 1; k <= ND; ++k) {
-        double d = 0.0;
-        const int rk = r - k, pk = P - k;
-        if (r >= k) {
-          a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
-          d = a[s2][0] * ndu[rk][pk];
-        }
-        const int j1 = (rk >= -1) ? 1 : -rk;
-        const int j2 = (r - 1 <= pk) ? k - 1 : P - r;
-        for (int j = j1; j <= j2; ++j) {
-          a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
-          d += a[s2][j] * ndu[rk + j][pk];
-        }
-        if (r <= pk) {
-          a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
-          d += a[s2][k] * ndu[r][pk];
-        }
-        ders[k][r] = d;
-        std::swap(s1, s2);
-      }
-    }
-    double factor = P;
-    for (int k = 1; k <= ND; ++k) {
-      for (int j = 0; j <= P; ++j) ders[k][j] *= factor;
-      factor *= (P - k);
-    }
-  }
-}
+// C^(k)(u) for k ≤ ND from the span's Taylor form at t = u − centre:
+// X^(k)(u) = Σ_{m=0}^{P−k} X^(k+m)(centre) t^m / m!, summed by Horner; a rational curve
+// divides by W with the quotient rule (C W = A differentiated k times), whose C''' is not
+// zero for a rational quadratic although A''' and W''' are.
+constexpr double kInverse[8] = {0.0, 1.0, 1.0 / 2, 1.0 / 3, 1.0 / 4, 1.0 / 5, 1.0 / 6, 1.0 / 7};
 
-// C^(k)(u) for k ≤ ND (zero beyond) as BSplineCurve2::derivatives computes it: A_k = Σ N w P,
-// W_k = Σ N w, the quotient rule for a rational curve. A non-rational curve skips the weights
-// (N·1.0·P == N·P exactly).
-template <int P, int ND>
-std::array<Vec2, 4> evaluate_fixed(int span, double u, const std::vector<double>& knots,
-                                   const std::vector<Vec2>& poles, const std::vector<double>& weights) {
-  double N[4][8];
-  basis_derivatives_fixed<P, ND>(span, u, knots.data(), N);
+template <int P, int ND, class Taylor>
+std::array<Vec2, 4> evaluate_taylor(const Taylor& T, double u, bool rational) {
+  const double t = u - T.center;
   std::array<Vec2, 4> A;
   for (auto& x : A) x.setZero();
-  const int first = span - P;
-  if (weights.empty()) {
-    for (int k = 0; k <= ND; ++k)
-      for (int j = 0; j <= P; ++j) A[k] += N[k][j] * poles[first + j];
-    return A;
+  constexpr int K = ND < P ? ND : P;  // A^(k) = W^(k) = 0 above the degree
+  for (int k = 0; k <= K; ++k) {
+    Vec2 a = T.A[P];
+    for (int m = P - 1; m >= k; --m) a = T.A[m] + (t * kInverse[m - k + 1]) * a;
+    A[k] = a;
   }
+  if (!rational) return A;
   std::array<double, 4> W{0, 0, 0, 0};
-  for (int k = 0; k <= ND; ++k)
-    for (int j = 0; j <= P; ++j) {
-      const double w = weights[first + j];
-      A[k] += N[k][j] * w * poles[first + j];
-      W[k] += N[k][j] * w;
-    }
+  for (int k = 0; k <= K; ++k) {
+    double w = T.W[P];
+    for (int m = P - 1; m >= k; --m) w = T.W[m] + (t * kInverse[m - k + 1]) * w;
+    W[k] = w;
+  }
   std::array<Vec2, 4> C;
+  for (auto& x : C) x.setZero();
   C[0] = A[0] / W[0];
-  C[1] = (A[1] - W[1] * C[0]) / W[0];
-  C[2] = (A[2] - 2 * W[1] * C[1] - W[2] * C[0]) / W[0];
-  C[3] = (A[3] - 3 * W[1] * C[2] - 3 * W[2] * C[1] - W[3] * C[0]) / W[0];
+  if (ND >= 1) C[1] = (A[1] - W[1] * C[0]) / W[0];
+  if (ND >= 2) C[2] = (A[2] - 2 * W[1] * C[1] - W[2] * C[0]) / W[0];
+  if (ND >= 3) C[3] = (A[3] - 3 * W[1] * C[2] - 3 * W[2] * C[1] - W[3] * C[0]) / W[0];
   return C;
 }
 
-template <int P>
-std::array<Vec2, 4> evaluate_degree(int nd, int span, double u, const std::vector<double>& knots,
-                                    const std::vector<Vec2>& poles, const std::vector<double>& weights) {
+template <int P, class Taylor>
+std::array<Vec2, 4> evaluate_degree(int nd, const Taylor& T, double u, bool rational) {
   switch (nd) {
-    case 0: return evaluate_fixed<P, 0>(span, u, knots, poles, weights);
-    case 1: if constexpr (P >= 1) return evaluate_fixed<P, 1>(span, u, knots, poles, weights); break;
-    case 2: if constexpr (P >= 2) return evaluate_fixed<P, 2>(span, u, knots, poles, weights); break;
-    case 3: if constexpr (P >= 3) return evaluate_fixed<P, 3>(span, u, knots, poles, weights); break;
+    case 0: return evaluate_taylor<P, 0>(T, u, rational);
+    case 1: return evaluate_taylor<P, 1>(T, u, rational);
+    case 2: return evaluate_taylor<P, 2>(T, u, rational);
+    default: return evaluate_taylor<P, 3>(T, u, rational);
   }
-  PARAFAB_VERIFY(false, "derivative order " << nd << " above degree " << P);
-  return {};
 }
 }  // namespace
 
@@ -194,6 +141,27 @@ BSplineCurve2::BSplineCurve2(int degree, std::vector<double> knots, std::vector<
   PARAFAB_VERIFY(last_parameter() > first_parameter(),
                  "curve.bspline.knots: empty parameter range [" << first_parameter() << ", "
                                                                 << last_parameter() << "]");
+  build_span_index();
+  build_taylor_forms();
+}
+
+void BSplineCurve2::build_taylor_forms() {
+  const int p = degree_, n = static_cast<int>(poles_.size()) - 1;
+  taylor_.assign(n - p + 1, SpanTaylor{});
+  for (int span = p; span <= n; ++span) {
+    SpanTaylor& T = taylor_[span - p];
+    for (auto& a : T.A) a.setZero();
+    if (!(knots_[span + 1] > knots_[span])) continue;  // empty span: find_span never returns it
+    T.center = 0.5 * (knots_[span] + knots_[span + 1]);
+    std::array<std::array<double, 8>, 8> N{};
+    basis_derivatives(span, T.center, p, knots_, p, N);
+    for (int k = 0; k <= p; ++k)
+      for (int j = 0; j <= p; ++j) {
+        const double w = weights_.empty() ? 1.0 : weights_[span - p + j];
+        T.A[k] += N[k][j] * w * poles_[span - p + j];
+        T.W[k] += N[k][j] * w;
+      }
+  }
 }
 
 std::vector<double> BSplineCurve2::breakpoints() const {
@@ -205,33 +173,50 @@ std::vector<double> BSplineCurve2::breakpoints() const {
 }
 
 int BSplineCurve2::find_span(double u) const {
+  // The span s with knots[s] ≤ u < knots[s + 1] (the last non-empty span for u at the end).
+  if (!(u > knots_[degree_])) return first_span_;
+  if (u >= knots_[last_span_ + 1]) return last_span_;
+  const size_t b = std::min(static_cast<size_t>((u - knots_[degree_]) * bucket_scale_),
+                            span_of_bucket_.size() - 1);
+  int s = span_of_bucket_[b];
+  while (knots_[s] > u) --s;  // only where rounding put u just before its bucket's start
+  while (knots_[s + 1] <= u) ++s;
+  return s;
+}
+
+void BSplineCurve2::build_span_index() {
   const int n = static_cast<int>(poles_.size()) - 1;
-  if (u >= knots_[n + 1]) {
-    int s = n;
-    while (s > degree_ && knots_[s] >= knots_[n + 1]) --s;
-    return s;
+  first_span_ = degree_;
+  while (!(knots_[first_span_ + 1] > knots_[first_span_])) ++first_span_;
+  last_span_ = n;
+  while (!(knots_[last_span_ + 1] > knots_[last_span_])) --last_span_;
+  const double a = first_parameter(), range = last_parameter() - a;
+  const size_t buckets = 2 * static_cast<size_t>(n - degree_ + 1);
+  bucket_scale_ = buckets / range;
+  span_of_bucket_.assign(buckets, first_span_);
+  int s = first_span_;
+  for (size_t b = 0; b < buckets; ++b) {
+    // The span holding the bucket's start (find_span scans from it in either direction).
+    const double start = a + b / bucket_scale_;
+    while (s < last_span_ && knots_[s + 1] <= start) ++s;
+    span_of_bucket_[b] = s;
   }
-  if (u <= knots_[degree_]) {
-    int s = degree_;
-    while (s < n && knots_[s + 1] <= knots_[degree_]) ++s;
-    return s;
-  }
-  auto it = std::upper_bound(knots_.begin() + degree_, knots_.begin() + n + 1, u);
-  return static_cast<int>(it - knots_.begin()) - 1;
 }
 
 std::array<Vec2, 4> BSplineCurve2::derivatives(double u, int order) const {
   u = std::clamp(u, first_parameter(), last_parameter());
-  const int span = find_span(u);
-  const int nd = std::min(std::clamp(order, 0, 3), degree_);
+  const SpanTaylor& T = taylor_[find_span(u) - degree_];
+  const bool r = rational();
+  // A polynomial's derivatives vanish above the degree; a rational curve's do not.
+  const int nd = r ? std::clamp(order, 0, 3) : std::min(std::clamp(order, 0, 3), degree_);
   switch (degree_) {
-    case 1: return evaluate_degree<1>(nd, span, u, knots_, poles_, weights_);
-    case 2: return evaluate_degree<2>(nd, span, u, knots_, poles_, weights_);
-    case 3: return evaluate_degree<3>(nd, span, u, knots_, poles_, weights_);
-    case 4: return evaluate_degree<4>(nd, span, u, knots_, poles_, weights_);
-    case 5: return evaluate_degree<5>(nd, span, u, knots_, poles_, weights_);
-    case 6: return evaluate_degree<6>(nd, span, u, knots_, poles_, weights_);
-    default: return evaluate_degree<7>(nd, span, u, knots_, poles_, weights_);
+    case 1: return evaluate_degree<1>(nd, T, u, r);
+    case 2: return evaluate_degree<2>(nd, T, u, r);
+    case 3: return evaluate_degree<3>(nd, T, u, r);
+    case 4: return evaluate_degree<4>(nd, T, u, r);
+    case 5: return evaluate_degree<5>(nd, T, u, r);
+    case 6: return evaluate_degree<6>(nd, T, u, r);
+    default: return evaluate_degree<7>(nd, T, u, r);
   }
 }
 
@@ -241,6 +226,7 @@ void BSplineCurve2::set_poles(std::vector<Vec2> poles) {
   for (size_t i = 0; i < poles.size(); ++i)
     PARAFAB_VERIFY(poles[i].allFinite(), "curve.bspline.poles[" << i << "] is not finite");
   poles_ = std::move(poles);
+  build_taylor_forms();
 }
 
 BSplineCurve2::Basis BSplineCurve2::basis(double u) const {

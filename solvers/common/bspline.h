@@ -1,5 +1,6 @@
-// Plane (2D) B-spline and NURBS curves: evaluation with derivatives up to order 3, and
-// interpolation of points (chord-length parameters, averaged knots; Piegl & Tiller §9.2.1).
+// Plane (2D) B-spline and NURBS curves: evaluation with derivatives up to order 3 (from
+// per-span Taylor forms), and interpolation of points (chord-length parameters, averaged
+// knots; Piegl & Tiller §9.2.1).
 #pragma once
 
 #include <Eigen/Core>
@@ -31,7 +32,8 @@ class BSplineCurve2 {
   /// smoothness).
   std::vector<double> breakpoints() const;
 
-  /// Position and derivatives d^k/du^k for k = 0..3 (zero beyond the degree).
+  /// Position and derivatives d^k/du^k for k = 0..3 (zero beyond the degree). Summed from the
+  /// span's Taylor form (below): within ~1e-15 of the poles' size of Cox–de Boor's values.
   std::array<Vec2, 4> derivatives(double u) const { return derivatives(u, 3); }
   /// The same up to order `order` ≤ 3 only (entries beyond it are not meaningful): cheaper.
   std::array<Vec2, 4> derivatives(double u, int order) const;
@@ -52,10 +54,28 @@ class BSplineCurve2 {
 
  private:
   int find_span(double u) const;
+  /// Every span's polynomial (the numerator Σ N w P and the denominator Σ N w of a rational
+  /// curve) as its derivatives at the span's midpoint, from Cox–de Boor (Piegl & Tiller A2.3)
+  /// once per span: an evaluation is then a Horner sum instead of the basis recursion and its
+  /// divisions (the strip solvers evaluate a curve ~30,000 times per design).
+  struct SpanTaylor {
+    double center = 0;
+    std::array<Vec2, 8> A{};       ///< d^k/du^k of Σ N w P (of C for a non-rational curve)
+    std::array<double, 8> W{};     ///< d^k/du^k of Σ N w (rational curves only)
+  };
+  void build_taylor_forms();
+  /// find_span's index: span_of_bucket_[b] is the span holding the start of bucket b of
+  /// [first, last] cut into equal buckets (about two per span), so a lookup is a multiply and
+  /// a short forward scan instead of a binary search over the knots.
+  void build_span_index();
   int degree_;
   std::vector<double> knots_;
   std::vector<Vec2> poles_;
   std::vector<double> weights_;
+  std::vector<SpanTaylor> taylor_;  ///< index span − degree (empty spans left zero)
+  std::vector<int> span_of_bucket_;
+  double bucket_scale_ = 0;         ///< buckets per unit of u
+  int first_span_ = 0, last_span_ = 0;  ///< the first and last non-empty spans
 };
 
 /// A point of a non-rational plane B-spline and the exact derivatives of its geometry with

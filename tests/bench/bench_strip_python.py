@@ -15,7 +15,7 @@ Python<->C++ conversion (call minus entry), and, as baselines in the same run, t
 route ``json.loads(parafab.design_strip_json(json.dumps(request)))`` (what design_strip did
 before the direct dict conversion; its result is checked equal) and the call with the LPs
 solved by Clp's dual form (``"lp_form": "dual"``, the solver before the dense one; R checked
-equal to 1e-12). With ``--baseline`` (a JSON
+equal to 1e-10, Clp's own primal and dual forms differing by up to 2.8e-11). With ``--baseline`` (a JSON
 written by an earlier build), the ratios old / new are reported too.
 """
 
@@ -94,7 +94,9 @@ def main():
             rc = parafab.design_strip(clp_spec)
             clp.append(time.perf_counter() - t0)
             clp_lp.append(rc["diagnostics"]["phases"]["lp"])
-        if abs(rc["R"] / r["R"] - 1) > 1e-12:
+        # Clp ends within its feasibility tolerances: its primal and dual forms differ by up to
+        # 2.8e-11 in R on the one-inflection curve, so compare to 1e-10.
+        if abs(rc["R"] / r["R"] - 1) > 1e-10:
             raise SystemExit("%s: R with Clp %.17g differs from the dense LP's %.17g" % (name, rc["R"], r["R"]))
         if untimed(rt) != untimed(r):
             raise SystemExit("%s: the text route's result differs from design_strip's" % name)

@@ -1,7 +1,10 @@
 // B-spline evaluation, interpolation and arc-length geometry against closed forms.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <random>
 
 #include "common/bspline.h"
 #include "common/error.h"
@@ -28,6 +31,97 @@ TEST(BSplineCurve2, RationalQuarterCircleHasConstantCurvature) {
     // Arc length from the angle of the point.
     EXPECT_NEAR(p.s, r * std::atan2(p.point.y(), p.point.x()), 1e-12);
   }
+}
+
+// Textbook Cox–de Boor recursion (N_{i,0} = [u_i ≤ u < u_{i+1}], N_{i,p} from N_{i,p−1} and
+// N_{i+1,p−1}) and its derivative formula d^k N_{i,p} = p (d^{k−1}N_{i,p−1}/(u_{i+p} − u_i)
+// − d^{k−1}N_{i+1,p−1}/(u_{i+p+1} − u_{i+1})): an evaluation independent of bspline.cpp's.
+double textbook_basis(const std::vector<double>& U, int i, int p, int k, double u, int last_span) {
+  if (k > p) return 0.0;
+  if (p == 0) {
+    // The half-open interval, except that the last non-empty span also owns its end.
+    return (U[i] <= u && (u < U[i + 1] || (i == last_span && u <= U[i + 1]))) ? 1.0 : 0.0;
+  }
+  auto ratio = [](double a, double b) { return b == 0.0 ? 0.0 : a / b; };
+  if (k == 0)
+    return ratio(u - U[i], U[i + p] - U[i]) * textbook_basis(U, i, p - 1, 0, u, last_span) +
+           ratio(U[i + p + 1] - u, U[i + p + 1] - U[i + 1]) *
+               textbook_basis(U, i + 1, p - 1, 0, u, last_span);
+  return p * (ratio(textbook_basis(U, i, p - 1, k - 1, u, last_span), U[i + p] - U[i]) -
+              ratio(textbook_basis(U, i + 1, p - 1, k - 1, u, last_span), U[i + p + 1] - U[i + 1]));
+}
+
+// C^(k)(u), k = 0..3, of a (rational) curve from the textbook basis and the quotient rule.
+std::array<Vec2, 4> textbook_derivatives(const BSplineCurve2& c, double u) {
+  const auto& U = c.knots();
+  int last_span = static_cast<int>(U.size()) - 2;
+  while (!(U[last_span + 1] > U[last_span])) --last_span;
+  std::array<Vec2, 4> A;
+  std::array<double, 4> W{};
+  for (int k = 0; k < 4; ++k) {
+    A[k].setZero();
+    for (int i = 0; i < c.pole_count(); ++i) {
+      const double w = c.rational() ? c.weights()[i] : 1.0;
+      const double N = textbook_basis(U, i, c.degree(), k, u, last_span);
+      A[k] += N * w * c.poles()[i];
+      W[k] += N * w;
+    }
+  }
+  if (!c.rational()) return A;
+  std::array<Vec2, 4> C;
+  C[0] = A[0] / W[0];
+  C[1] = (A[1] - W[1] * C[0]) / W[0];
+  C[2] = (A[2] - 2 * W[1] * C[1] - W[2] * C[0]) / W[0];
+  C[3] = (A[3] - 3 * W[1] * C[2] - 3 * W[2] * C[1] - W[3] * C[0]) / W[0];
+  return C;
+}
+
+// derivatives() sums per-span Taylor forms found through a bucket index; on random curves of every degree 1..7 (a double
+// interior knot, rational and not, poles ~100 away from the origin) it must agree with the
+// textbook recursion, also at the knots and the ends, to round-off of each derivative's size.
+TEST(BSplineCurve2, TaylorFormsMatchTheTextbookRecursionForEveryDegree) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  double worst = 0.0;
+  for (int degree = 1; degree <= 7; ++degree)
+    for (int rational = 0; rational < 2; ++rational) {
+      const int poles = degree + 6;
+      std::vector<double> knots(degree + 1, -0.3);
+      std::vector<double> interior;
+      for (int i = 0; i < poles - degree - 1; ++i) interior.push_back(-0.3 + 2.1 * unit(rng));
+      std::sort(interior.begin(), interior.end());
+      if (degree >= 2) interior[2] = interior[1];  // a double knot
+      knots.insert(knots.end(), interior.begin(), interior.end());
+      knots.insert(knots.end(), degree + 1, 1.8);
+      std::vector<Vec2> P;
+      std::vector<double> w;
+      for (int i = 0; i < poles; ++i) {
+        P.emplace_back(100 + 5 * unit(rng), -60 + 5 * unit(rng));
+        if (rational) w.push_back(0.4 + unit(rng));
+      }
+      const BSplineCurve2 c(degree, knots, P, w);
+      std::vector<double> us;
+      for (int j = 0; j <= 200; ++j) us.push_back(-0.3 + 2.1 * j / 200);
+      for (double k : interior)  // the knots and their neighbours (find_span's bucket edges)
+        for (double u : {std::nextafter(k, -1e9), k, std::nextafter(k, 1e9)}) us.push_back(u);
+      std::array<double, 4> scale{};
+      std::vector<std::array<Vec2, 4>> ref;
+      for (double u : us) {
+        ref.push_back(textbook_derivatives(c, u));
+        for (int k = 0; k < 4; ++k) scale[k] = std::max(scale[k], ref.back()[k].norm());
+      }
+      for (size_t j = 0; j < us.size(); ++j) {
+        const auto d = c.derivatives(us[j]);
+        for (int k = 0; k < 4; ++k) {
+          if (scale[k] == 0.0) continue;  // a line's second and third derivatives
+          const double e = (d[k] - ref[j][k]).norm() / scale[k];
+          worst = std::max(worst, e);
+          ASSERT_LT(e, 1e-13) << "degree " << degree << (rational ? " rational" : "") << " u = "
+                              << us[j] << " derivative " << k;
+        }
+      }
+    }
+  std::printf("largest difference to the textbook recursion: %.2e of the derivative's size\n", worst);
 }
 
 TEST(PlaneCurve, ParameterAtInvertsArcLength) {
