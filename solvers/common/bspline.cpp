@@ -2,8 +2,6 @@
 
 #include <sstream>
 
-#include <Eigen/SparseLU>
-#include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
 
@@ -318,27 +316,45 @@ InterpolatedBSpline interpolate_rows(const Eigen::MatrixXd& points, int degree) 
     for (int i = j; i < j + p; ++i) s += t[i];
     U[j + p] = s / p;
   }
-  // Collocation matrix (banded, sparse).
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(static_cast<size_t>(n) * (p + 1));
+  // Collocation matrix, banded: row i holds N_{span−p..span}(t_i), so A(i, j) ≠ 0 only for
+  // |i − j| ≤ p; stored as band(i, j − i + p). It is totally positive (B-splines at increasing
+  // sites) and non-singular (Schoenberg–Whitney holds for averaged knots), so Gaussian
+  // elimination without pivoting is stable (de Boor & Pinkus 1977) and stays in the band.
+  const int w = 2 * p + 1;
+  Eigen::MatrixXd band = Eigen::MatrixXd::Zero(n, w);
   for (int i = 0; i < n; ++i) {
     // Span: U[span] ≤ t < U[span + 1], the last span for t = 1.
     const int span = std::clamp(static_cast<int>(std::upper_bound(U.begin() + p, U.begin() + n, t[i]) - U.begin()) - 1,
                                 p, n - 1);
-    std::array<std::array<double, 8>, 4> N{};
+    std::array<std::array<double, 8>, 1> N{};
     basis_derivatives(span, t[i], p, U, 0, N);
-    for (int j = 0; j <= p; ++j)
-      if (N[0][j] != 0.0) trip.emplace_back(i, span - p + j, N[0][j]);
+    for (int j = 0; j <= p; ++j) {
+      const int col = span - p + j;
+      PARAFAB_VERIFY(std::abs(col - i) <= p, "interpolation: collocation entry (" << i << ", " << col
+                                                 << ") outside the band of width " << p);
+      band(i, col - i + p) = N[0][j];
+    }
   }
-  Eigen::SparseMatrix<double> M(n, n);
-  M.setFromTriplets(trip.begin(), trip.end());
-  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
-  lu.compute(M);
-  PARAFAB_VERIFY(lu.info() == Eigen::Success, "curve.points: interpolation matrix is singular");
+  Eigen::MatrixXd X = points;
+  for (int k = 0; k < n; ++k) {
+    const double pivot = band(k, p);
+    PARAFAB_VERIFY(std::abs(pivot) > 1e-14, "curve.points: interpolation matrix is singular (pivot "
+                                                << pivot << " at point " << k << ")");
+    for (int i = k + 1; i <= std::min(k + p, n - 1); ++i) {
+      const double f = band(i, k - i + p) / pivot;
+      if (f == 0.0) continue;
+      for (int j = k + 1; j <= std::min(k + p, n - 1); ++j) band(i, j - i + p) -= f * band(k, j - k + p);
+      X.row(i) -= f * X.row(k);
+    }
+  }
+  for (int k = n - 1; k >= 0; --k) {
+    for (int j = k + 1; j <= std::min(k + p, n - 1); ++j) X.row(k) -= band(k, j - k + p) * X.row(j);
+    X.row(k) /= band(k, p);
+  }
   InterpolatedBSpline out;
   out.degree = p;
   out.knots = std::move(U);
-  out.poles = lu.solve(points);
+  out.poles = std::move(X);
   return out;
 }
 
