@@ -4,6 +4,7 @@ to a designed strip (interpolation, zeros, sampling, LP, outline, JSON), median 
 
     /usr/bin/python3 tests/bench/bench_strip_python.py [--quick] [--repeats N] [--out DIR]
         [--baseline OLD.json]      -> DIR/strip_python.json, DIR/strip_python.png
+    valgrind --tool=callgrind /usr/bin/python3 tests/bench/bench_strip_python.py --calls-only CASE N
 
 Curves (400 points each, metres): an ellipse arc (no inflection), a cubic with one
 inflection, and the same ellipse arc under cardboard gravity (the general LP).
@@ -65,7 +66,15 @@ def main():
     ap.add_argument("--repeats", type=int, default=51)
     ap.add_argument("--out", default=".")
     ap.add_argument("--baseline")
+    ap.add_argument("--calls-only", nargs=2, metavar=("CASE", "N"),
+                    help="only call design_strip N times on CASE, untimed (for callgrind: the "
+                         "instructions per call are the difference between two N)")
     args = ap.parse_args()
+    if args.calls_only:
+        spec = dict(cases())[args.calls_only[0]]
+        for _ in range(int(args.calls_only[1])):
+            parafab.design_strip(spec)
+        return
     repeats = 5 if args.quick else args.repeats
     baseline = {}
     if args.baseline:
