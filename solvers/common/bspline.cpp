@@ -174,8 +174,9 @@ int BSplineCurve2::find_span(double u) const {
   // The span s with knots[s] ≤ u < knots[s + 1] (the last non-empty span for u at the end).
   if (!(u > knots_[degree_])) return first_span_;
   if (u >= knots_[last_span_ + 1]) return last_span_;
-  const size_t b = std::min(static_cast<size_t>((u - knots_[degree_]) * bucket_scale_),
-                            span_of_bucket_.size() - 1);
+  const double x = (u - knots_[degree_]) * bucket_scale_;  // compared before the cast: never UB
+  const size_t last = span_of_bucket_.size() - 1;
+  const size_t b = x < static_cast<double>(last) ? static_cast<size_t>(x) : last;
   int s = span_of_bucket_[b];
   while (knots_[s] > u) --s;  // only where rounding put u just before its bucket's start
   while (knots_[s + 1] <= u) ++s;
