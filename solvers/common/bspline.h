@@ -33,7 +33,8 @@ class BSplineCurve2 {
   std::vector<double> breakpoints() const;
 
   /// Position and derivatives d^k/du^k for k = 0..3 (zero beyond the degree). Summed from the
-  /// span's Taylor form (below): within ~1e-15 of the poles' size of Cox–de Boor's values.
+  /// span's Taylor form (below): equal to the textbook recursion's to ~3e-14 of each
+  /// derivative's size (BSplineCurve2.TaylorFormsMatchTheTextbookRecursionForEveryDegree).
   std::array<Vec2, 4> derivatives(double u) const { return derivatives(u, 3); }
   /// The same up to order `order` ≤ 3 only (entries beyond it are not meaningful): cheaper.
   std::array<Vec2, 4> derivatives(double u, int order) const;
@@ -65,8 +66,8 @@ class BSplineCurve2 {
   };
   void build_taylor_forms();
   /// find_span's index: span_of_bucket_[b] is the span holding the start of bucket b of
-  /// [first, last] cut into equal buckets (about two per span), so a lookup is a multiply and
-  /// a short forward scan instead of a binary search over the knots.
+  /// [first, last] cut into equal buckets (two per span on average), so a lookup is a
+  /// multiply and a short scan instead of a binary search over the knots.
   void build_span_index();
   int degree_;
   std::vector<double> knots_;
