@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
 #include "common/error.h"
 #include "occt_version.h"
@@ -14,6 +15,7 @@
 #include "simulate_json.h"
 #include "optimize_json.h"
 #include "outline_export.h"
+#include "json_write.h"
 #include "strip_json.h"
 #include "stability_json.h"
 #include "strip_improve_json.h"
@@ -136,12 +138,15 @@ PyObject* to_python_raw(const nlohmann::json& j) {
       const std::string& t = j.get_ref<const std::string&>();
       return PyUnicode_DecodeUTF8(t.data(), static_cast<Py_ssize_t>(t.size()), "strict");
     }
-    case V::array: {
-      PyObject* a = PyList_New(static_cast<Py_ssize_t>(j.size()));
+    case V::array: {  // the underlying vector and doubles directly: nlohmann's iterators and
+                      // get<double>() switch on the type at every step
+      const auto& elements = j.get_ref<const nlohmann::json::array_t&>();
+      PyObject* a = PyList_New(static_cast<Py_ssize_t>(elements.size()));
       if (!a) return nullptr;
       Py_ssize_t i = 0;
-      for (const auto& e : j) {
-        PyObject* v = to_python_raw(e);
+      for (const auto& e : elements) {
+        const double* x = e.get_ptr<const double*>();
+        PyObject* v = x && std::isfinite(*x) ? PyFloat_FromDouble(*x) : to_python_raw(e);
         if (!v) { Py_DECREF(a); return nullptr; }
         PyList_SET_ITEM(a, i++, v);
       }
@@ -150,10 +155,9 @@ PyObject* to_python_raw(const nlohmann::json& j) {
     case V::object: {
       PyObject* d = PyDict_New();
       if (!d) return nullptr;
-      for (auto it = j.begin(); it != j.end(); ++it) {
-        const std::string& k = it.key();
+      for (const auto& [k, value] : j.get_ref<const nlohmann::json::object_t&>()) {
         PyObject* key = PyUnicode_DecodeUTF8(k.data(), static_cast<Py_ssize_t>(k.size()), "strict");
-        PyObject* v = key ? to_python_raw(it.value()) : nullptr;
+        PyObject* v = key ? to_python_raw(value) : nullptr;
         const int rc = v ? PyDict_SetItem(d, key, v) : -1;
         Py_XDECREF(key);
         Py_XDECREF(v);
@@ -173,6 +177,14 @@ py::object to_python(const nlohmann::json& j) {
   if (!o) throw py::error_already_set();
   return py::reinterpret_steal<py::object>(o);
 }
+
+// A result about to be dropped: converted, then freed bottom-up (json_write::dismantle), which
+// is cheaper than nlohmann's destructor on a tree of thousands of small arrays.
+py::object to_python(nlohmann::json&& j) {
+  py::object o = to_python(static_cast<const nlohmann::json&>(j));
+  parafab::entry::json_write::dismantle(j);
+  return o;
+}
 }  // namespace
 
 PYBIND11_MODULE(parafab, m) {
@@ -187,7 +199,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::strip_stability_json(in);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("request"),
       "Stability of a designed strip (thesis 4.5): a strip request as for design_strip; returns "
@@ -203,7 +215,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::improve_strip_json(in, target_R);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("request"), py::arg("target_R") = 0.0,
       "Fabricability optimization (thesis §4.6.2): move the control points of the request's curve "
@@ -220,7 +232,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::stabilize_strip_json(in, R_max);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("request"), py::arg("R_max") = 0.0,
       "Stability recovery (thesis §4.5.4, Algorithm 4.2): move the control points of the request's "
@@ -238,7 +250,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::design_strip_json(in);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("request"),
       "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
@@ -281,7 +293,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::design_rod_json(in);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("request"),
       "Design a Kirchhoff rod (thesis ch. 5). `request` and the returned dict follow the rod JSON "
@@ -297,7 +309,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::inspect_part_json(path, o);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("path"), py::arg("solid") = -1,
       "Face model of a STEP/BREP part (same JSON as `parafab inspect`).");
@@ -322,7 +334,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::integrate_part_json(path, o);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("path"), py::arg("cells") = 8, py::arg("cell_size") = 0.0, py::arg("segments") = "parabolic",
       py::arg("solid") = -1, py::arg("estimate_only") = false, py::arg("force") = false,
@@ -344,7 +356,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::simulate_part_json(path, in, out_dir, report);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("path"), py::arg("job"), py::arg("out_dir") = "", py::arg("progress") = py::none(),
       py::arg("threads") = 0,
@@ -369,7 +381,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::optimize_part_json(path, in, out_dir, report);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("path"), py::arg("job"), py::arg("out_dir") = "", py::arg("progress") = py::none(),
       "Shape optimization of a part on its own CAD parameters (same job and history JSON as `parafab optimize`); "
@@ -398,7 +410,7 @@ PYBIND11_MODULE(parafab, m) {
               py::gil_scoped_release release;
               out = s.run(out_dir, report);
             }
-            return to_python(out);
+            return to_python(std::move(out));
           },
           py::arg("out_dir") = "", py::arg("progress") = py::none())
       .def(
@@ -411,7 +423,7 @@ PYBIND11_MODULE(parafab, m) {
               py::gil_scoped_release release;
               out = s.update(path, out_dir, report);
             }
-            return to_python(out);
+            return to_python(std::move(out));
           },
           py::arg("path"), py::arg("out_dir") = "", py::arg("progress") = py::none());
   m.def(
@@ -428,7 +440,7 @@ PYBIND11_MODULE(parafab, m) {
           py::gil_scoped_release release;
           out = parafab::entry::strip_sections_json(path, in);
         }
-        return to_python(out);
+        return to_python(std::move(out));
       },
       py::arg("path"), py::arg("job"),
       "Strips from plane sections of a surface or solid (same job and result JSON as `parafab sections`).");

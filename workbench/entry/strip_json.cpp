@@ -12,6 +12,7 @@
 #include "strips/strip_validation.h"
 
 #include "json_fields.h"
+#include "json_write.h"
 #include "stability_json.h"
 
 namespace parafab::entry {
@@ -35,15 +36,25 @@ double coordinate(const json& v, const std::string& path) {
   return number(v, path);
 }
 
+// A finite number at element i of `path`; the element's path is spelled out only for the error
+// (building it for every element of a 400-point curve cost more than interpolating it).
+double coordinate_at(const json& v, const std::string& path, size_t i, const char* suffix = "") {
+  if (v.is_number()) {
+    const double x = v.get<double>();
+    if (std::isfinite(x)) return x;
+  }
+  return coordinate(v, path + "[" + std::to_string(i) + "]" + suffix);
+}
+
 std::vector<Vec2> points2(const json& v, const std::string& path) {
   if (!v.is_array()) PARAFAB_INPUT_ERROR(path << " must be an array of [x, y] pairs");
   std::vector<Vec2> out;
   out.reserve(v.size());
   for (size_t i = 0; i < v.size(); ++i) {
-    const std::string p = path + "[" + std::to_string(i) + "]";
-    if (!v[i].is_array() || v[i].size() != 2)
-      PARAFAB_INPUT_ERROR(p << " must be a pair [x, y] (a plane curve), got " << v[i].dump());
-    out.emplace_back(coordinate(v[i][0], p + "[0]"), coordinate(v[i][1], p + "[1]"));
+    const json& p = v[i];
+    if (!p.is_array() || p.size() != 2)
+      PARAFAB_INPUT_ERROR(path << "[" << i << "] must be a pair [x, y] (a plane curve), got " << p.dump());
+    out.emplace_back(coordinate_at(p[0], path, i, "[0]"), coordinate_at(p[1], path, i, "[1]"));
   }
   return out;
 }
@@ -51,8 +62,8 @@ std::vector<Vec2> points2(const json& v, const std::string& path) {
 std::vector<double> numbers(const json& v, const std::string& path) {
   if (!v.is_array()) PARAFAB_INPUT_ERROR(path << " must be an array of numbers");
   std::vector<double> out;
-  for (size_t i = 0; i < v.size(); ++i)
-    out.push_back(coordinate(v[i], path + "[" + std::to_string(i) + "]"));
+  out.reserve(v.size());
+  for (size_t i = 0; i < v.size(); ++i) out.push_back(coordinate_at(v[i], path, i));
   return out;
 }
 
@@ -183,7 +194,7 @@ BSplineCurve2 parse_curve(const json& request) {
                       "\"points\" [[x, y], ...]");
 }
 
-json to_json(const Vec2& v) { return json::array({v.x(), v.y()}); }
+json to_json(const Vec2& v) { return json_write::coordinates(v); }
 
 }  // namespace
 
@@ -352,33 +363,39 @@ json design_strip_json(const json& request) {
   out["length"] = d.length;
   {  // the curve as designed (the interpolant when points were given)
     json poles = json::array();
+    poles.get_ref<json::array_t&>().reserve(curve.poles().size());
     for (const auto& p : curve.poles()) poles.push_back(to_json(p));
-    out["bspline"] = {{"degree", curve.degree()}, {"knots", curve.knots()}, {"poles", poles}};
+    json& bspline = out["bspline"];
+    bspline["degree"] = curve.degree();
+    bspline["knots"] = curve.knots();
+    bspline["poles"] = std::move(poles);
     if (curve.rational()) out["bspline"]["weights"] = curve.weights();
   }
   json infl = json::array();
   for (const auto& z : d.zeros)
     infl.push_back({{"s", z.at.s}, {"point", to_json(z.at.point)}, {"kind", to_string(z.kind)},
                     {"tangent", to_json(z.at.tangent)}, {"dkappa_ds", z.at.dkappa_ds}});
-  out["inflections"] = infl;
+  out["inflections"] = std::move(infl);
   out["line"] = {{"a", d.a}, {"b", to_json(d.b)}};
   out["R"] = d.feasible ? json(d.R) : json(nullptr);
   json s = json::array(), pts = json::array(), kap = json::array(), K = json::array();
+  for (json* a : {&s, &pts, &kap, &K}) a->get_ref<json::array_t&>().reserve(d.samples.size());
   for (const auto& p : d.samples) {
     s.push_back(p.s);
     pts.push_back(to_json(p.point));
     kap.push_back(p.kappa);
     K.push_back(p.K);
   }
-  out["s"] = s;
-  out["points"] = pts;
-  out["curvature"] = kap;
-  out["K"] = K;
+  out["s"] = std::move(s);
+  out["points"] = std::move(pts);
+  out["curvature"] = std::move(kap);
+  out["K"] = std::move(K);
   out["width"] = d.width;
   out["bending_stiffness"] = d.bending_stiffness;
   json outline = json::array();
+  outline.get_ref<json::array_t&>().reserve(d.outline.size());
   for (const auto& p : d.outline) outline.push_back(to_json(p));
-  out["outline"] = outline;
+  out["outline"] = std::move(outline);
   json refinement = json::array();
   auto num = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
   for (const auto& r : d.refinement)
