@@ -2,13 +2,14 @@
 
 #include "common/error.h"
 #include "grid_estimate.h"
+#include "json_write.h"
 
 namespace parafab::entry {
 
 using nlohmann::json;
 
 namespace {
-json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+json vec(const Eigen::Vector3d& v) { return json_write::coordinates(v); }
 json properties(const xfem::MassProperties& p) {
   json I = json::array();
   for (int i = 0; i < 3; ++i) I.push_back(json::array({p.inertia(i, 0), p.inertia(i, 1), p.inertia(i, 2)}));

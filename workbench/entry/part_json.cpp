@@ -2,6 +2,7 @@
 // follow the relation equations: plane p, n; cylinder c, d, r; cone c, d, r, a; sphere c, d, r;
 // torus c, d, R, r; plus x, the direction of u = 0.
 #include "part_json.h"
+#include "json_write.h"
 
 namespace parafab::entry {
 
@@ -9,7 +10,7 @@ using nlohmann::json;
 
 namespace {
 
-json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+json vec(const Eigen::Vector3d& v) { return json_write::coordinates(v); }
 
 json parameters(const occ::Primitive& p) {
   using T = occ::SurfaceType;

@@ -10,6 +10,7 @@
 #include "rods/rod_stability.h"
 
 #include "json_fields.h"
+#include "json_write.h"
 
 namespace parafab::entry {
 
@@ -118,7 +119,7 @@ RodMaterial parse_material(const json& request) {
   return m;
 }
 
-json to_json(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
+json to_json(const Vec3& v) { return json_write::coordinates(v); }
 json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 
 }  // namespace

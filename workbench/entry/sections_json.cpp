@@ -8,6 +8,7 @@
 #include "plane_sections.h"
 #include "strip_improve_json.h"
 #include "strip_json.h"
+#include "json_write.h"
 
 namespace parafab::entry {
 
@@ -17,7 +18,7 @@ namespace {
 
 Eigen::Vector3d vec3_field(const json& v, const std::string& path) { return fields::vec3(v, path); }
 
-json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+json vec(const Eigen::Vector3d& v) { return json_write::coordinates(v); }
 
 }  // namespace
 

@@ -8,6 +8,7 @@
 #include "strip_json.h"
 #include "strips/curve_fairing.h"
 #include "strips/strip_improve.h"
+#include "json_write.h"
 
 namespace parafab::entry {
 
@@ -19,7 +20,7 @@ using fields::require;
 
 namespace {
 json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
-json vec(const Vec2& v) { return json::array({v.x(), v.y()}); }
+json vec(const Vec2& v) { return json_write::coordinates(v); }
 std::vector<Vec2> points(const json& v) {
   if (!v.is_array()) PARAFAB_INPUT_ERROR("curve.points must be an array of [x, y] pairs");
   std::vector<Vec2> out;
