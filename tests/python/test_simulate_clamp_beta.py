@@ -8,6 +8,8 @@ clamped face x = 0 lies on a grid plane and the effect is not a cut artefact):
   hex27  8 cells: 5.6 % stiff at β = 100, 15.5 % at β = 1e5
   hex27 16 cells: 2.4 % / 3.2 %
   hex8  24 cells: 5.9 % / 10.1 %
+  hex27 16 cells, default centred grid (the clamped face cuts cells): 1.6 % / 6.8 %, i.e. a
+  large penalty on a cut face locks (stiffer than the aligned grid's 3.2 %)
 The soft clamp of β = 100 cancels part of the stiffness of the coarse grids, so the errors of
 the benchmark against CalculiX (README, "hex8 and hex27") at the 5 % level are partly that
 cancellation; the gap closes under refinement (the penalty is β E / h), and the strongly
@@ -26,16 +28,17 @@ BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
 CCX_TIP = -0.11056  # CalculiX tet10, h = 1.5 mm, probe (60, 20, 4) (see test_simulate.py)
 
 
-def stiff_error(element, cells, beta):
+def stiff_error(element, cells, beta, aligned=True):
     with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
         job = json.load(f)
     job["element"] = element
-    job["grid"] = {"cells": cells, "origin": [0, 0, 0]}
+    job["grid"] = {"cells": cells, "origin": [0, 0, 0]} if aligned else {"cells": cells}
     job["nitsche_beta"] = beta
     r = parafab.simulate(BRACKET, job)
     tip = r["probes"][0]["displacement"][2]
     error = 1 - tip / CCX_TIP
-    print("%s %2d cells, beta %g: tip u_z %.6f mm, %.2f %% stiff" % (element, cells, beta, tip, 100 * error))
+    print("%s %2d cells%s, beta %g: tip u_z %.6f mm, %.2f %% stiff"
+          % (element, cells, "" if aligned else " (centred grid)", beta, tip, 100 * error))
     return error
 
 
@@ -50,6 +53,12 @@ class ClampBeta(unittest.TestCase):
         self.assertAlmostEqual(e[16, 1e5], 0.0320, delta=0.003)
         # ... and the strongly clamped solution converges at about second order (15.5 -> 3.2 %).
         self.assertLess(e[16, 1e5], e[8, 1e5] / 4)
+        # With the default centred grid the clamped face cuts cells, and a large penalty there
+        # locks: 6.8 % stiff instead of the aligned grid's 3.2 % (1.6 % at the default beta).
+        cut_soft, cut_strong = stiff_error("hex27", 16, 100, False), stiff_error("hex27", 16, 1e5, False)
+        self.assertAlmostEqual(cut_soft, 0.0161, delta=0.002)
+        self.assertAlmostEqual(cut_strong, 0.0679, delta=0.004)
+        self.assertGreater(cut_strong, 2 * e[16, 1e5])
 
     def test_hex8_benchmark_grid_is_also_softened(self):
         # hex8 on 24 cells, the benchmark's 5.9 % point, is 10.1 % with a near-strong clamp.
