@@ -182,11 +182,23 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   }
   Eigen::VectorXd anchor = start.p;  // p̃ outside the design entries
   Eigen::VectorXd x0(nd), lower(nd), upper(nd);
+  const bool absolute = !options.design_min.empty() || !options.design_max.empty();
+  PARAFAB_VERIFY(!absolute || (options.design_min.size() == static_cast<size_t>(nd) &&
+                               options.design_max.size() == static_cast<size_t>(nd)),
+                 "design_min / design_max have " << options.design_min.size() << " / " << options.design_max.size()
+                                                 << " entries, the design " << nd);
   for (int k = 0; k < nd; ++k) {
     x0[k] = anchor[design[k]];
     const double span = options.relative_bound > 0 ? options.relative_bound * std::max(1.0, std::abs(x0[k])) : 1e19;
     lower[k] = std::max(sp.lower[design[k]], x0[k] - span);
     upper[k] = std::min(sp.upper[design[k]], x0[k] + span);
+    if (absolute) {
+      lower[k] = std::max(lower[k], options.design_min[k]);
+      upper[k] = std::min(upper[k], options.design_max[k]);
+      PARAFAB_VERIFY(lower[k] <= upper[k], "design entry " << k << " (" << sp.names[design[k]] << "): its bounds ["
+                                                           << lower[k] << ", " << upper[k] << "] are empty");
+      x0[k] = std::clamp(x0[k], lower[k], upper[k]);
+    }
   }
   if (options.design_start.size() > 0) {
     PARAFAB_VERIFY(options.design_start.size() == nd, "design_start has " << options.design_start.size()

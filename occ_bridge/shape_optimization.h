@@ -71,6 +71,10 @@ struct ShapeOptimizationOptions {
   ShapeParameterOptions parameterization;
   /// Bounds on design entries: ± this times max(1, |initial|) around the start (0: none).
   double relative_bound = 0.5;
+  /// Absolute bounds per design entry (same length as `design`, or empty: none), intersected
+  /// with the relative ones; ±inf for no bound on that side (e.g. a wall thickness that must
+  /// stay castable). A start outside them is clamped into them.
+  std::vector<double> design_min, design_max;
   /// Volume bounds by an augmented Lagrangian (Powell–Hestenes–Rockafellar, see optimize_shape):
   double volume_max_ratio = 0;     ///< V ≤ ratio·V0 (0: no bound)
   double volume_min_ratio = 0;     ///< V ≥ ratio·V0 (0: no bound)

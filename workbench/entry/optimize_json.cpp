@@ -288,8 +288,18 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
         PARAFAB_INPUT_ERROR("parameters[" << i << "]: face " << r.face
                                           << " is fixed (a support, a load, fixed_faces, or tangent to a free-form face)");
       o.design.push_back(idx);
+      // Optional absolute bounds on this entry ("min", "max"), e.g. a fin that must stay castable.
+      const std::string path = "parameters[" + std::to_string(i) + "]";
+      const double lo = params[i].contains("min") ? number(params[i]["min"], path + ".min") : -INFINITY;
+      const double hi = params[i].contains("max") ? number(params[i]["max"], path + ".max") : INFINITY;
+      if (!(lo < hi)) PARAFAB_INPUT_ERROR(path << ": min " << lo << " must be below max " << hi);
+      o.design_min.push_back(lo);
+      o.design_max.push_back(hi);
     }
     if (o.design.empty()) PARAFAB_INPUT_ERROR("parameters is an empty list");
+    if (std::all_of(o.design_min.begin(), o.design_min.end(), [](double v) { return std::isinf(v); }) &&
+        std::all_of(o.design_max.begin(), o.design_max.end(), [](double v) { return std::isinf(v); }))
+      o.design_min.clear(), o.design_max.clear();
   } else {
     PARAFAB_INPUT_ERROR("parameters must be \"auto\" or a list of {\"face\", \"parameter\"}");
   }
