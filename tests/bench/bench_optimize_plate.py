@@ -7,7 +7,8 @@ x = 0, 5 kN down (-y) on the face x = 160 (in-plane bending), volume <= start. `
 optimize` with the 40 radii as design variables on a 32-cell grid, one augmented-Lagrangian
 round of --iterations L-BFGS steps, one thread. Reported: seconds per evaluation (simulation +
 semi-analytic gradient) and per iteration, the compliance reduction, and the written part
-checked afresh by `parafab.simulate` on 48 cells (C = -2 potential) before and after.
+checked afresh by `parafab.simulate` on 48 cells (C = -2 potential) and by Gmsh + CalculiX
+tet10 (h = 4 mm) before and after (tests/bench/compliance_case.py).
 
 The route without ParaFab's gradient is timed as one Gmsh + CalculiX tet10 run of the plate
 (h = 4 mm, meshing included) times 41: the cost of one forward-difference gradient over 40
@@ -19,18 +20,12 @@ Usage: PARAFAB_MODULE_DIR=build/workbench/entry /usr/bin/python3 tests/bench/ben
 import argparse
 import json
 import os
-import subprocess
 import sys
-import tempfile
-import time
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
-sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", os.path.join(REPO, "build", "workbench", "entry")))
-import parafab  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import compliance_case  # noqa: E402
 
-PLATE = os.path.join(REPO, "samples", "parts", "plate_holes.step")
-REF = os.path.join(REPO, "tests", "reference", "calculix_reference.py")
+PLATE = os.path.join(compliance_case.REPO, "samples", "parts", "plate_holes.step")
 SIM = {"material": {"E": 210000, "nu": 0.3},
        "supports": [{"point": [0, 50, 2.5]}],
        "loads": [{"point": [160, 50, 2.5], "force": [0, -5000, 0]}]}
@@ -47,38 +42,11 @@ def main():
     job = dict(SIM, grid={"cells": 32}, objective={"type": "compliance"}, parameters=holes,
                constraints=[{"type": "volume", "max_ratio": 1.0}],
                max_iterations=1 if a.quick else a.iterations, max_outer=1, threads=1)
-    t0 = time.perf_counter()
-    h = parafab.optimize(PLATE, job, out_dir=os.path.join(a.out, "optimize_plate"))
-    wall = time.perf_counter() - t0
-    n = max(len(h["iterations"]) - 1, 1)
-
-    def fresh(path):
-        return -2 * parafab.simulate(path, dict(SIM, grid={"cells": 48}))["potential"]
-
-    c0, c1 = fresh(PLATE), fresh(h["optimized_step"])
+    h, summary = compliance_case.run(PLATE, SIM, job, os.path.join(a.out, "optimize_plate"), 48,
+                                     None if a.quick else 4)
     radii = [p["final"] for p in h["parameters"]]
-    summary = {
-        "parameters": len(holes), "iterations": n, "evaluations": h["evaluations"], "status": h["status"],
-        "message": h["message"], "seconds": wall, "seconds_per_iteration": h["seconds"] / n,
-        "seconds_per_evaluation": h["seconds"] / max(h["evaluations"], 1),
-        "objective": {"initial": h["initial_objective"], "final": h["final_objective"],
-                      "change": h["final_objective"] / h["initial_objective"] - 1},
-        "fresh_48_cells": {"initial": c0, "final": c1, "change": c1 / c0 - 1},
-        "volume_ratio": h["final_volume"] / h["initial_volume"],
-        "radii": {"min": min(radii), "max": max(radii)},
-        "invalid_models": h["invalid_models"],
-        "thesis": {"parameters": 160, "seconds_per_iteration": 50},
-    }
-    if not a.quick:
-        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
-            json.dump(SIM, f)
-        t0 = time.perf_counter()
-        out = subprocess.run(["/usr/bin/python3", REF, f.name, "--parafab", PLATE, "--size", "4", "--quiet"],
-                             capture_output=True, text=True, check=True).stdout
-        one = time.perf_counter() - t0
-        os.unlink(f.name)
-        summary["calculix_h4"] = {"seconds_one_run": one, "compliance": json.loads(out)["compliance"],
-                                  "forward_difference_gradient_seconds_estimate": 41 * one}
+    summary["radii"] = {"min": min(radii), "max": max(radii)}
+    summary["thesis"] = {"parameters": 160, "seconds_per_iteration": 50}
     json.dump({"summary": summary, "history": h}, open(os.path.join(a.out, "optimize_plate.json"), "w"), indent=2)
     print(json.dumps(summary, indent=2))
 
