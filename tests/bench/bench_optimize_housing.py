@@ -20,8 +20,6 @@ difference gradient over 4 parameters (an estimate from one measured run, labell
 Usage: PARAFAB_MODULE_DIR=build/workbench/entry /usr/bin/python3 tests/bench/bench_optimize_housing.py
            [--quick] [--iterations N] [--out DIR]       writes DIR/optimize_housing.json
 """
-import argparse
-import json
 import os
 import sys
 
@@ -37,12 +35,7 @@ FINS = [(10, 13, 9.0), (14, 17, 17.0), (18, 21, 25.0), (22, 25, 33.0)]
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="1 iteration, no CalculiX run")
-    ap.add_argument("--iterations", type=int, default=6)
-    ap.add_argument("--out", default=".")
-    a = ap.parse_args()
-    os.makedirs(a.out, exist_ok=True)
+    a = compliance_case.arguments(6)
     job = dict(SIM, grid={"cells": 16}, objective={"type": "compliance"},
                parameters=[{"face": lo, "parameter": "offset"} for lo, _, _ in FINS],
                mirrors=[{"faces": [lo, hi], "plane": {"normal": [1, 0, 0], "offset": mid}} for lo, hi, mid in FINS],
@@ -53,8 +46,7 @@ def main():
     # A fin's thickness: its mirrored +x face is at 2 mid - offset, so thickness = 2 (mid - offset).
     summary["fin_thickness"] = [2 * (mid - p["final"]) for (_, _, mid), p in zip(FINS, h["parameters"])]
     summary["thesis"] = {"parameters": 4, "seconds_per_iteration": 86, "compliance_change": -0.067}
-    json.dump({"summary": summary, "history": h}, open(os.path.join(a.out, "optimize_housing.json"), "w"), indent=2)
-    print(json.dumps(summary, indent=2))
+    compliance_case.report(a.out, "optimize_housing", h, summary)
 
 
 if __name__ == "__main__":

@@ -17,8 +17,6 @@ radii (an estimate from one measured run, labelled as such).
 Usage: PARAFAB_MODULE_DIR=build/workbench/entry /usr/bin/python3 tests/bench/bench_optimize_plate.py
            [--quick] [--iterations N] [--out DIR]       writes DIR/optimize_plate.json
 """
-import argparse
-import json
 import os
 import sys
 
@@ -32,12 +30,7 @@ SIM = {"material": {"E": 210000, "nu": 0.3},
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="1 iteration, no CalculiX run")
-    ap.add_argument("--iterations", type=int, default=4)
-    ap.add_argument("--out", default=".")
-    a = ap.parse_args()
-    os.makedirs(a.out, exist_ok=True)
+    a = compliance_case.arguments(4)
     holes = [{"point": [15 + 20 * i, 10 + 20 * j, 2.5], "parameter": "radius"} for i in range(8) for j in range(5)]
     job = dict(SIM, grid={"cells": 32}, objective={"type": "compliance"}, parameters=holes,
                constraints=[{"type": "volume", "max_ratio": 1.0}],
@@ -47,8 +40,7 @@ def main():
     radii = [p["final"] for p in h["parameters"]]
     summary["radii"] = {"min": min(radii), "max": max(radii)}
     summary["thesis"] = {"parameters": 160, "seconds_per_iteration": 50}
-    json.dump({"summary": summary, "history": h}, open(os.path.join(a.out, "optimize_plate.json"), "w"), indent=2)
-    print(json.dumps(summary, indent=2))
+    compliance_case.report(a.out, "optimize_plate", h, summary)
 
 
 if __name__ == "__main__":

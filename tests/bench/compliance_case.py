@@ -3,6 +3,7 @@ bench_optimize_housing.py): run `parafab.optimize`, check the written part afres
 `parafab.simulate` on a finer grid and by Gmsh + CalculiX tet10 (before and after), and time one
 CalculiX run as the unit of the route without ParaFab's gradient (a forward-difference gradient
 over n parameters costs n + 1 runs: an estimate from one measured run, labelled as such)."""
+import argparse
 import json
 import os
 import subprocess
@@ -16,6 +17,24 @@ sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", os.path.join(REPO, "buil
 import parafab  # noqa: E402
 
 REF = os.path.join(REPO, "tests", "reference", "calculix_reference.py")
+
+
+def arguments(default_iterations):
+    """--quick (1 iteration, no CalculiX), --iterations, --out (created)."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="1 iteration, no CalculiX run")
+    ap.add_argument("--iterations", type=int, default=default_iterations)
+    ap.add_argument("--out", default=".")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    return a
+
+
+def report(out_dir, name, history, summary):
+    """Writes out_dir/name.json ({summary, history}) and prints the summary."""
+    with open(os.path.join(out_dir, name + ".json"), "w") as f:
+        json.dump({"summary": summary, "history": history}, f, indent=2)
+    print(json.dumps(summary, indent=2))
 
 
 def run(part, sim, job, out_dir, fresh_cells, calculix_size=None):
