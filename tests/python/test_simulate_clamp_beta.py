@@ -6,9 +6,11 @@ the reference of tests/python/test_simulate.py), with the penalty β at its defa
 What the user gets, as measured on 2026-11-27 (grid planes through the origin, so that the
 clamped face x = 0 lies on a grid plane and the effect is not a cut artefact):
   hex27  8 cells: 5.6 % stiff at β = 100, 15.5 % at β = 1e5
+  hex27 12 cells: 4.4 % / 8.1 %
   hex27 16 cells: 2.4 % / 3.2 %
   hex8  24 cells: 5.9 % / 10.1 %
-  hex27 16 cells, default centred grid (the clamped face cuts cells): 1.6 % / 6.8 %, i.e. a
+  hex27 8 cells, default centred grid (the clamped face cuts cells): 5.2 % / 16.2 %
+  hex27 16 cells, default centred grid: 1.6 % / 6.8 %, i.e. a
   large penalty on a cut face locks (stiffer than the aligned grid's 3.2 %)
 The soft clamp of β = 100 cancels part of the stiffness of the coarse grids, so the errors of
 the benchmark against CalculiX (README, "hex8 and hex27") at the 5 % level are partly that
@@ -44,10 +46,13 @@ def stiff_error(element, cells, beta, aligned=True):
 
 class ClampBeta(unittest.TestCase):
     def test_hex27_soft_clamp_gap_closes_under_refinement(self):
-        e = {(c, b): stiff_error("hex27", c, b) for c in (8, 16) for b in (100, 1e5)}
+        e = {(c, b): stiff_error("hex27", c, b) for c in (8, 12, 16) for b in (100, 1e5)}
         # Coarse: the soft clamp takes 10 points off the error (measured 5.61 % against 15.47 %).
         self.assertAlmostEqual(e[8, 100], 0.0561, delta=0.003)
         self.assertAlmostEqual(e[8, 1e5], 0.1547, delta=0.005)
+        # 12 cells: 4.39 % against 8.11 %.
+        self.assertAlmostEqual(e[12, 100], 0.0439, delta=0.003)
+        self.assertAlmostEqual(e[12, 1e5], 0.0811, delta=0.004)
         # Twice finer: the gap is 0.8 points (measured 2.39 % against 3.20 %) ...
         self.assertAlmostEqual(e[16, 100], 0.0239, delta=0.003)
         self.assertAlmostEqual(e[16, 1e5], 0.0320, delta=0.003)
@@ -59,6 +64,9 @@ class ClampBeta(unittest.TestCase):
         self.assertAlmostEqual(cut_soft, 0.0161, delta=0.002)
         self.assertAlmostEqual(cut_strong, 0.0679, delta=0.004)
         self.assertGreater(cut_strong, 2 * e[16, 1e5])
+        # and on 8 cells, the default grid of the table: 5.22 % against 16.20 %.
+        self.assertAlmostEqual(stiff_error("hex27", 8, 100, False), 0.0522, delta=0.003)
+        self.assertAlmostEqual(stiff_error("hex27", 8, 1e5, False), 0.1620, delta=0.005)
 
     def test_hex8_benchmark_grid_is_also_softened(self):
         # hex8 on 24 cells, the benchmark's 5.9 % point, is 10.1 % with a near-strong clamp.
