@@ -1,10 +1,17 @@
-// Compliance C = fᵀu and its semi-analytic shape derivative (thesis §6.5.3; the exact rule
-// derivatives of Eq. 6.30-6.31 are not implemented: dK and df are central differences of the
-// changed cut cells' element matrices, see shape_compliance.h).
+// Compliance C = fᵀu and its shape derivatives (thesis §6.5.3): by the rule derivatives of
+// Eq. 6.30–6.31 (compliance_gradient: boundary integrals over the moving patches of the cut
+// cells, one solve) and semi-analytic (central differences of the changed cut cells' element
+// matrices, where a support's or load's patches move; see shape_compliance.h).
 #include "shape_compliance.h"
 
+#include <TopExp.hxx>
+#include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
+#include <TopTools_ListOfShape.hxx>
 #include <tbb/parallel_for.h>
 
+#include <chrono>
+
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
@@ -15,6 +22,7 @@
 #include "face_lookup.h"
 #include "occt_mass_properties.h"
 #include "part_reader.h"
+#include "xfem/area_rules.h"
 
 namespace parafab::occ {
 
@@ -272,6 +280,100 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
                               const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[base]);
                               return 2 * ue.dot(es.f) - ue.dot(es.K * ue);
                             });
+}
+
+ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
+                                       const ShapeParameters& sp, const Eigen::VectorXd& p) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PARAFAB_VERIFY(at.done && at.model, "compliance_gradient: the state is not solved");
+  PARAFAB_VERIFY(p.size() == sp.size(), "compliance_gradient: p has " << p.size() << " entries, the parameters "
+                                                                      << sp.size());
+  PARAFAB_VERIFY(static_cast<int>(sp.block_of_face.size()) == at.part->face_count(),
+                 "compliance_gradient: the parameters describe " << sp.block_of_face.size() << " faces, the part has "
+                                                                 << at.part->face_count());
+  ComplianceGradient r;
+  r.gradient = Eigen::VectorXd::Zero(sp.size());
+  r.incomplete.assign(sp.size(), 0);
+  // Supports, loads and the faces sharing an edge with one of them.
+  std::set<int> conditioned;
+  for (const auto& d : setup.dirichlet) conditioned.insert(d.face);
+  for (const auto& t : setup.tractions) conditioned.insert(t.face);
+  std::set<int> flagged = conditioned;
+  TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
+  TopExp::MapShapesAndAncestors(at.part->shape, TopAbs_EDGE, TopAbs_FACE, edge_faces);
+  for (int i = 1; i <= edge_faces.Extent(); ++i) {
+    std::vector<int> faces;
+    for (TopTools_ListOfShape::Iterator it(edge_faces(i)); it.More(); it.Next()) faces.push_back(at.part->face_index(it.Value()));
+    if (std::any_of(faces.begin(), faces.end(), [&](int f) { return conditioned.count(f) > 0; }))
+      flagged.insert(faces.begin(), faces.end());
+  }
+  for (int f : flagged)
+    if (const optimize::ParameterBlock* b = sp.block(f))
+      for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
+  // Cut elements with a patch on a face that has parameters.
+  const std::vector<xfem::GridElement>& elements = at.model->elements;
+  std::vector<int> work;
+  for (size_t e = 0; e < elements.size(); ++e)
+    if (elements[e].subvolume)
+      for (const xfem::CutPatch& patch : elements[e].subvolume->patches)
+        if (sp.block(patch.source_face)) {
+          work.push_back(static_cast<int>(e));
+          break;
+        }
+  r.elements = static_cast<int>(work.size());
+  // The integrand ψ Vₙ is a polynomial of degree ≤ 4 (hex8) or 8 (hex27) per coordinate times a
+  // velocity of degree ≤ 1 on planar patches; curved patches refine on their area.
+  xfem::SurfaceRuleOptions so;
+  so.area.degree = setup.solver.element == xfem::ElementType::Hex27 ? 10 : 6;
+  so.refinement = xfem::RefinementOptions{1e-10, true, 6, 4};
+  const bool gravity = setup.material.density != 0 && setup.solver.gravity.squaredNorm() > 0;
+  std::vector<std::vector<std::pair<int, double>>> terms(work.size());
+  std::vector<int> points(work.size(), 0);
+  tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
+    const int e = work[w];
+    const xfem::GridElement& el = elements[e];
+    const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[e]);
+    for (const xfem::CutPatch& patch : el.subvolume->patches) {
+      const optimize::ParameterBlock* block = sp.block(patch.source_face);
+      if (!block) continue;
+      const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
+      if (sr.points.empty()) continue;
+      points[w] += static_cast<int>(sr.points.size());
+      const std::vector<double> psi = xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+      const int nb = block->size();
+      std::vector<double> sum(nb, 0.0);
+      for (size_t q = 0; q < sr.points.size(); ++q) {
+        double density = -psi[q];
+        if (gravity)
+          density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
+        const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, sr.points[q]);
+        const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+        const double gn = grad.norm();
+        if (!(gn > 0)) continue;
+        const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
+        for (int k = 0; k < nb; ++k) sum[k] += sr.weights[q] * density * (-s * phi.g[k] / gn);  // Vₙ = ∂X/∂p_k·n
+      }
+      for (int k = 0; k < nb; ++k)
+        if (sum[k] != 0) terms[w].emplace_back(block->offset + k, sum[k]);
+    }
+  });
+  for (size_t w = 0; w < work.size(); ++w) {  // in element order: deterministic
+    for (const auto& [i, v] : terms[w]) r.gradient[i] += v;
+    r.points += points[w];
+  }
+  r.done = true;
+  r.message = "ok";
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+bool exact_along(const ComplianceGradient& g, const Eigen::VectorXd& dp) {
+  PARAFAB_VERIFY(dp.size() == static_cast<Eigen::Index>(g.incomplete.size()),
+                 "exact_along: a direction of " << dp.size() << " entries, the gradient has " << g.incomplete.size());
+  const double scale = dp.cwiseAbs().maxCoeff();
+  for (Eigen::Index i = 0; i < dp.size(); ++i)
+    if (g.incomplete[i] && std::abs(dp[i]) > 1e-6 * scale) return false;
+  return true;
 }
 
 Eigen::VectorXd element_values(const Eigen::VectorXd& v, const std::vector<int>& nodes) {

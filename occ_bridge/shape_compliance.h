@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "grid_model.h"
+#include "shape_parameters.h"
 #include "xfem/linear_xfem.h"
 
 namespace parafab::occ {
@@ -73,6 +74,33 @@ struct ComplianceDerivative {
 ComplianceDerivative compliance_derivative(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
                                            std::shared_ptr<const PartShape> minus, double h,
                                            const ComplianceSetup& setup);
+
+/// dC/dp for every entry of p by the rule derivatives of Eq. 6.30–6.31 (quadrature points frozen,
+/// weights moving with the domain; see xfem::bulk_shape_density): the state's one solve and no
+/// perturbed model. Self-adjoint, so dC = 2uᵀdf − uᵀdK u, and per cut element
+///   dC/dp_i = ∫_{patches of moving faces} (2ρ g·u_h − ψ(u, u)) Vₙ,i dA,
+/// Vₙ,i = ∂X/∂p_i·n from the face's implicit function (as moment_derivatives). Exact for the
+/// discrete compliance with its topology (cut cells, subvolumes, aggregation, incompatible-mode
+/// switches) frozen at `at`, as in the semi-analytic route. Not included: how the patches of a
+/// support or load change when a face sharing an edge with it moves (Nitsche and traction terms,
+/// and a total force's traction through its face's area); the entries of such faces (and of the
+/// support and load faces themselves) are flagged `incomplete`.
+struct ComplianceGradient {
+  bool done = false;
+  std::string message;
+  Eigen::VectorXd gradient;      ///< dC/dp_i, one per entry of p (0 for faces without a cut patch)
+  std::vector<char> incomplete;  ///< per entry of p: see above (use the semi-analytic route there)
+  int elements = 0;              ///< cut elements with a patch on a face that has parameters
+  int points = 0;                ///< boundary quadrature points
+  double seconds = 0;
+};
+ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
+                                       const ShapeParameters& parameters, const Eigen::VectorXd& p);
+
+/// Whether a design direction dp (e.g. a column of dp⊥/dp̃) moves no entry flagged incomplete:
+/// |dp_i| ≤ 1e-6 ‖dp‖∞ there (the projection derivative's round-off is ~1e-10). Then
+/// gradient·dp is its exact derivative.
+bool exact_along(const ComplianceGradient& gradient, const Eigen::VectorXd& dp);
 
 /// The term of one element in a derivative by changed cells: evaluated on an element of a
 /// perturbed model (or of `at` for a one-sided difference) with the DOF nodes of `at`'s

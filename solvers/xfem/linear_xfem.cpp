@@ -97,39 +97,61 @@ Eigen::Matrix<double, 3, 6> traction_operator(const Vec3& n) {
 // condensed statically: K ← K_uu − K_uaᵀ K_aa⁻¹ K_au. Their gradients are shifted to zero mean
 // over the element's rule (Taylor's correction), so constant strain is still reproduced on
 // any subvolume (patch test). Removes the bending locking of trilinear hexahedra.
-void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D,
-                            double min_fraction, Eigen::MatrixXd& Ke) {
-  double volume = 0;
-  for (double w : el.rule.weights) volume += w;
-  if (!(volume > min_fraction * el.box.volume())) return;  // tiny pieces: K_aa near singular
-  const Vec3 h = el.box.size();
-  const size_t nq = el.rule.points.size();
-  std::vector<Vec3> grad(nq);  // (∂φ_x/∂x, ∂φ_y/∂y, ∂φ_z/∂z)
-  Vec3 mean = Vec3::Zero();
-  for (size_t q = 0; q < nq; ++q) {
-    const Vec3 xi = (el.rule.points[q] - el.box.min).cwiseQuotient(h);
-    grad[q] = Vec3(-4 * (2 * xi.x() - 1) / h.x(), -4 * (2 * xi.y() - 1) / h.y(), -4 * (2 * xi.z() - 1) / h.z());
-    mean += el.rule.weights[q] * grad[q];
+struct IncompatibleModes {
+  bool used = false;   ///< false on tiny pieces (K_aa near singular) or a failed factorization
+  double volume = 0;   ///< Σ rule weights
+  Vec3 mean{0, 0, 0};  ///< rule mean of (∂φ_x/∂x, ∂φ_y/∂y, ∂φ_z/∂z)
+  Eigen::Matrix<double, 9, 24> Kau;
+  Eigen::LDLT<Eigen::Matrix<double, 9, 9>> Kaa;
+
+  /// (∂φ_x/∂x, ∂φ_y/∂y, ∂φ_z/∂z) at X, before the mean shift.
+  static Vec3 gradient(const Box3& box, const Vec3& X) {
+    const Vec3 h = box.size(), xi = (X - box.min).cwiseQuotient(h);
+    return Vec3(-4 * (2 * xi.x() - 1) / h.x(), -4 * (2 * xi.y() - 1) / h.y(), -4 * (2 * xi.z() - 1) / h.z());
   }
-  mean /= volume;
+  /// Strain of the modes α (column 3m + c: mode m, component c) for mean-shifted gradients γ.
+  static Eigen::Matrix<double, 6, 9> strain(const Vec3& gamma) {
+    Eigen::Matrix<double, 8, 3> Gm = Eigen::Matrix<double, 8, 3>::Zero();  // rows 0..2 used
+    for (int m = 0; m < 3; ++m) Gm(m, m) = gamma[m];
+    return strain_matrix<8>(Gm).leftCols<9>();
+  }
+  /// The condensed modes of nodal displacements ue: α = −K_aa⁻¹ K_au uₑ.
+  Eigen::Matrix<double, 9, 1> condensed(const Eigen::VectorXd& ue) const {
+    return -Kaa.solve(Kau * ue);
+  }
+};
+
+IncompatibleModes incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D, double min_fraction) {
+  IncompatibleModes im;
+  for (double w : el.rule.weights) im.volume += w;
+  if (!(im.volume > min_fraction * el.box.volume())) return im;  // tiny pieces: K_aa near singular
+  const size_t nq = el.rule.points.size();
+  std::vector<Vec3> grad(nq);
+  for (size_t q = 0; q < nq; ++q) {
+    grad[q] = IncompatibleModes::gradient(el.box, el.rule.points[q]);
+    im.mean += el.rule.weights[q] * grad[q];
+  }
+  im.mean /= im.volume;
   Eigen::Matrix<double, 9, 9> Kaa = Eigen::Matrix<double, 9, 9>::Zero();
-  Eigen::Matrix<double, 9, 24> Kau = Eigen::Matrix<double, 9, 24>::Zero();
+  im.Kau.setZero();
   Eigen::Matrix<double, 8, 1> N;
   Eigen::Matrix<double, 8, 3> G;
   for (size_t q = 0; q < nq; ++q) {
     trilinear_shape(el.box, el.rule.points[q], N, G);
     const Mat6x24 Bu = strain_matrix<8>(G);
-    // Mode m of component c: displacement e_c φ_m; only ∂φ_m/∂x_m ≠ 0.
-    Eigen::Matrix<double, 8, 3> Gm = Eigen::Matrix<double, 8, 3>::Zero();  // rows 0..2 used
-    for (int m = 0; m < 3; ++m) Gm(m, m) = grad[q][m] - mean[m];
-    const Mat6x24 Bfull = strain_matrix<8>(Gm);  // columns 3m + c: mode m, component c
-    const Eigen::Matrix<double, 6, 9> Ba = Bfull.leftCols<9>();
+    const Eigen::Matrix<double, 6, 9> Ba = IncompatibleModes::strain(grad[q] - im.mean);
     Kaa.noalias() += el.rule.weights[q] * Ba.transpose() * D * Ba;
-    Kau.noalias() += el.rule.weights[q] * Ba.transpose() * D * Bu;
+    im.Kau.noalias() += el.rule.weights[q] * Ba.transpose() * D * Bu;
   }
-  const Eigen::LDLT<Eigen::Matrix<double, 9, 9>> ldlt(Kaa);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-10 * ldlt.vectorD().maxCoeff())) return;
-  Ke.noalias() -= Kau.transpose() * ldlt.solve(Kau);
+  im.Kaa.compute(Kaa);
+  im.used = im.Kaa.info() == Eigen::Success && im.Kaa.vectorD().minCoeff() > 1e-10 * im.Kaa.vectorD().maxCoeff();
+  return im;
+}
+
+void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D,
+                            double min_fraction, Eigen::MatrixXd& Ke) {
+  const IncompatibleModes im = incompatible_modes(el, D, min_fraction);
+  if (im.used) Ke.noalias() -= im.Kau.transpose() * im.Kaa.solve(im.Kau);
 }
 
 // The first uncut element (no subvolume), or −1.
@@ -361,6 +383,69 @@ ElementSystem element_system(const GridElement& element, const ElasticMaterial& 
   return options.element == ElementType::Hex27
              ? element_system_n<27>(element, material, dirichlet, tractions, options, include_bulk)
              : element_system_n<8>(element, material, dirichlet, tractions, options, include_bulk);
+}
+
+std::vector<double> bulk_shape_density(const GridElement& el, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
+                                       const ElasticMaterial& material, const LinearXfemOptions& options,
+                                       const std::vector<Vec3>& points) {
+  const int nodes = nodes_per_element(options.element);
+  PARAFAB_VERIFY(ve.size() == 3 * nodes && ue.size() == 3 * nodes,
+                 "bulk_shape_density: " << ve.size() << " and " << ue.size() << " nodal values for a "
+                                        << element_type_name(options.element) << " element (" << 3 * nodes << " expected)");
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  std::vector<double> psi(points.size(), 0.0);
+  if (options.element == ElementType::Hex27) {
+    Eigen::Matrix<double, 27, 1> N;
+    Eigen::Matrix<double, 27, 3> G;
+    for (size_t k = 0; k < points.size(); ++k) {
+      triquadratic_shape(el.box, points[k], N, G);
+      const Eigen::Matrix<double, 6, 81> B = strain_matrix<27>(G);
+      psi[k] = (B * ve).dot(D * (B * ue));
+    }
+    return psi;
+  }
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  const IncompatibleModes im = options.incompatible_modes
+                                   ? incompatible_modes(el, D, options.incompatible_min_fraction)
+                                   : IncompatibleModes{};
+  if (!im.used) {
+    for (size_t k = 0; k < points.size(); ++k) {
+      trilinear_shape(el.box, points[k], N, G);
+      const Mat6x24 B = strain_matrix<8>(G);
+      psi[k] = (B * ve).dot(D * (B * ue));
+    }
+    return psi;
+  }
+  // With condensed modes α_u, α_v (envelope: their change does not enter to first order) the
+  // strains are ε = B uₑ + B_a(γ − γ̄) α, and the mean γ̄ = Σ w γ / V moves with the weights:
+  // ∂γ̄/∂w_j = (γ_j − γ̄)/V, hence the term −(1/V) Σ_m (γ − γ̄)_m [τ_m(v, α_u) + τ_m(u, α_v)] with
+  // τ_m(v, α_u) = Σ_q w_q ε_q(v)ᵀ D S_m α_u (S_m: mode strain of a unit gradient along x_m).
+  const Eigen::Matrix<double, 9, 1> au = im.condensed(ue), av = im.condensed(ve);
+  auto strains = [&](const Vec3& X, Eigen::Matrix<double, 6, 1>& eu, Eigen::Matrix<double, 6, 1>& ev) {
+    trilinear_shape(el.box, X, N, G);
+    const Mat6x24 B = strain_matrix<8>(G);
+    const Eigen::Matrix<double, 6, 9> Ba = IncompatibleModes::strain(IncompatibleModes::gradient(el.box, X) - im.mean);
+    eu = B * ue + Ba * au;
+    ev = B * ve + Ba * av;
+  };
+  Eigen::Matrix<double, 6, 3> Su, Sv;  // columns m: S_m α_u, S_m α_v
+  for (int m = 0; m < 3; ++m) {
+    Su.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * au;
+    Sv.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * av;
+  }
+  Vec3 tau = Vec3::Zero();
+  Eigen::Matrix<double, 6, 1> eu, ev;
+  for (size_t q = 0; q < el.rule.points.size(); ++q) {
+    strains(el.rule.points[q], eu, ev);
+    tau += el.rule.weights[q] * (Su.transpose() * (D * ev) + Sv.transpose() * (D * eu));
+  }
+  for (size_t k = 0; k < points.size(); ++k) {
+    strains(points[k], eu, ev);
+    const Vec3 shift = IncompatibleModes::gradient(el.box, points[k]) - im.mean;
+    psi[k] = ev.dot(D * eu) - shift.dot(tau) / im.volume;
+  }
+  return psi;
 }
 
 LinearSystem assemble_linear(const std::vector<GridElement>& elements,

@@ -210,6 +210,19 @@ ElementSystem element_system(const GridElement& element, const ElasticMaterial& 
                              const std::vector<TractionCondition>& tractions,
                              const LinearXfemOptions& options, bool include_bulk = true);
 
+/// Shape-derivative density of an element's bulk bilinear form vₑᵀKₑuₑ (thesis §6.5.3,
+/// Eq. 6.30–6.31 with the rule's points frozen): when the element's domain moves with normal
+/// boundary velocity Vₙ, d(vₑᵀKₑuₑ) = ∫_{∂Vₑ} ψ Vₙ dA, and ψ at the rule's points is
+/// ∂(vₑᵀKₑuₑ)/∂w_j. Exact when the rule integrates the element's integrand exactly (its
+/// moment-fitted span holds it, as occ::rules_for_element arranges): then the rule derivative
+/// Σ_j (∂w_j/∂p) k(X_j) of Eq. 6.31 equals Reynolds' ∫_{∂V} k Vₙ dA. ψ = ε(v)ᵀDε(u) for hex27 and
+/// plain hex8; with incompatible modes the condensed modes enter ε (by the envelope theorem
+/// their own change does not) and the modes' zero-mean shift adds a term. Nitsche and traction
+/// terms are not included (their patches do not move with the volume). Returns ψ at `points`.
+std::vector<double> bulk_shape_density(const GridElement& element, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
+                                       const ElasticMaterial& material, const LinearXfemOptions& options,
+                                       const std::vector<Vec3>& points);
+
 /// Assembled stiffness and load (no Dirichlet conditions folded in unless given). The element
 /// type is options.element; `node` must have its node count per element. Element matrices are
 /// computed in parallel (TBB) and scattered in element order: the result is bit-identical for
