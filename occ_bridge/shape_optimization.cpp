@@ -131,7 +131,6 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   if (compliance) {
     PARAFAB_VERIFY(options.compliance, "objective '" << spec.type << "' needs the elasticity job (material, supports, loads, grid)");
     PARAFAB_VERIFY(options.compliance_step > 0, "compliance_step must be positive, got " << options.compliance_step);
-    result.gradient = "semi-analytic";
   }
   {
     const PartInfo info = part_info(part);
@@ -265,6 +264,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       return false;
     }
     const MomentDerivatives md = moment_derivatives(*mod.part, sp, proj.p, options.quadrature);
+    const optimize::ProjectionDerivative D = optimize::projection_derivative(sp.constraints, proj, sp.lower, sp.upper, popt.weights);
     Eigen::Matrix<double, 10, 1> dfdm = Eigen::Matrix<double, 10, 1>::Zero();
     double f = 0;
     Eigen::VectorXd compliance_gradient;
@@ -300,7 +300,19 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure");
       f = cw * state->compliance + fw * fv.objective + objective_from_moments(spec, md.moments, &dfdm);
       compliance_gradient.resize(nd);
+      // The exact route for every design entry whose direction dp⊥/dp̃ moves no face next to a
+      // support or load (compliance_gradient's `incomplete`); the others are differenced.
+      const bool exact_route = cw != 0 && options.compliance_gradient == ShapeOptimizationOptions::ComplianceGradientRoute::Exact;
+      const ComplianceGradient exact = exact_route ? occ::compliance_gradient(*state, *options.compliance, sp, proj.p) : ComplianceGradient{};
       for (int k = 0; k < nd; ++k) {
+        compliance_gradient[k] = 0;
+        bool difference_compliance = cw != 0;
+        if (exact_route && exact_along(exact, D.jacobian.col(design[k]))) {
+          compliance_gradient[k] = cw * exact.gradient.dot(D.jacobian.col(design[k]));
+          difference_compliance = false;
+          ++result.exact_derivatives;
+        }
+        if (!difference_compliance && fw == 0) continue;
         const double h = options.compliance_step * (is_direction(design[k]) ? 1.0 : part_size);
         std::shared_ptr<const PartShape> sides[2];
         for (int side = 0; side < 2; ++side) {
@@ -312,9 +324,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           if (mk.done) sides[side] = mk.part;
         }
         // dC/dx_k and dJ/dx_k from the same two perturbed models (each re-cuts them on the grid).
-        compliance_gradient[k] = 0;
         for (const bool of_failure : {false, true}) {
-          if (of_failure ? fw == 0 : cw == 0) continue;
+          if (of_failure ? fw == 0 : !difference_compliance) continue;
+          ++result.semi_analytic_derivatives;
           const ComplianceDerivative cd =
               of_failure ? failure_derivative(*state, fv, adjoint, sides[0], sides[1], h, *options.compliance, failure_options)
                          : compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
@@ -329,6 +341,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           result.gradient_cells += cd.cells_changed;
         }
       }
+      result.gradient = result.semi_analytic_derivatives == 0 ? "exact"
+                        : result.exact_derivatives == 0      ? "semi-analytic"
+                                                             : "exact + semi-analytic";
     } else if (!compliance) {
       normalize_terms(md.moments, 0.0, 0.0);
       f = objective_from_moments(spec, md.moments, &dfdm);
@@ -348,7 +363,6 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       dpsi_dV += f_scale * m * b.sign / V0;
     }
     // Chain rule through the projection (Eq. 6.29): dF/dp̃ = (dp⊥/dp̃)ᵀ dF/dp⊥.
-    const optimize::ProjectionDerivative D = optimize::projection_derivative(sp.constraints, proj, sp.lower, sp.upper, popt.weights);
     const Eigen::VectorXd g_target = D.jacobian.transpose() * dfdp;
     const Eigen::VectorXd v_target = D.jacobian.transpose() * md.gradient.row(0).transpose();
     grad.resize(nd);

@@ -96,6 +96,13 @@ struct ShapeOptimizationOptions {
   /// its number of subvolumes, or a small-cell aggregation / incompatible-mode threshold is
   /// crossed; those discrete switches are frozen at the current model in the gradient).
   std::shared_ptr<const ComplianceSetup> compliance;
+  /// Route of the compliance gradient. Exact (default): the rule derivatives of Eq. 6.30–6.31
+  /// (compliance_gradient: one solve, boundary integrals, every design entry at once), except
+  /// for design entries that move a face sharing an edge with a support or load, which take the
+  /// semi-analytic route. SemiAnalytic: every design entry by two perturbed models (the route
+  /// before 2026-11-27; the failure metric always takes it).
+  enum class ComplianceGradientRoute { Exact, SemiAnalytic };
+  ComplianceGradientRoute compliance_gradient = ComplianceGradientRoute::Exact;
   /// Step of the semi-analytic compliance gradient: this × L (part diagonal) for lengths, this
   /// for directions (normal/axis components, half-angles); each side projected like an iterate.
   double compliance_step = 1e-4;
@@ -142,10 +149,13 @@ struct ShapeOptimizationResult {
   double tangency_residual_max = 0;    ///< face model relations on the final part
   std::shared_ptr<const PartShape> part;  ///< the final valid model
   int evaluations = 0, invalid_models = 0, failed_projections = 0;
-  /// "exact" (Hadamard boundary integrals, mass-property objectives) or "semi-analytic"
-  /// (compliance: central differences of the changed cut cells' element matrices, contracted
-  /// with u; exact volume-penalty part).
+  /// "exact" (Hadamard boundary integrals: mass-property objectives, and compliance by the rule
+  /// derivatives), "semi-analytic" (central differences of the changed cut cells' element
+  /// matrices, contracted with u; exact volume-penalty part) or "exact + semi-analytic" (some
+  /// design entries each way, see the counts below).
   std::string gradient = "exact";
+  /// Compliance / failure design-entry derivatives computed by each route, summed over evaluations.
+  int exact_derivatives = 0, semi_analytic_derivatives = 0;
   int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
   int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
   /// "failure": max σ_vm over the material quadrature points at the start and at the end.

@@ -201,6 +201,12 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     o.compliance = compliance_setup(*part, job);
     if (obj.contains("step")) o.compliance_step = number(obj["step"], "objective.step");
     if (!(o.compliance_step > 0)) PARAFAB_INPUT_ERROR("objective.step must be positive, got " << o.compliance_step);
+    if (obj.contains("gradient")) {
+      const json& g = obj["gradient"];
+      if (g == "exact") o.compliance_gradient = occ::ShapeOptimizationOptions::ComplianceGradientRoute::Exact;
+      else if (g == "semi-analytic") o.compliance_gradient = occ::ShapeOptimizationOptions::ComplianceGradientRoute::SemiAnalytic;
+      else PARAFAB_INPUT_ERROR("objective.gradient must be \"exact\" or \"semi-analytic\", got " << g.dump());
+    }
   }
   {  // the types are valid?
     Eigen::Matrix<double, 10, 1> g;
@@ -363,7 +369,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   h["final_volume"] = r.final_volume;
   h["tangency_residual_max"] = r.tangency_residual_max;
   h["gradient"] = r.gradient;
-  if (r.gradient == "semi-analytic") {
+  if (r.exact_derivatives + r.semi_analytic_derivatives > 0) {
+    h["exact_derivatives"] = r.exact_derivatives;
+    h["semi_analytic_derivatives"] = r.semi_analytic_derivatives;
+  }
+  if (r.semi_analytic_derivatives > 0) {
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;
   }
