@@ -36,7 +36,7 @@ FINS = [(10, 13, 9.0), (14, 17, 17.0), (18, 21, 25.0), (22, 25, 33.0)]
 
 def main():
     a = compliance_case.arguments(6)
-    job = dict(SIM, grid={"cells": 16}, objective={"type": "compliance"},
+    job = dict(SIM, grid={"cells": 16}, objective={"type": "compliance", "gradient": a.gradient},
                parameters=[{"face": lo, "parameter": "offset"} for lo, _, _ in FINS],
                mirrors=[{"faces": [lo, hi], "plane": {"normal": [1, 0, 0], "offset": mid}} for lo, hi, mid in FINS],
                constraints=[{"type": "volume", "max_ratio": 1.0}],

@@ -19,11 +19,16 @@ import parafab  # noqa: E402
 REF = os.path.join(REPO, "tests", "reference", "calculix_reference.py")
 
 
-def arguments(default_iterations):
-    """--quick (1 iteration, no CalculiX), --iterations, --out (created)."""
+def arguments(default_iterations, positions=False):
+    """--quick (1 iteration, no CalculiX), --iterations, --gradient, --out (created); with
+    positions=True also --positions (the case's extra design variables)."""
     ap = argparse.ArgumentParser()
+    if positions:
+        ap.add_argument("--positions", action="store_true", help="also the holes' centres as design variables")
     ap.add_argument("--quick", action="store_true", help="1 iteration, no CalculiX run")
     ap.add_argument("--iterations", type=int, default=default_iterations)
+    ap.add_argument("--gradient", choices=("exact", "semi-analytic"), default="exact",
+                    help="route of the compliance gradient (objective.gradient)")
     ap.add_argument("--out", default=".")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -60,6 +65,8 @@ def run(part, sim, job, out_dir, fresh_cells, calculix_size=None):
         "fresh_%d_cells" % fresh_cells: {"initial": c0, "final": c1, "change": c1 / c0 - 1},
         "volume_ratio": h["final_volume"] / h["initial_volume"],
         "gradient_initial": [p["gradient_initial"] for p in h["parameters"]],
+        "gradient": h["gradient"], "exact_derivatives": h.get("exact_derivatives", 0),
+        "semi_analytic_derivatives": h.get("semi_analytic_derivatives", 0),
         "invalid_models": h["invalid_models"],
     }
     if calculix_size:

@@ -352,6 +352,40 @@ class OptimizeFeatureTest(unittest.TestCase):
             with self.assertRaisesRegex(optimize_feature.OptimizeError, text):
                 optimize_feature.build_job(local, dict(opts, pattern_faces=faces), PLACEMENT)
 
+    def test_parameter_bounds_hold_a_hole_radius(self):
+        """A design parameter with bounds (face, name, min, max), as the panel's Min / Max cells
+        give it: the flange's mass falls as one bolt hole grows, so its radius runs to the upper
+        bound. Unbounded it passes 5.5 mm; with max 5.5 FreeCAD's own reading of the new solid's
+        face gives 5.5 (the bound is active), and the original is untouched. A min above the max
+        and a bound that is not a number are refused before anything runs."""
+        flange = self.doc.addObject("Part::Feature", "Flange")
+        flange.Shape = Part.read(FLANGE)
+        local = flange.Shape.copy()
+        flange.Placement = PLACEMENT
+        self.doc.recompute()
+        hole = next(i for i, f in enumerate(local.Faces)
+                    if f.Surface.TypeId == "Part::GeomCylinder" and abs(f.Surface.Radius - 5) < 1e-9)
+        name = "Face%d" % (hole + 1)
+        volume = flange.Shape.Volume
+        opts = {"objective": "mass", "density": 1000.0, "max_iterations": 5}
+        radii = {}
+        for label, param in (("free", (name, "radius")), ("bounded", (name, "radius", None, 5.5))):
+            r = optimize_feature.optimize_shape(flange, dict(opts, parameters=[param]),
+                                                out_dir=os.path.join(self.tmp, label))
+            radii[label] = r["object"].Shape.Faces[hole].Surface.Radius
+        print("\n[optimize] flange hole radius: free %.9f, max 5.5 -> %.12f" % (radii["free"], radii["bounded"]),
+              file=sys.stderr)
+        self.assertGreater(radii["free"], 5.6)
+        self.assertAlmostEqual(radii["bounded"], 5.5, delta=1e-9)
+        self.assertAlmostEqual(flange.Shape.Volume, volume, delta=1e-9 * volume)
+        self.assertAlmostEqual(flange.Shape.Faces[hole].Surface.Radius, 5.0, delta=1e-12)
+        before = sorted(o.Name for o in self.doc.Objects)
+        for bad, text in (((name, "radius", 6.0, 5.5), "min 6 must be below max 5.5"),
+                          ((name, "radius", "wide", None), "min must be a number")):
+            with self.assertRaisesRegex(optimize_feature.OptimizeError, text):
+                optimize_feature.optimize_shape(flange, dict(opts, parameters=[bad]), out_dir=os.path.join(self.tmp, "bad"))
+        self.assertEqual(sorted(o.Name for o in self.doc.Objects), before)
+
     def test_mirror_faces_become_pairs_in_the_parts_frame(self):
         """The panel's mirror: four flange holes picked in any order, plane through the axis and
         a fifth hole (given globally), become two "mirrors" pairs of image faces with the plane in

@@ -193,7 +193,8 @@ def default_options():
         "axis_point": (0.0, 0.0, 0.0),       # global coordinates [mm]
         "axis_direction": (0.0, 0.0, 1.0),
         "density": 7850.0,                    # kg/m³
-        "parameters": "auto",                 # or [("FaceN", "radius"), ...]
+        "parameters": "auto",                 # or [("FaceN", "radius"), ("FaceM", "radius", min, max), ...]
+        #   min/max: absolute bounds (None: none); offsets and axis points in the part's own frame
         "ties": [],                           # [[("FaceN", "radius"), ("FaceM", "radius")], ...]
         "fixed_faces": [],                    # ["FaceN", ...]
         "draft_faces": [],                    # ["FaceN", ...]: planes (normal ⊥ pull), cylinders/cones (axis ∥ pull)
@@ -340,15 +341,35 @@ def build_job(shape, options, placement=None):
            "bound": float(opts["bound"]), "relative_improvement": float(opts["relative_improvement"])}
 
     def ref(item, what):
-        face, name = item
+        face, name = item[0], item[1]
         return {"face": face_index(face, n, what), "parameter": str(name)}
+
+    def design(item, what):
+        # (face, name) or (face, name, min, max): absolute bounds (None: none), in the part's own
+        # frame for offsets and axis points (radii and angles do not depend on the frame).
+        if len(item) not in (2, 4):
+            raise OptimizeError("%s: expected (face, parameter) or (face, parameter, min, max), got %r" % (what, item))
+        entry = ref(item, what)
+        for key, value in zip(("min", "max"), item[2:]):
+            if value is None:
+                continue
+            try:
+                entry[key] = float(value)
+            except (TypeError, ValueError):
+                raise OptimizeError("%s (%s %s): %s must be a number, got %r" % (what, item[0], item[1], key, value))
+            if not math.isfinite(entry[key]):
+                raise OptimizeError("%s (%s %s): %s must be finite, got %r" % (what, item[0], item[1], key, value))
+        if "min" in entry and "max" in entry and not entry["min"] < entry["max"]:
+            raise OptimizeError("%s (%s %s): min %g must be below max %g"
+                                % (what, item[0], item[1], entry["min"], entry["max"]))
+        return entry
     params = opts["parameters"]
     if params == "auto":
         job["parameters"] = "auto"
     else:
         if not params:
             raise OptimizeError("no design parameters chosen (pick faces, or use all parameters)")
-        job["parameters"] = [ref(p, "parameters[%d]" % i) for i, p in enumerate(params)]
+        job["parameters"] = [design(p, "parameters[%d]" % i) for i, p in enumerate(params)]
     if opts["ties"]:
         job["ties"] = [[ref(p, "ties[%d]" % i) for p in tie] for i, tie in enumerate(opts["ties"])]
     if opts["fixed_faces"]:

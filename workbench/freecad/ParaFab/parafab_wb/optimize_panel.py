@@ -2,7 +2,8 @@
 
 Shows the solid's faces grouped by the face model's tangency relations (a tangency group moves
 together: a moved plane drags its fillet along) with each face's parameters (offset, normal,
-radius, axis, ...), checkable as design parameters, or "all parameters" (``"auto"``); the
+radius, axis, ...), checkable as design parameters with optional Min / Max bounds (double-click
+a cell), or "all parameters" (``"auto"``); the
 objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density); supports and
 loads (their faces stay fixed); iterations and a volume bound. **Run** runs ``parafab optimize``
 in a QProcess (:class:`optimize_runner.OptimizeRun`): the progress bar follows its iterates,
@@ -23,6 +24,10 @@ from . import optimize_feature
 from . import optimize_runner
 
 _active = None
+
+BOUND_TOOLTIP = ("Absolute bound of a checked parameter (double-click to edit; empty: none), e.g. a "
+                 "minimum hole radius or wall position. Offsets and axis points are in the solid's own "
+                 "frame (before its placement); radii and angles do not depend on it.")
 
 
 def active_panel():
@@ -99,8 +104,13 @@ class OptimizeTaskPanel(object):
         self.auto.setToolTip("Every parameter of every analytic face that is not fixed")
         lay.addWidget(self.auto)
         self.tree = QtGui.QTreeWidget()
-        self.tree.setHeaderHidden(True)
-        self.tree.setColumnCount(1)
+        self.tree.setColumnCount(3)
+        self.tree.setHeaderLabels(["Parameter", "Min", "Max"])
+        self.tree.headerItem().setToolTip(1, BOUND_TOOLTIP)
+        self.tree.headerItem().setToolTip(2, BOUND_TOOLTIP)
+        # Only the bound columns are edited (double click), never the parameter's name.
+        self.tree.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
+        self.tree.itemDoubleClicked.connect(self._edit_bound)
         self.tree.setMinimumHeight(140)
         self._param_items = {}
         faces = {f["name"]: f for f in self.model["faces"]}
@@ -243,8 +253,10 @@ class OptimizeTaskPanel(object):
     def _add_face(self, parent, face):
         item = QtGui.QTreeWidgetItem(parent, ["%s (%s)" % (face["name"], face["type"])])
         for name in face["parameters"]:
-            child = QtGui.QTreeWidgetItem(item, [name])
-            child.setFlags(child.flags() | QtCore.Qt.ItemIsUserCheckable)
+            child = QtGui.QTreeWidgetItem(item, [name, "", ""])
+            child.setFlags(child.flags() | QtCore.Qt.ItemIsUserCheckable | QtCore.Qt.ItemIsEditable)
+            child.setToolTip(1, BOUND_TOOLTIP)
+            child.setToolTip(2, BOUND_TOOLTIP)
             child.setCheckState(0, QtCore.Qt.Unchecked)
             self._param_items[(face["name"], name)] = child
         if not face["parameters"]:
@@ -273,8 +285,26 @@ class OptimizeTaskPanel(object):
 
     # -- options -----------------------------------------------------------------------------
 
+    def _edit_bound(self, item, column):
+        if column in (1, 2) and item in self._param_items.values():
+            self.tree.editItem(item, column)
+
+    def set_bounds(self, face, name, lower=None, upper=None):
+        """Fill the Min / Max cells of parameter ``name`` of ``face`` (None: empty, no bound)."""
+        item = self._param_items[(face, name)]
+        for column, value in ((1, lower), (2, upper)):
+            item.setText(column, "" if value is None else repr(float(value)))
+
     def checked_parameters(self):
-        return [key for key, item in self._param_items.items() if item.checkState(0) == QtCore.Qt.Checked]
+        """Checked parameters: (face, name), or (face, name, min, max) when a bound cell is filled
+        (an empty cell: None; the engine checks the numbers)."""
+        out = []
+        for key, item in self._param_items.items():
+            if item.checkState(0) != QtCore.Qt.Checked:
+                continue
+            bounds = [item.text(c).strip() or None for c in (1, 2)]
+            out.append(key if bounds == [None, None] else key + tuple(bounds))
+        return out
 
     def _faces_point_direction_group(self, layout, title, faces_label, tooltip, point, direction):
         """A group of picked faces with a point [mm] and a direction (x/y/z rows), added to
