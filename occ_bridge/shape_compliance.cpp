@@ -4,6 +4,9 @@
 // matrices, where a support's or load's patches move; see shape_compliance.h).
 #include "shape_compliance.h"
 
+#include <BRepAdaptor_Surface.hxx>
+#include <Eigen/Geometry>
+#include <BRepTools.hxx>
 #include <TopExp.hxx>
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
 #include <TopTools_ListOfShape.hxx>
@@ -23,6 +26,8 @@
 #include "occt_mass_properties.h"
 #include "part_reader.h"
 #include "xfem/area_rules.h"
+#include "xfem/curve_rules.h"
+#include "xfem/quadrature_rule.h"
 
 namespace parafab::occ {
 
@@ -282,84 +287,235 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
                             });
 }
 
+namespace {
+
+// Sign s of a face's implicit function: ∇φ·n_out = s|∇φ| over the face (φ of its parameter block
+// at p; constant on a face). Evaluated at the centre of its uv bounds.
+double implicit_sign(const PartShape& part, int face, const optimize::ParameterBlock& block, const Eigen::VectorXd& p) {
+  const TopoDS_Face& original = part.face(face);
+  const double orient = original.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
+  const TopoDS_Face forward = TopoDS::Face(original.Oriented(TopAbs_FORWARD));
+  const BRepAdaptor_Surface surface(forward, false);
+  double u0, u1, v0, v1;
+  BRepTools::UVBounds(forward, u0, u1, v0, v1);
+  gp_Pnt P;
+  gp_Vec du, dv;
+  surface.D1(0.5 * (u0 + u1), 0.5 * (v0 + v1), P, du, dv);
+  const gp_Vec N = du.Crossed(dv);
+  const optimize::Dual phi = optimize::implicit_function(block.kind, p.data() + block.offset, xfem::Vec3(P.X(), P.Y(), P.Z()));
+  const int nb = block.size();
+  const double dot = orient * (phi.g[nb] * N.X() + phi.g[nb + 1] * N.Y() + phi.g[nb + 2] * N.Z());
+  return dot >= 0 ? 1.0 : -1.0;
+}
+
+}  // namespace
+
 ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
                                        const ShapeParameters& sp, const Eigen::VectorXd& p) {
   const auto t0 = std::chrono::steady_clock::now();
   PARAFAB_VERIFY(at.done && at.model, "compliance_gradient: the state is not solved");
   PARAFAB_VERIFY(p.size() == sp.size(), "compliance_gradient: p has " << p.size() << " entries, the parameters "
                                                                       << sp.size());
-  PARAFAB_VERIFY(static_cast<int>(sp.block_of_face.size()) == at.part->face_count(),
+  const PartShape& part = *at.part;
+  PARAFAB_VERIFY(static_cast<int>(sp.block_of_face.size()) == part.face_count(),
                  "compliance_gradient: the parameters describe " << sp.block_of_face.size() << " faces, the part has "
-                                                                 << at.part->face_count());
+                                                                 << part.face_count());
   ComplianceGradient r;
   r.gradient = Eigen::VectorXd::Zero(sp.size());
   r.incomplete.assign(sp.size(), 0);
-  // Supports, loads and the faces sharing an edge with one of them.
+  auto flag = [&](int face) {
+    if (const optimize::ParameterBlock* b = sp.block(face))
+      for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
+  };
+  // Supports and loads (their own motion is not differentiated here), and the faces sharing an
+  // edge with one of them: when such a neighbour moves, the support's or load's patch gains or
+  // loses a strip along that edge.
   std::set<int> conditioned;
   for (const auto& d : setup.dirichlet) conditioned.insert(d.face);
-  for (const auto& t : setup.tractions) conditioned.insert(t.face);
-  std::set<int> flagged = conditioned;
-  TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
-  TopExp::MapShapesAndAncestors(at.part->shape, TopAbs_EDGE, TopAbs_FACE, edge_faces);
-  for (int i = 1; i <= edge_faces.Extent(); ++i) {
-    std::vector<int> faces;
-    for (TopTools_ListOfShape::Iterator it(edge_faces(i)); it.More(); it.Next()) faces.push_back(at.part->face_index(it.Value()));
-    if (std::any_of(faces.begin(), faces.end(), [&](int f) { return conditioned.count(f) > 0; }))
-      flagged.insert(faces.begin(), faces.end());
+  for (const auto& t : at.tractions) conditioned.insert(t.face);
+  for (int f : conditioned) flag(f);
+  std::map<int, std::vector<int>> neighbours;  // support/load face → moving faces sharing an edge with it
+  std::vector<double> sign(part.face_count(), 0.0);
+  {
+    TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
+    TopExp::MapShapesAndAncestors(part.shape, TopAbs_EDGE, TopAbs_FACE, edge_faces);
+    std::map<int, std::set<int>> sets;
+    for (int i = 1; i <= edge_faces.Extent(); ++i) {
+      std::vector<int> faces;
+      for (TopTools_ListOfShape::Iterator it(edge_faces(i)); it.More(); it.Next()) faces.push_back(part.face_index(it.Value()));
+      for (int g : faces)
+        if (conditioned.count(g))
+          for (int f : faces)
+            if (f != g && sp.block(f) && !conditioned.count(f)) sets[g].insert(f);
+    }
+    for (auto& [g, fs] : sets) {
+      neighbours[g].assign(fs.begin(), fs.end());
+      for (int f : fs)
+        if (sign[f] == 0) sign[f] = implicit_sign(part, f, *sp.block(f), p);
+    }
   }
-  for (int f : flagged)
-    if (const optimize::ParameterBlock* b = sp.block(f))
-      for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
-  // Cut elements with a patch on a face that has parameters.
+  // Loads given as total forces: traction F/A, so a change of the face's area A changes it.
+  std::vector<int> spread;  // load indices with a force
+  std::vector<double> load_area(at.tractions.size(), 0.0);
+  for (size_t i = 0; i < at.tractions.size() && i < setup.forces.size(); ++i)
+    if (setup.forces[i].norm() > 0) {
+      spread.push_back(static_cast<int>(i));
+      load_area[i] = setup.forces[i].norm() / at.tractions[i].traction.norm();
+    }
+  // Cut elements with a patch on a face that has parameters or on a support or load.
   const std::vector<xfem::GridElement>& elements = at.model->elements;
   std::vector<int> work;
   for (size_t e = 0; e < elements.size(); ++e)
     if (elements[e].subvolume)
       for (const xfem::CutPatch& patch : elements[e].subvolume->patches)
-        if (sp.block(patch.source_face)) {
+        if (sp.block(patch.source_face) || conditioned.count(patch.source_face)) {
           work.push_back(static_cast<int>(e));
           break;
         }
-  r.elements = static_cast<int>(work.size());
   // The integrand ψ Vₙ is a polynomial of degree ≤ 4 (hex8) or 8 (hex27) per coordinate times a
   // velocity of degree ≤ 1 on planar patches; curved patches refine on their area.
   xfem::SurfaceRuleOptions so;
   so.area.degree = setup.solver.element == xfem::ElementType::Hex27 ? 10 : 6;
   so.refinement = xfem::RefinementOptions{1e-10, true, 6, 4};
+  const xfem::QuadratureRule1& gauss = xfem::gauss_legendre(8);
   const bool gravity = setup.material.density != 0 && setup.solver.gravity.squaredNorm() > 0;
-  std::vector<std::vector<std::pair<int, double>>> terms(work.size());
-  std::vector<int> points(work.size(), 0);
+  struct Terms {
+    std::vector<std::pair<int, double>> gradient;   // (entry of p, dC/dp contribution)
+    std::vector<std::pair<int, double>> area;       // (load index · size(p) + entry, dA contribution)
+    std::vector<std::pair<int, double>> work;       // (load index, ∫ u_h·t dA)
+    std::vector<int> tangent;                       // faces met at a tangent edge of a support/load
+    int points = 0, edge_points = 0;
+    bool used = false;
+  };
+  std::vector<Terms> terms(work.size());
+  const int np = sp.size();
   tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
     const int e = work[w];
     const xfem::GridElement& el = elements[e];
+    Terms& out = terms[w];
     const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[e]);
+    const double h = el.box.size().minCoeff();
     for (const xfem::CutPatch& patch : el.subvolume->patches) {
-      const optimize::ParameterBlock* block = sp.block(patch.source_face);
-      if (!block) continue;
-      const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
-      if (sr.points.empty()) continue;
-      points[w] += static_cast<int>(sr.points.size());
-      const std::vector<double> psi = xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
-      const int nb = block->size();
-      std::vector<double> sum(nb, 0.0);
-      for (size_t q = 0; q < sr.points.size(); ++q) {
-        double density = -psi[q];
-        if (gravity)
-          density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
-        const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, sr.points[q]);
-        const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
-        const double gn = grad.norm();
-        if (!(gn > 0)) continue;
-        const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
-        for (int k = 0; k < nb; ++k) sum[k] += sr.weights[q] * density * (-s * phi.g[k] / gn);  // Vₙ = ∂X/∂p_k·n
+      // Bulk: Reynolds over the patches of moving faces.
+      if (const optimize::ParameterBlock* block = sp.block(patch.source_face)) {
+        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
+        if (!sr.points.empty()) {
+          out.used = true;
+          out.points += static_cast<int>(sr.points.size());
+          const std::vector<double> psi = xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+          const int nb = block->size();
+          std::vector<double> sum(nb, 0.0);
+          for (size_t q = 0; q < sr.points.size(); ++q) {
+            double density = -psi[q];
+            if (gravity)
+              density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
+            const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, sr.points[q]);
+            const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+            const double gn = grad.norm();
+            if (!(gn > 0)) continue;
+            const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
+            for (int k = 0; k < nb; ++k) sum[k] += sr.weights[q] * density * (-s * phi.g[k] / gn);  // Vₙ = ∂X/∂p_k·n
+          }
+          for (int k = 0; k < nb; ++k)
+            if (sum[k] != 0) out.gradient.emplace_back(block->offset + k, sum[k]);
+        }
       }
-      for (int k = 0; k < nb; ++k)
-        if (sum[k] != 0) terms[w].emplace_back(block->offset + k, sum[k]);
+      if (!conditioned.count(patch.source_face)) continue;
+      // A support's or load's patch: its Nitsche / traction terms (the last condition of each
+      // kind on the face, as element_system takes them).
+      const int g = patch.source_face;
+      const xfem::DirichletCondition* dc = nullptr;
+      for (const auto& d : setup.dirichlet) if (d.face == g) dc = &d;
+      const xfem::TractionCondition* tc = nullptr;
+      int load = -1;
+      for (size_t i = 0; i < at.tractions.size(); ++i)
+        if (at.tractions[i].face == g) tc = &at.tractions[i], load = static_cast<int>(i);
+      out.used = true;
+      const bool spread_load = load >= 0 && load_area[load] > 0;
+      if (spread_load) {  // ∫ u_h·t dA over the load face, for the area term
+        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
+        double sum = 0;
+        for (size_t q = 0; q < sr.points.size(); ++q)
+          sum += sr.weights[q] * xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]).load;
+        out.work.emplace_back(load, sum);
+      }
+      const auto it = neighbours.find(g);
+      if (it == neighbours.end()) continue;
+      // Loop segments of the patch that lie on a moving neighbour F (all three sample points on
+      // F's surface): that edge moves inside the face with conormal speed a = Vₙ,F / (n_F·ν).
+      for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
+        for (const xfem::CurveSegment2& seg : loop) {
+          xfem::Vec3 X, Xu, Xv;
+          int on = -1;
+          for (int f : it->second) {
+            const optimize::ParameterBlock& b = *sp.block(f);
+            bool all = true;
+            for (const xfem::Vec2& uv : {seg.start, seg.position(0.5), seg.end}) {
+              patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+              const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
+              const int nb = b.size();
+              const double gn = xfem::Vec3(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]).norm();
+              if (!(gn > 0) || std::abs(phi.v) / gn > 1e-6 * h) { all = false; break; }
+            }
+            if (all) { on = f; break; }
+          }
+          if (on < 0) continue;
+          const optimize::ParameterBlock& b = *sp.block(on);
+          const int nb = b.size();
+          std::vector<double> sum(nb, 0.0), dA(nb, 0.0);
+          bool tangent = false;
+          for (size_t q = 0; q < gauss.points.size() && !tangent; ++q) {
+            const double t = gauss.points[q];
+            const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
+            patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+            const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
+            const double speed = dX.norm();
+            if (!(speed > 0)) continue;
+            const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
+            const xfem::Vec3 tangent_dir = dX / speed, conormal = tangent_dir.cross(n_uv);  // region on the left
+            const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
+            const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+            const double gn = grad.norm();
+            const xfem::Vec3 n_f = sign[on] * grad / gn;
+            const double c = n_f.dot(conormal);
+            if (std::abs(c) < 0.2) { tangent = true; break; }  // a tangent edge: no closed form here
+            const double ds = gauss.weights[q] * speed;
+            const xfem::BoundaryTermDensity d =
+                xfem::boundary_term_density(el, ue, setup.material, setup.solver, dc, tc, X, patch.orientation * n_uv);
+            for (int k = 0; k < nb; ++k) {
+              const double a = (-sign[on] * phi.g[k] / gn) / c;  // conormal speed of the edge
+              sum[k] += (2 * d.load - d.stiffness) * a * ds;
+              dA[k] += a * ds;
+            }
+            ++out.edge_points;
+          }
+          if (tangent) {
+            out.tangent.push_back(on);
+            continue;
+          }
+          for (int k = 0; k < nb; ++k) {
+            if (sum[k] != 0) out.gradient.emplace_back(b.offset + k, sum[k]);
+            if (spread_load && dA[k] != 0) out.area.emplace_back(load * np + b.offset + k, dA[k]);
+          }
+        }
     }
   });
+  std::vector<double> load_work(at.tractions.size(), 0.0);
+  std::map<int, double> area_change;  // load · size(p) + entry → dA
   for (size_t w = 0; w < work.size(); ++w) {  // in element order: deterministic
-    for (const auto& [i, v] : terms[w]) r.gradient[i] += v;
-    r.points += points[w];
+    const Terms& t = terms[w];
+    for (const auto& [i, v] : t.gradient) r.gradient[i] += v;
+    for (const auto& [i, v] : t.area) area_change[i] += v;
+    for (const auto& [i, v] : t.work) load_work[i] += v;
+    for (int f : t.tangent) flag(f);
+    r.points += t.points + t.edge_points;
+    r.edge_points += t.edge_points;
+    if (t.used) ++r.elements;
+  }
+  // Total forces: t = F/A, so 2uᵀdf ∋ 2 ∫ u_h·dt dA = −2 W dA/A with W = ∫ u_h·t dA.
+  for (const auto& [key, dA] : area_change) {
+    const int load = key / np, i = key % np;
+    r.gradient[i] -= 2 * load_work[load] * dA / load_area[load];
   }
   r.done = true;
   r.message = "ok";

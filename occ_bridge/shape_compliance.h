@@ -79,19 +79,23 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// weights moving with the domain; see xfem::bulk_shape_density): the state's one solve and no
 /// perturbed model. Self-adjoint, so dC = 2uᵀdf − uᵀdK u, and per cut element
 ///   dC/dp_i = ∫_{patches of moving faces} (2ρ g·u_h − ψ(u, u)) Vₙ,i dA,
-/// Vₙ,i = ∂X/∂p_i·n from the face's implicit function (as moment_derivatives). Exact for the
-/// discrete compliance with its topology (cut cells, subvolumes, aggregation, incompatible-mode
-/// switches) frozen at `at`, as in the semi-analytic route. Not included: how the patches of a
-/// support or load change when a face sharing an edge with it moves (Nitsche and traction terms,
-/// and a total force's traction through its face's area); the entries of such faces (and of the
-/// support and load faces themselves) are flagged `incomplete`.
+/// Vₙ,i = ∂X/∂p_i·n from the face's implicit function (as moment_derivatives), plus, where a
+/// moving face F shares an edge with a support or load Γ, the strip that Γ's patch gains along
+/// that edge: ∮ (2 f_Γ − k_Γ)(uₑ) a ds with the edge's conormal speed a = Vₙ,F / (n_F·ν)
+/// (xfem::boundary_term_density; ν the outward conormal in Γ), and for a total force F_i its
+/// traction's change −2 W_i dA_i / A_i (W_i = ∫ u_h·t dA). Exact for the discrete compliance with
+/// its topology (cut cells, subvolumes, aggregation, incompatible-mode switches) frozen at `at`,
+/// as in the semi-analytic route. Not included, flagged `incomplete`: a support's or load's own
+/// motion, and an edge where F is tangent to Γ (|n_F·ν| < 0.2, e.g. a fillet running into a
+/// support: its edge velocity needs the tangent contact's own derivative, Fig. 6.12 case 2).
 struct ComplianceGradient {
   bool done = false;
   std::string message;
   Eigen::VectorXd gradient;      ///< dC/dp_i, one per entry of p (0 for faces without a cut patch)
   std::vector<char> incomplete;  ///< per entry of p: see above (use the semi-analytic route there)
-  int elements = 0;              ///< cut elements with a patch on a face that has parameters
-  int points = 0;                ///< boundary quadrature points
+  int elements = 0;              ///< cut elements with a patch on a moving face, a support or a load
+  int points = 0;                ///< boundary quadrature points (patches and edges)
+  int edge_points = 0;           ///< of which on edges of supports and loads
   double seconds = 0;
 };
 ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,

@@ -385,6 +385,46 @@ ElementSystem element_system(const GridElement& element, const ElasticMaterial& 
              : element_system_n<8>(element, material, dirichlet, tractions, options, include_bulk);
 }
 
+namespace {
+
+template <int NN>
+BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::VectorXd& ue,
+                                            const ElasticMaterial& material, const LinearXfemOptions& options,
+                                            const DirichletCondition* dc, const TractionCondition* tc, const Vec3& X,
+                                            const Vec3& n) {
+  BoundaryTermDensity d;
+  Eigen::Matrix<double, NN, 1> N;
+  Eigen::Matrix<double, NN, 3> G;
+  shape<NN>(el.box, X, N, G);
+  const Vec3 u = value_matrix<NN>(N) * ue;
+  if (tc) d.load += u.dot(tc->traction);
+  if (dc) {
+    // The terms of element_system_n: K ∋ penalty NᵀMN − NᵀMT − TᵀMN, f ∋ penalty NᵀMg − TᵀMg.
+    const Vec3 sigma_n = traction_operator(n) * elasticity(material) * (strain_matrix<NN>(G) * ue);
+    const double beta = options.nitsche_beta > 0 ? options.nitsche_beta : 100.0;
+    const double penalty = beta * material.youngs_modulus / el.box.size().minCoeff();
+    const Eigen::Matrix3d M = dc->components.asDiagonal();
+    const Vec3 g = dc->field ? dc->field(X) : Vec3(dc->offset + dc->gradient * X);
+    d.stiffness += penalty * u.dot(M * u) - 2 * u.dot(M * sigma_n);
+    d.load += penalty * u.dot(M * g) - sigma_n.dot(M * g);
+  }
+  return d;
+}
+
+}  // namespace
+
+BoundaryTermDensity boundary_term_density(const GridElement& element, const Eigen::VectorXd& ue,
+                                          const ElasticMaterial& material, const LinearXfemOptions& options,
+                                          const DirichletCondition* dirichlet, const TractionCondition* traction,
+                                          const Vec3& X, const Vec3& normal) {
+  const int nodes = nodes_per_element(options.element);
+  PARAFAB_VERIFY(ue.size() == 3 * nodes, "boundary_term_density: " << ue.size() << " nodal values for a "
+                                                                    << element_type_name(options.element) << " element");
+  return options.element == ElementType::Hex27
+             ? boundary_term_density_n<27>(element, ue, material, options, dirichlet, traction, X, normal)
+             : boundary_term_density_n<8>(element, ue, material, options, dirichlet, traction, X, normal);
+}
+
 std::vector<double> bulk_shape_density(const GridElement& el, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
                                        const ElasticMaterial& material, const LinearXfemOptions& options,
                                        const std::vector<Vec3>& points) {

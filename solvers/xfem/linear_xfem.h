@@ -223,6 +223,20 @@ std::vector<double> bulk_shape_density(const GridElement& element, const Eigen::
                                        const ElasticMaterial& material, const LinearXfemOptions& options,
                                        const std::vector<Vec3>& points);
 
+/// The Nitsche and traction terms of element_system per unit area at a boundary point X with
+/// outward normal n, contracted with the element's nodal values uₑ: uₑᵀKₑuₑ = ∫ stiffness dA and
+/// uₑᵀfₑ = ∫ load dA over the condition's patches (bulk and gravity not included). When a
+/// support's or load's patch grows by a strip of width a ds along its edge, uᵀKu and uᵀf change
+/// by these densities times a ds. `dirichlet` and `traction` may be null.
+struct BoundaryTermDensity {
+  double stiffness = 0;
+  double load = 0;
+};
+BoundaryTermDensity boundary_term_density(const GridElement& element, const Eigen::VectorXd& ue,
+                                          const ElasticMaterial& material, const LinearXfemOptions& options,
+                                          const DirichletCondition* dirichlet, const TractionCondition* traction,
+                                          const Vec3& X, const Vec3& normal);
+
 /// Assembled stiffness and load (no Dirichlet conditions folded in unless given). The element
 /// type is options.element; `node` must have its node count per element. Element matrices are
 /// computed in parallel (TBB) and scattered in element order: the result is bit-identical for

@@ -4,12 +4,15 @@
 // stiffness in every weight, for plain hex8, hex8 with condensed incompatible modes (whose
 // zero-mean shift moves with the weights) and hex27, on an irregular rule of a part cell
 // (measured 4.5e-11, 6.6e-11, 6.3e-11 relative; without the shift term the modes case fails).
+// The Nitsche and traction densities (xfem::boundary_term_density) integrated over a patch must
+// give element_system's boundary terms.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 #include <random>
 
+#include "xfem/area_rules.h"
 #include "xfem/linear_xfem.h"
 
 namespace parafab::xfem {
@@ -72,6 +75,68 @@ void check(ElementType type, bool modes, double tolerance) {
 TEST(BulkShapeDensity, IsTheWeightGradientOfPlainHex8) { check(ElementType::Hex8, false, 2e-10); }
 TEST(BulkShapeDensity, IsTheWeightGradientOfHex8WithCondensedIncompatibleModes) { check(ElementType::Hex8, true, 2e-10); }
 TEST(BulkShapeDensity, IsTheWeightGradientOfHex27) { check(ElementType::Hex27, false, 2e-10); }
+
+// σ(u, v) = origin + u e1 + v e2.
+class PlaneMap : public SurfaceMap {
+ public:
+  PlaneMap(const Vec3& origin, const Vec3& e1, const Vec3& e2) : o_(origin), e1_(e1), e2_(e2) {}
+  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
+    X = o_ + u * e1_ + v * e2_;
+    Xu = e1_;
+    Xv = e2_;
+  }
+
+ private:
+  Vec3 o_, e1_, e2_;
+};
+
+void check_boundary(ElementType type) {
+  LinearXfemOptions o;
+  o.element = type;
+  o.nitsche_beta = 50;
+  ElasticMaterial m{210000, 0.3, 0};
+  GridElement el;
+  el.box.min = Vec3(1, -2, 0.5);
+  el.box.max = Vec3(3, 1, 2);
+  // A tilted plane through the cell, its region a quadrilateral in uv (counter-clockwise).
+  Subvolume sv;
+  sv.cell = el.box;
+  CutPatch patch;
+  patch.surface = std::make_shared<PlaneMap>(Vec3(1.2, -1.8, 0.7), Vec3(1.5, 0.2, 0.1), Vec3(-0.1, 2.4, 0.9));
+  patch.loops.push_back({{Vec2(0, 0), Vec2(1, 0.1), Vec2(0.9, 0.8), Vec2(0.1, 1), Vec2(0, 0)}, 1});
+  patch.source_face = 4;
+  sv.patches.push_back(patch);
+  el.subvolume = &sv;
+  DirichletCondition dc;
+  dc.face = 4;
+  dc.components = Vec3(1, 0, 1);
+  dc.offset = Vec3(1e-3, -2e-3, 5e-4);
+  dc.gradient << 1e-4, 0, 2e-4, 0, -1e-4, 0, 3e-4, 0, 1e-4;
+  TractionCondition tc{4, Vec3(3, -1, 2)};
+  const int n = 3 * nodes_per_element(type);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal(0, 1e-3);
+  Eigen::VectorXd u(n);
+  for (int i = 0; i < n; ++i) u[i] = normal(rng);
+  const ElementSystem s = element_system(el, m, {dc}, {tc}, o, false);
+  SurfaceRuleOptions so;
+  so.area.degree = type == ElementType::Hex27 ? std::max(o.surface_degree, 8) : o.surface_degree;
+  const SurfaceRule sr = surface_rule(patch, so);
+  double stiffness = 0, load = 0;
+  for (size_t q = 0; q < sr.points.size(); ++q) {
+    const BoundaryTermDensity d = boundary_term_density(el, u, m, o, &dc, &tc, sr.points[q], sr.normals[q]);
+    stiffness += sr.weights[q] * d.stiffness;
+    load += sr.weights[q] * d.load;
+  }
+  const double K = u.dot(s.K * u), f = u.dot(s.f);
+  std::printf("%s: uᵀK_Γu %.12g, densities %.12g; uᵀf_Γ %.12g, densities %.12g\n", element_type_name(type), K,
+              stiffness, f, load);
+  EXPECT_NEAR(stiffness, K, 1e-12 * std::abs(K));
+  EXPECT_NEAR(load, f, 1e-12 * std::abs(f));
+}
+
+TEST(BoundaryTermDensity, IntegratesToTheNitscheAndTractionTermsOfHex8) { check_boundary(ElementType::Hex8); }
+TEST(BoundaryTermDensity, IntegratesToTheNitscheAndTractionTermsOfHex27) { check_boundary(ElementType::Hex27); }
 
 }  // namespace
 }  // namespace parafab::xfem
