@@ -74,7 +74,8 @@ for name, params, ratio, cells in RUNS:
            "initial_compliance": h["initial_objective"], "final_compliance": h["final_objective"],
            "reduction": 1 - h["final_objective"] / h["initial_objective"],
            "volume_ratio": h["final_volume"] / h["initial_volume"],
-           "topology_switches": h["topology_switches"], "tangency_residual_max": h["tangency_residual_max"]}
+           "gradient": h["gradient"], "exact_derivatives": h.get("exact_derivatives", 0),
+           "topology_switches": h.get("topology_switches", 0), "tangency_residual_max": h["tangency_residual_max"]}
     if not args.quick:
         row["fresh_16_cells_ratio"] = compliance(os.path.join(out, "optimized.step"), 16) / compliance(BRACKET, 16)
     rows.append(row)

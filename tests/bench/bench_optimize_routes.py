@@ -3,8 +3,9 @@
 FreeCAD user has today"): the L-bracket of bench_optimize_compliance.py (steel, support on the
 upright's back, 500 N down on the base end), design = the two bolt-hole radii, V <= 1.005 V0.
 
-  A  `parafab optimize` (thesis §6.5): XFEM on a fixed 8-cell face-route grid, semi-analytic
-     gradient, L-BFGS + augmented Lagrangian for the volume bound.
+  A  `parafab optimize` (thesis §6.5): XFEM on a fixed 8-cell face-route grid, exact gradient
+     (rule derivatives; semi-analytic until 2026-11-27), L-BFGS + augmented Lagrangian for the
+     volume bound.
   B  the route without ParaFab's gradient: scipy SLSQP (the volume bound as a constraint) with
      forward-difference gradients; every evaluation applies the radii and writes the STEP
      (`parafab optimize` with "start" and max_iterations 0: projection + write-back only, the
@@ -87,7 +88,7 @@ route_a = {"status": h["status"], "evaluations": h["evaluations"], "seconds": wa
            "seconds_per_evaluation": h["seconds"] / h["evaluations"], "initial": h["initial_objective"],
            "final": h["final_objective"], "final_violation": h["final_violation"],
            "radii": [p["final"] for p in h["parameters"]], "step": h["optimized_step"],
-           "volume_ratio": h["final_volume"] / h["initial_volume"]}
+           "volume_ratio": h["final_volume"] / h["initial_volume"], "gradient": h["gradient"]}
 
 # --- route B ------------------------------------------------------------------------------
 cache = {}
@@ -178,7 +179,7 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 fig, ax = plt.subplots(figsize=(6.4, 4))
-for trace, mark, label in ((red_a, "o", "A: parafab optimize (XFEM 8 cells, semi-analytic gradient)"),
+for trace, mark, label in ((red_a, "o", "A: parafab optimize (XFEM 8 cells, %s gradient)" % h["gradient"]),
                            (red_b, "s", "B: SLSQP, forward differences, Gmsh tet10 %.0f mm + CalculiX" % MESH)):
     line, = ax.plot([t for t, _, _ in trace], [100 * r for _, r, _ in trace], mark + "-", mfc="none", label=label)
     ax.plot([t for t, _, ok in trace if ok], [100 * r for _, r, ok in trace if ok], mark, color=line.get_color())
