@@ -122,6 +122,10 @@ class OptimizeCompliance(unittest.TestCase):
                         dict(JOB, objective={"type": "compliance", "gradient": "adjoint"}))
         self.assertEqual(code, 2)
         self.assertIn("objective.gradient", err["error"]["message"])
+        code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "bad")],
+                        dict(JOB, objective={"type": "sum", "terms": [{"type": "compliance", "gradient": "exact"}]}))
+        self.assertEqual(code, 2)
+        self.assertIn("objective.terms[0].gradient", err["error"]["message"])
 
     def test_a_run_that_ends_above_the_bound_is_restored_onto_it(self):
         # One outer iteration of two L-BFGS steps ends 3.3e-4 above V <= 1.002 V0 (measured);

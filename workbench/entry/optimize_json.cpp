@@ -185,6 +185,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       const std::string path = "objective.terms[" + std::to_string(i) + "]";
       occ::ObjectiveSpec t = objective_spec(terms[i], path, needs_compliance);
       if (t.type == "sum") PARAFAB_INPUT_ERROR(path << ".type: a sum cannot be a term of a sum");
+      for (const char* key : {"gradient", "step"})
+        if (terms[i].contains(key))
+          PARAFAB_INPUT_ERROR(path << "." << key << ": the compliance gradient's options belong on the sum (objective." << key << ")");
       if (t.type == "failure" && std::any_of(o.objective.terms.begin(), o.objective.terms.end(),
                                              [](const occ::ObjectiveSpec& u) { return u.type == "failure"; }))
         PARAFAB_INPUT_ERROR(path << ".type: a sum takes one 'failure' term at most");
