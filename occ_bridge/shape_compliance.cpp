@@ -478,14 +478,29 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
             const double gn = grad.norm();
             const xfem::Vec3 n_f = sign[on] * grad / gn;
             const double c = n_f.dot(conormal);
-            if (std::abs(c) < 0.2) { tangent = true; break; }  // a tangent edge: no closed form here
+            // Conormal speed of the edge per entry of F's block: a transversal edge moves with F's
+            // normal speed over n_F·ν. A cylinder running tangent into Γ (a fillet into a support)
+            // touches it along the axis line moved onto Γ, so on the constraint manifold (tangency
+            // kept) the edge moves with the axis: a = ν·(∂c/∂p + τ ∂v/∂p), τ = v·(X − c)/|v|² (the
+            // null-space completion of Fig. 6.12, case 2); other tangent contacts are flagged.
+            std::vector<double> speed_k(nb, 0.0);
+            if (std::abs(c) >= 0.2) {
+              for (int k = 0; k < nb; ++k) speed_k[k] = (-sign[on] * phi.g[k] / gn) / c;
+            } else if (b.kind == optimize::PrimitiveKind::cylinder) {
+              const double* cyl = p.data() + b.offset;  // axis point (3), axis (3), radius
+              const xfem::Vec3 centre(cyl[0], cyl[1], cyl[2]), axis(cyl[3], cyl[4], cyl[5]);
+              const double tau = axis.dot(X - centre) / axis.squaredNorm();
+              for (int k = 0; k < 3; ++k) speed_k[k] = conormal[k], speed_k[3 + k] = tau * conormal[k];
+            } else {
+              tangent = true;
+              break;
+            }
             const double ds = gauss.weights[q] * speed;
             const xfem::BoundaryTermDensity d =
                 xfem::boundary_term_density(el, ue, setup.material, setup.solver, dc, tc, X, patch.orientation * n_uv);
             for (int k = 0; k < nb; ++k) {
-              const double a = (-sign[on] * phi.g[k] / gn) / c;  // conormal speed of the edge
-              sum[k] += (2 * d.load - d.stiffness) * a * ds;
-              dA[k] += a * ds;
+              sum[k] += (2 * d.load - d.stiffness) * speed_k[k] * ds;
+              dA[k] += speed_k[k] * ds;
             }
             ++out.edge_points;
           }

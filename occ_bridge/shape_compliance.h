@@ -85,9 +85,10 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// (xfem::boundary_term_density; ν the outward conormal in Γ), and for a total force F_i its
 /// traction's change −2 W_i dA_i / A_i (W_i = ∫ u_h·t dA). Exact for the discrete compliance with
 /// its topology (cut cells, subvolumes, aggregation, incompatible-mode switches) frozen at `at`,
-/// as in the semi-analytic route. Not included, flagged `incomplete`: a support's or load's own
-/// motion, and an edge where F is tangent to Γ (|n_F·ν| < 0.2, e.g. a fillet running into a
-/// support: its edge velocity needs the tangent contact's own derivative, Fig. 6.12 case 2).
+/// as in the semi-analytic route. Where F is tangent to Γ (|n_F·ν| < 0.2) and F is a cylinder
+/// (a fillet running into a support), the edge moves with the cylinder's axis (the null-space
+/// completion of Fig. 6.12, case 2). Not included, flagged `incomplete`: a support's or load's own
+/// motion, and other tangent contacts with a support or load (a torus or sphere, a cone).
 struct ComplianceGradient {
   bool done = false;
   std::string message;
