@@ -17,65 +17,31 @@
 #include "shape_modify.h"
 #include "shape_optimization.h"
 #include "shape_parameters.h"
+#include "turned_bracket.h"
 
 namespace parafab::occ {
 namespace {
 
-std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name + ".step"; }
+using testing::DesignLine;
+using testing::richardson;
+using testing::turned;
+using BracketCase = testing::TurnedBracket;
 
-const Vec3 kCenter(30, 20, 25), kAxis = Vec3(1, 2, 3).normalized();
-const double kDegrees = 11;
-Vec3 turned(const Vec3& X) { return kCenter + Eigen::AngleAxisd(kDegrees * M_PI / 180, kAxis) * (X - kCenter); }
-
-// The turned bracket: back of the upright (x = 0) supported, the free end of the base (x = 60)
-// pulled down by 500 N (samples/simulations/l_bracket.json), steel in N/mm/MPa, 10 cells.
-struct BracketCase {
-  std::shared_ptr<const PartShape> original;  // as read
-  std::shared_ptr<const PartShape> part;      // turned
-  ComplianceSetup setup;
-  int hole = -1, base_top = -1, upright_inner = -1, fillet = -1, outer = -1;  // face indices (rotation keeps them)
-  BracketCase() {
-    original = read_part(sample("l_bracket"));
-    part = rotated_part(*original, kCenter, kAxis, kDegrees);
-    const double tol = 1e-6;
-    const int support = face_at_point(*part, turned({0, 20, 30}), tol);
-    const int load = face_at_point(*part, turned({60, 20, 4}), tol);
-    hole = face_at_point(*part, turned({44, 12, 4}), tol);
-    base_top = face_at_point(*part, turned({30, 20, 8}), tol);
-    upright_inner = face_at_point(*part, turned({8, 20, 30}), tol);
-    outer = face_at_point(*part, turned({12 - 12 * std::sqrt(0.5), 20, 12 - 12 * std::sqrt(0.5)}), tol);
-    fillet = face_at_point(*part, turned({8 + 5 - 5 * std::sqrt(0.5), 20, 8 + 5 - 5 * std::sqrt(0.5)}), tol);
-    setup.material.youngs_modulus = 210000;
-    setup.material.poisson_ratio = 0.3;
-    xfem::DirichletCondition d;
-    d.face = support;
-    setup.dirichlet.push_back(d);
-    xfem::TractionCondition t;
-    t.face = load;
-    // A total force (spread over the load face of every model: its area changes when the base
-    // top plane moves, so the load term of the derivative is exercised).
-    const Vec3 force = turned(Vec3(0, 0, -500)) - turned(Vec3::Zero());
-    t.traction = force / face_area(*part, load);
-    setup.tractions.push_back(t);
-    setup.forces.push_back(force);
-    setup.grid.grid.cells_longest = 10;
-    setup.grid.grid.block_cells = 4;
-    // The face route: the Boolean splitter lost cell pieces of perturbed models whose planes
-    // move (the rules missed OCCT's volume; compliance_at refuses such models).
-    setup.grid.grid.method = CutMethod::FaceCut;
-  }
-};
+// C of a perturbed model re-cut on the grid of `at` and solved (NaN, and a failure, if not).
+double compliance_on(std::shared_ptr<const PartShape> part, const ComplianceState& at, const ComplianceSetup& setup) {
+  const ComplianceState s = compliance_at(std::move(part), at, setup);
+  EXPECT_TRUE(s.done) << s.message;
+  return s.done ? s.compliance : std::nan("");
+}
 
 TEST(ShapeCompliance, SemiAnalyticGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   BracketCase c;
-  const FaceModel model = build_face_model(*c.part);
-  ShapeParameterOptions po;
-  po.fixed_faces = {c.setup.dirichlet[0].face, c.setup.tractions[0].face};
-  const ShapeParameters sp = build_shape_parameters(model, po);
-  const optimize::ProjectionResult start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
-  ASSERT_TRUE(start.done);
-  const PartInfo info = part_info(*c.part);
-  const double L = (info.bbox_max - info.bbox_min).norm();
+  const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
+  ASSERT_TRUE(space.start.done);
+  const FaceModel& model = space.model;
+  const ShapeParameters& sp = space.parameters;
+  const optimize::ProjectionResult& start = space.start;
+  const double L = space.size;
   struct Case {
     const char* what;
     int index;
@@ -91,17 +57,8 @@ TEST(ShapeCompliance, SemiAnalyticGradientMatchesFiniteDifferencesOfTheFullPipel
       {"base top plane offset (inner fillet follows)", parameter_index(sp, c.base_top, "offset"), 5e-6},
   };
   for (const Case& k : cases) {
-    optimize::ProjectionOptions popt;
-    popt.weights = projection_weights(sp, {k.index}, 1e-4, L);
-    auto part_at = [&](double s) -> std::shared_ptr<const PartShape> {
-      Eigen::VectorXd t = start.p;
-      t[k.index] += s;
-      const optimize::ProjectionResult p = optimize::project(sp.constraints, t, start.p, sp.lower, sp.upper, {}, popt);
-      EXPECT_TRUE(p.done) << k.what << " s = " << s;
-      const ModifyResult m = modify_part(*c.part, model, sp, p.p);
-      EXPECT_TRUE(m.done) << k.what << " s = " << s << ": " << m.message;
-      return m.part;
-    };
+    const DesignLine line(*c.part, model, sp, k.index, start.p, L);
+    auto part_at = [&](double s) { return line.at(s); };
     const ComplianceState at = compliance_start(part_at(0), c.setup);
     ASSERT_TRUE(at.done) << at.message;
     const double h = 1e-4 * L;
@@ -115,14 +72,8 @@ TEST(ShapeCompliance, SemiAnalyticGradientMatchesFiniteDifferencesOfTheFullPipel
     // H = 1e-3·L the plane offsets' differences crossed kinks of the cut rules (measured on the
     // upright plane: FD −4.0411 at 1e-3·L, −4.05131 at 5e-4·L, −4.051565 at 1e-4·L; the
     // semi-analytic value −4.05157 for h = 3e-5 … 1e-4·L).
-    double fds[2];
-    for (int level = 0; level < 2; ++level) {
-      const double H = (level ? 1e-4 : 2e-4) * L;
-      const ComplianceState plus = compliance_at(part_at(H), at, c.setup), minus = compliance_at(part_at(-H), at, c.setup);
-      ASSERT_TRUE(plus.done && minus.done) << k.what << ": " << plus.message << " / " << minus.message;
-      fds[level] = (plus.compliance - minus.compliance) / (2 * H);
-    }
-    const double fd = (4 * fds[1] - fds[0]) / 3;
+    double fds[1];
+    const double fd = richardson([&](double H) { return compliance_on(part_at(H), at, c.setup); }, 2e-4 * L, fds);
     std::printf("%s: C = %.10g, semi-analytic %.10g, FD %.10g (H: %.10g), relative difference %.2e, %d cells, %d switches\n",
                 k.what, at.compliance, d.derivative, fd, fds[0], std::abs(d.derivative - fd) / std::abs(fd), d.cells_changed,
                 d.topology_switches);
@@ -148,15 +99,14 @@ TEST(ShapeCompliance, ExactGradientMatchesFiniteDifferencesOfTheFullPipeline) {
       c.setup.material.density = 7.85e-9;                                     // t/mm³
       c.setup.solver.gravity = 1000 * (turned(Vec3(0, 0, -9810)) - turned(Vec3::Zero()));  // mm/s², ×1000
     }
-    const FaceModel model = build_face_model(*c.part);
-    ShapeParameterOptions po;
-    po.fixed_faces = {c.setup.dirichlet[0].face};
-    if (!dead_weight) po.fixed_faces.push_back(c.setup.tractions[0].face);
-    const ShapeParameters sp = build_shape_parameters(model, po);
-    const optimize::ProjectionResult start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
-    ASSERT_TRUE(start.done);
-    const PartInfo info = part_info(*c.part);
-    const double L = (info.bbox_max - info.bbox_min).norm();
+    std::vector<int> fixed = {c.setup.dirichlet[0].face};
+    if (!dead_weight) fixed.push_back(c.setup.tractions[0].face);
+    const testing::DesignSpace space(*c.part, fixed);
+    ASSERT_TRUE(space.start.done);
+    const FaceModel& model = space.model;
+    const ShapeParameters& sp = space.parameters;
+    const optimize::ProjectionResult& start = space.start;
+    const double L = space.size;
     struct Case {
       const char* what;
       int index;
@@ -182,15 +132,8 @@ TEST(ShapeCompliance, ExactGradientMatchesFiniteDifferencesOfTheFullPipeline) {
       popt.weights = projection_weights(sp, {k.index}, 1e-4, L);
       const optimize::ProjectionResult p0 = optimize::project(sp.constraints, start.p, start.p, sp.lower, sp.upper, {}, popt);
       ASSERT_TRUE(p0.done);
-      auto part_at = [&](double s) -> std::shared_ptr<const PartShape> {
-        Eigen::VectorXd t = p0.p;
-        t[k.index] += s;
-        const optimize::ProjectionResult p = optimize::project(sp.constraints, t, p0.p, sp.lower, sp.upper, {}, popt);
-        EXPECT_TRUE(p.done) << k.what << " s = " << s;
-        const ModifyResult m = modify_part(*c.part, model, sp, p.p);
-        EXPECT_TRUE(m.done) << k.what << " s = " << s << ": " << m.message;
-        return m.part;
-      };
+      const DesignLine line(*c.part, model, sp, k.index, p0.p, L);
+      auto part_at = [&](double s) { return line.at(s); };
       const ComplianceState at = compliance_start(part_at(0), c.setup);
       ASSERT_TRUE(at.done) << at.message;
       const ComplianceGradient g = compliance_gradient(at, c.setup, sp, p0.p);
@@ -201,14 +144,7 @@ TEST(ShapeCompliance, ExactGradientMatchesFiniteDifferencesOfTheFullPipeline) {
       const double exact = g.gradient.dot(column);
       const bool flagged = !exact_along(g, column);
       EXPECT_EQ(!flagged, k.exact) << k.what;
-      double fds[2];
-      for (int level = 0; level < 2; ++level) {
-        const double H = (level ? 1e-4 : 2e-4) * L;
-        const ComplianceState plus = compliance_at(part_at(H), at, c.setup), minus = compliance_at(part_at(-H), at, c.setup);
-        ASSERT_TRUE(plus.done && minus.done) << k.what << ": " << plus.message << " / " << minus.message;
-        fds[level] = (plus.compliance - minus.compliance) / (2 * H);
-      }
-      const double fd = (4 * fds[1] - fds[0]) / 3;
+      const double fd = richardson([&](double H) { return compliance_on(part_at(H), at, c.setup); }, 2e-4 * L);
       std::printf("%s, %s: C = %.10g, exact %.10g%s, FD %.10g, relative difference %.2e, %d elements, %d points, %.3f s\n",
                   dead_weight ? "dead weight" : "traction", k.what, at.compliance, exact, flagged ? " (incomplete)" : "", fd,
                   std::abs(exact - fd) / std::abs(fd), g.elements, g.points, g.seconds);

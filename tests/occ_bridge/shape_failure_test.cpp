@@ -17,11 +17,11 @@
 #include "shape_modify.h"
 #include "shape_optimization.h"
 #include "shape_parameters.h"
+#include "turned_bracket.h"
 
 namespace parafab::occ {
 namespace {
 
-std::string sample(const std::string& name) { return std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name + ".step"; }
 
 // A 40 × 10 × 10 bar shifted off the grid (its faces cut cells), on rollers at x = x0, y = y0,
 // z = z0, pulled by F along x on x = x1: σ = F/A uniaxial everywhere, σ_vm = F/A, so
@@ -72,50 +72,17 @@ TEST(ShapeFailure, BarInUniformTensionMatchesTheClosedForm) {
   }
 }
 
-const Vec3 kCenter(30, 20, 25), kAxis = Vec3(1, 2, 3).normalized();
-const double kDegrees = 11;
-Vec3 turned(const Vec3& X) { return kCenter + Eigen::AngleAxisd(kDegrees * M_PI / 180, kAxis) * (X - kCenter); }
-
-// The turned L-bracket of shape_compliance_test.cpp: back of the upright supported, the free
-// end of the base pulled down by 500 N (a total force), steel, 10 cells.
-struct BracketCase {
-  std::shared_ptr<const PartShape> part;
-  ComplianceSetup setup;
-  int hole = -1, base_top = -1, fillet = -1;
-  BracketCase() {
-    part = rotated_part(*read_part(sample("l_bracket")), kCenter, kAxis, kDegrees);
-    const double tol = 1e-6;
-    xfem::DirichletCondition d;
-    d.face = face_at_point(*part, turned({0, 20, 30}), tol);
-    setup.dirichlet.push_back(d);
-    const int load = face_at_point(*part, turned({60, 20, 4}), tol);
-    hole = face_at_point(*part, turned({44, 12, 4}), tol);
-    base_top = face_at_point(*part, turned({30, 20, 8}), tol);
-    fillet = face_at_point(*part, turned({8 + 5 - 5 * std::sqrt(0.5), 20, 8 + 5 - 5 * std::sqrt(0.5)}), tol);
-    setup.material.youngs_modulus = 210000;
-    setup.material.poisson_ratio = 0.3;
-    xfem::TractionCondition t;
-    t.face = load;
-    const Vec3 force = turned(Vec3(0, 0, -500)) - turned(Vec3::Zero());
-    t.traction = force / face_area(*part, load);
-    setup.tractions.push_back(t);
-    setup.forces.push_back(force);
-    setup.grid.grid.cells_longest = 10;
-    setup.grid.grid.block_cells = 4;
-    setup.grid.grid.method = CutMethod::FaceCut;
-  }
-};
+// The turned L-bracket of shape_compliance_test.cpp (turned_bracket.h).
+using BracketCase = testing::TurnedBracket;
 
 TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   BracketCase c;
-  const FaceModel model = build_face_model(*c.part);
-  ShapeParameterOptions po;
-  po.fixed_faces = {c.setup.dirichlet[0].face, c.setup.tractions[0].face};
-  const ShapeParameters sp = build_shape_parameters(model, po);
-  const optimize::ProjectionResult start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
-  ASSERT_TRUE(start.done);
-  const PartInfo info = part_info(*c.part);
-  const double L = (info.bbox_max - info.bbox_min).norm();
+  const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
+  ASSERT_TRUE(space.start.done);
+  const FaceModel& model = space.model;
+  const ShapeParameters& sp = space.parameters;
+  const optimize::ProjectionResult& start = space.start;
+  const double L = space.size;
   struct Case {
     const char* what;
     int index;
@@ -132,17 +99,8 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   for (bool normalize : {true, false}) {
     const FailureOptions fo{40, 6, normalize};
     for (const Case& k : cases) {
-      optimize::ProjectionOptions popt;
-      popt.weights = projection_weights(sp, {k.index}, 1e-4, L);
-      auto part_at = [&](double s) -> std::shared_ptr<const PartShape> {
-        Eigen::VectorXd t = start.p;
-        t[k.index] += s;
-        const optimize::ProjectionResult p = optimize::project(sp.constraints, t, start.p, sp.lower, sp.upper, {}, popt);
-        EXPECT_TRUE(p.done) << k.what << " s = " << s;
-        const ModifyResult m = modify_part(*c.part, model, sp, p.p);
-        EXPECT_TRUE(m.done) << k.what << " s = " << s << ": " << m.message;
-        return m.part;
-      };
+      const testing::DesignLine line(*c.part, model, sp, k.index, start.p, L);
+      auto part_at = [&](double s) { return line.at(s); };
       const ComplianceState at = compliance_start(part_at(0), c.setup);
       ASSERT_TRUE(at.done) << at.message;
       const FailureValue v = failure_value(at, c.setup, fo, true);
@@ -153,14 +111,14 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
       EXPECT_GT(d.cells_changed, 0) << k.what;
       // Independent: central differences of the whole pipeline (re-cut, solve, J), Richardson
       // extrapolated from the steps H and H/2.
-      double fds[2];
-      for (int level = 0; level < 2; ++level) {
-        const double H = (level ? 1e-4 : 2e-4) * L;
-        const ComplianceState plus = compliance_at(part_at(H), at, c.setup), minus = compliance_at(part_at(-H), at, c.setup);
-        ASSERT_TRUE(plus.done && minus.done) << k.what << ": " << plus.message << " / " << minus.message;
-        fds[level] = (failure_value(plus, c.setup, fo).objective - failure_value(minus, c.setup, fo).objective) / (2 * H);
-      }
-      const double fd = (4 * fds[1] - fds[0]) / 3;
+      double fds[1];
+      const double fd = testing::richardson(
+          [&](double H) {
+            const ComplianceState side = compliance_at(part_at(H), at, c.setup);
+            EXPECT_TRUE(side.done) << k.what << ": " << side.message;
+            return side.done ? failure_value(side, c.setup, fo).objective : std::nan("");
+          },
+          2e-4 * L, fds);
       std::printf("%s (normalize %d): J = %.10g, max σ_vm %.6g, adjoint %.10g, FD %.10g (H: %.10g), relative %.2e, %d cells, "
                   "%d switches\n",
                   k.what, normalize, v.objective, v.max_von_mises, d.derivative, fd, fds[0],

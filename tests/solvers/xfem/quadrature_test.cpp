@@ -18,6 +18,7 @@
 #include "xfem/nnls.h"
 #include "xfem/quadrature_rule.h"
 #include "xfem/volume_rules.h"
+#include "plane_map.h"
 
 namespace parafab::xfem {
 namespace {
@@ -27,19 +28,7 @@ const double kPi = std::acos(-1.0);
 // ---------------------------------------------------------------------------------------
 // Surface maps.
 
-/// σ(u, v) = origin + u e1 + v e2.
-class PlaneMap : public SurfaceMap {
- public:
-  PlaneMap(Vec3 origin, Vec3 e1, Vec3 e2) : o_(origin), e1_(e1), e2_(e2) {}
-  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
-    X = o_ + u * e1_ + v * e2_;
-    Xu = e1_;
-    Xv = e2_;
-  }
-
- private:
-  Vec3 o_, e1_, e2_;
-};
+using testing::PlaneMap;  // σ(u, v) = origin + u e1 + v e2 (plane_map.h)
 
 /// σ(θ, φ) = c + R (sin φ cos θ, sin φ sin θ, cos φ); σθ × σφ points inwards.
 class SphereMap : public SurfaceMap {

@@ -14,6 +14,7 @@
 
 #include "xfem/area_rules.h"
 #include "xfem/linear_xfem.h"
+#include "plane_map.h"
 
 namespace parafab::xfem {
 namespace {
@@ -76,19 +77,7 @@ TEST(BulkShapeDensity, IsTheWeightGradientOfPlainHex8) { check(ElementType::Hex8
 TEST(BulkShapeDensity, IsTheWeightGradientOfHex8WithCondensedIncompatibleModes) { check(ElementType::Hex8, true, 2e-10); }
 TEST(BulkShapeDensity, IsTheWeightGradientOfHex27) { check(ElementType::Hex27, false, 2e-10); }
 
-// σ(u, v) = origin + u e1 + v e2.
-class PlaneMap : public SurfaceMap {
- public:
-  PlaneMap(const Vec3& origin, const Vec3& e1, const Vec3& e2) : o_(origin), e1_(e1), e2_(e2) {}
-  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
-    X = o_ + u * e1_ + v * e2_;
-    Xu = e1_;
-    Xv = e2_;
-  }
-
- private:
-  Vec3 o_, e1_, e2_;
-};
+using testing::PlaneMap;
 
 void check_boundary(ElementType type) {
   LinearXfemOptions o;
