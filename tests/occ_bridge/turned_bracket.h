@@ -15,6 +15,7 @@
 
 #include "face_lookup.h"
 #include "occt_mass_properties.h"
+#include "optimize/projection.h"
 #include "part_reader.h"
 #include "shape_compliance.h"
 #include "shape_modify.h"
