@@ -264,6 +264,15 @@ def run_optimize(check):
     check("optimize_panel_checked", sorted(panel.checked_parameters()) == sorted(
         [(spoke, "offset"), (hole, "radius")]), panel.checked_parameters())
     check("optimize_objective_default", panel.objective.currentData() == "center_of_mass")
+    # Min / Max cells of a checked parameter reach the job as absolute bounds.
+    panel.set_bounds(hole, "radius", 4.0, 5.5)
+    bounded = dict((p[0], p) for p in panel.checked_parameters())[hole]
+    check("optimize_panel_bound_cells", bounded == (hole, "radius", "4.0", "5.5"), bounded)
+    from parafab_wb import optimize_feature
+    job = optimize_feature.build_job(part.Shape, panel.options())
+    entry = [e for e in job["parameters"] if e["parameter"] == "radius"]
+    check("optimize_panel_bounds_in_job", len(entry) == 1 and entry[0].get("min") == 4.0 and entry[0].get("max") == 5.5,
+          job["parameters"])
     opts = panel.options()
     check("optimize_panel_symmetry_groups", opts["mirror_faces"] == [] and opts["pattern_faces"] == []
           and tuple(opts["mirror_plane_normal"]) == (1.0, 0.0, 0.0)
@@ -278,6 +287,9 @@ def run_optimize(check):
     check("optimize_result_added", new is not None and len(doc.Objects) == len(names) + 1
           and new.Label == "Wheel_optimized" and new.Shape.isValid())
     check("optimize_original_untouched", abs(part.Shape.Volume - volume) < 1e-9 * volume)
+    hole_index = int(hole[4:]) - 1
+    check("optimize_bound_held", 4.0 - 1e-9 <= new.Shape.Faces[hole_index].Surface.Radius <= 5.5 + 1e-9,
+          new.Shape.Faces[hole_index].Surface.Radius)
     check("optimize_improved", new.FinalObjective < new.InitialObjective,
           (new.InitialObjective, new.FinalObjective))
     check("optimize_progress_full", panel.progress.value() == 100, panel.progress.value())
