@@ -396,8 +396,10 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[e]);
     const double h = el.box.size().minCoeff();
     for (const xfem::CutPatch& patch : el.subvolume->patches) {
-      // Bulk: Reynolds over the patches of moving faces.
-      if (const optimize::ParameterBlock* block = sp.block(patch.source_face)) {
+      // Bulk: Reynolds over the patches of moving faces (a support's or load's own motion is
+      // flagged above, so its patches are not integrated here).
+      const optimize::ParameterBlock* block = conditioned.count(patch.source_face) ? nullptr : sp.block(patch.source_face);
+      if (block) {
         const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
         if (!sr.points.empty()) {
           out.used = true;

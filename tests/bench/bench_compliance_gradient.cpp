@@ -17,6 +17,7 @@
 #include <string>
 
 #include "face_lookup.h"
+#include "bench_arguments.h"
 #include "occt_mass_properties.h"
 #include "optimize/projection.h"
 #include "part_reader.h"
@@ -36,14 +37,9 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out = ".", samples;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--quick") quick = true;
-    else if (a == "--out" && i + 1 < argc) out = argv[++i];
-    else samples = a;
-  }
+  const BenchArguments args = bench_arguments(argc, argv);
+  const bool quick = args.quick;
+  const std::string &out = args.out, &samples = args.samples;
   const Vec3 centre(30, 20, 25), axis = Vec3(1, 2, 3).normalized();
   const double degrees = 11;
   auto turned = [&](const Vec3& X) { return Vec3(centre + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - centre)); };

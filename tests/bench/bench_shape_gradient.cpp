@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "bench_arguments.h"
 #include "occt_mass_properties.h"
 #include "optimize/projection.h"
 #include "part_reader.h"
@@ -19,14 +20,9 @@ using namespace parafab;
 using namespace parafab::occ;
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out = ".", samples;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--quick") quick = true;
-    else if (a == "--out" && i + 1 < argc) out = argv[++i];
-    else samples = a;
-  }
+  const BenchArguments args = bench_arguments(argc, argv);
+  const bool quick = args.quick;
+  const std::string &out = args.out, &samples = args.samples;
   struct Case {
     std::string part, face_type;
     double radius;  // cylinder radius or plane offset |d| to pick the face

@@ -38,10 +38,7 @@ TEST(ShapeCompliance, SemiAnalyticGradientMatchesFiniteDifferencesOfTheFullPipel
   BracketCase c;
   const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
-  const FaceModel& model = space.model;
-  const ShapeParameters& sp = space.parameters;
-  const optimize::ProjectionResult& start = space.start;
-  const double L = space.size;
+  const auto& [model, sp, start, L] = space;
   struct Case {
     const char* what;
     int index;
@@ -103,10 +100,7 @@ TEST(ShapeCompliance, ExactGradientMatchesFiniteDifferencesOfTheFullPipeline) {
     if (!dead_weight) fixed.push_back(c.setup.tractions[0].face);
     const testing::DesignSpace space(*c.part, fixed);
     ASSERT_TRUE(space.start.done);
-    const FaceModel& model = space.model;
-    const ShapeParameters& sp = space.parameters;
-    const optimize::ProjectionResult& start = space.start;
-    const double L = space.size;
+    const auto& [model, sp, start, L] = space;
     struct Case {
       const char* what;
       int index;

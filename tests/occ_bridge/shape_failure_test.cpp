@@ -79,10 +79,7 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   BracketCase c;
   const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
-  const FaceModel& model = space.model;
-  const ShapeParameters& sp = space.parameters;
-  const optimize::ProjectionResult& start = space.start;
-  const double L = space.size;
+  const auto& [model, sp, start, L] = space;
   struct Case {
     const char* what;
     int index;
