@@ -127,6 +127,26 @@ NurbsSurface nurbs_of(const TopoDS_Face& nface, int index) {
   return n;
 }
 
+// The B-rep's own B-spline surface of a face (located, not segmented), or count_u = 0 for other
+// surfaces and periodic B-splines (whose poles wrap around and are not parameters here).
+NurbsSurface own_bspline(const TopoDS_Face& face) {
+  NurbsSurface n;
+  const auto bs = Handle(Geom_BSplineSurface)::DownCast(BRep_Tool::Surface(face));
+  if (bs.IsNull() || bs->IsUPeriodic() || bs->IsVPeriodic()) return n;
+  n.degree_u = bs->UDegree();
+  n.degree_v = bs->VDegree();
+  n.count_u = bs->NbUPoles();
+  n.count_v = bs->NbVPoles();
+  for (double k : bs->UKnotSequence()) n.knots_u.push_back(k);
+  for (double k : bs->VKnotSequence()) n.knots_v.push_back(k);
+  for (int i = 1; i <= n.count_u; ++i)
+    for (int j = 1; j <= n.count_v; ++j) {
+      const double w = bs->Weight(i, j);
+      n.poles.emplace_back(w * bs->Pole(i, j).X(), w * bs->Pole(i, j).Y(), w * bs->Pole(i, j).Z(), w);
+    }
+  return n;
+}
+
 // Parameters at which to sample a pcurve: its ends for a line, its knots for a polyline
 // (degree-1 B-spline), else `samples` equal steps.
 std::vector<double> curve_samples(const Geom2dAdaptor_Curve& c, int samples) {
@@ -390,6 +410,7 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
     f.area = props.Mass();
     try {
       f.nurbs = nurbs_of(nfaces[i], i);
+      if (f.primitive.type == SurfaceType::bspline) f.bspline = own_bspline(part.face(i));
       f.loops = loops_of(nfaces[i], nedges, options.loop_samples_per_edge, i);
     } catch (const Standard_Failure& e) {
       PARAFAB_INPUT_ERROR(part.source << ": face " << i << ": NURBS form failed: " << e.GetMessageString());

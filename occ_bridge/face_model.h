@@ -66,6 +66,9 @@ struct FaceInfo {
   std::array<double, 4> uv_bounds{};  ///< u_min, u_max, v_min, v_max (= the NURBS's knot range)
   double area = 0;
   NurbsSurface nurbs;           ///< the face's surface restricted to uv_bounds, exact (rational) form
+  /// B-spline faces on a non-periodic surface: the B-rep's own surface, unsegmented, in world
+  /// coordinates; its poles are shape parameters ("pole i j x", §6.5.1). count_u == 0 otherwise.
+  NurbsSurface bspline;
   std::vector<TrimLoop> loops;  ///< outer loop first
 };
 

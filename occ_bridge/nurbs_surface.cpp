@@ -94,4 +94,22 @@ void evaluate(const NurbsSurface& s, double u, double v, Eigen::Vector3d& X, Eig
   Xv = (qv.head<3>() - qv[3] * X) / q[3];
 }
 
+std::vector<PoleInfluence> pole_influence(const NurbsSurface& s, double u, double v) {
+  check(s);
+  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u),
+              bv = basis(s.knots_v, s.degree_v, s.count_v, v);
+  std::vector<PoleInfluence> r;
+  r.reserve((s.degree_u + 1) * (s.degree_v + 1));
+  double W = 0;
+  for (int a = 0; a <= s.degree_u; ++a)
+    for (int b = 0; b <= s.degree_v; ++b) {
+      const int index = (bu.span - s.degree_u + a) * s.count_v + bv.span - s.degree_v + b;
+      const double wN = s.poles[index][3] * bu.value[a] * bv.value[b];
+      W += wN;
+      r.push_back({index, wN});
+    }
+  for (PoleInfluence& x : r) x.value /= W;
+  return r;
+}
+
 }  // namespace parafab::occ

@@ -28,4 +28,13 @@ Eigen::Vector4d evaluate_projective(const NurbsSurface& s, double u, double v);
 void evaluate(const NurbsSurface& s, double u, double v, Eigen::Vector3d& X, Eigen::Vector3d& Xu,
               Eigen::Vector3d& Xv);
 
+/// ∂X/∂P_ij at (u, v) for the Euclidean poles P_ij with their weights held: the rational basis
+/// R_ij = w_ij N_i(u) N_j(v) / Σ w N N (Piegl & Tiller Eq. 4.15) of the (degree_u + 1)(degree_v + 1)
+/// poles that can be non-zero there; `index` is i * count_v + j.
+struct PoleInfluence {
+  int index = 0;
+  double value = 0;
+};
+std::vector<PoleInfluence> pole_influence(const NurbsSurface& s, double u, double v);
+
 }  // namespace parafab::occ

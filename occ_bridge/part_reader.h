@@ -50,4 +50,8 @@ struct PartInfo {
 
 PartInfo part_info(const PartShape& part);
 
+/// What BRepCheck_Analyzer finds wrong with the part, naming the first failing face, edge,
+/// vertex, wire or shell ("BRepCheck_SelfIntersectingWire on face 3"); "" when it is valid.
+std::string check_failure_description(const PartShape& part);
+
 }  // namespace parafab::occ

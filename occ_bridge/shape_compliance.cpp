@@ -334,6 +334,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   for (const auto& d : setup.dirichlet) conditioned.insert(d.face);
   for (const auto& t : at.tractions) conditioned.insert(t.face);
   for (int f : conditioned) flag(f);
+  // B-spline poles: V_n needs each boundary point's (u, v) on the face; not done here yet.
+  for (const PoleBlock& b : sp.pole_blocks)
+    for (int k = 0; k < b.size(); ++k) r.incomplete[b.offset + k] = 1;
   std::map<int, std::vector<int>> neighbours;  // support/load face → moving faces sharing an edge with it
   std::vector<double> sign(part.face_count(), 0.0);
   {

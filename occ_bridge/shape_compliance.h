@@ -88,7 +88,8 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// as in the semi-analytic route. Where F is tangent to Γ (|n_F·ν| < 0.2) and F is a cylinder
 /// (a fillet running into a support), the edge moves with the cylinder's axis (the null-space
 /// completion of Fig. 6.12, case 2). Not included, flagged `incomplete`: a support's or load's own
-/// motion, and other tangent contacts with a support or load (a torus or sphere, a cone).
+/// motion, other tangent contacts with a support or load (a torus or sphere, a cone), and the
+/// poles of B-spline faces.
 struct ComplianceGradient {
   bool done = false;
   std::string message;

@@ -7,7 +7,10 @@
 #include <BRepTools.hxx>
 #include <BRep_Tool.hxx>
 #include <GProp_GProps.hxx>
+#include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2d_Curve.hxx>
+#include <TColStd_Array1OfReal.hxx>
+#include <algorithm>
 #include <TopExp_Explorer.hxx>
 #include <TopoDS.hxx>
 #include <chrono>
@@ -67,6 +70,59 @@ Moments flux(const Vec3& X, const Vec3& n) {
   return m;
 }
 
+// The surface's knots (breaks of every continuity order) strictly inside (lo, hi) along u (or v): the knots of a B-spline.
+std::vector<double> interior_breaks(const BRepAdaptor_Surface& s, bool along_u, double lo, double hi) {
+  const int n = along_u ? s.NbUIntervals(GeomAbs_CN) : s.NbVIntervals(GeomAbs_CN);
+  std::vector<double> r;
+  if (n <= 1) return r;
+  TColStd_Array1OfReal t(1, n + 1);
+  if (along_u)
+    s.UIntervals(t, GeomAbs_CN);
+  else
+    s.VIntervals(t, GeomAbs_CN);
+  const double eps = 1e-12 * (1 + std::abs(hi - lo));
+  for (int i = 1; i <= n + 1; ++i)
+    if (t(i) > lo + eps && t(i) < hi - eps) r.push_back(t(i));
+  return r;
+}
+
+// [f, ..., l]: the pcurve's own knots and the parameters where its v crosses one of
+// `v_knots` (sign changes on 64 samples, then bisection), sorted.
+std::vector<double> edge_pieces(const Handle(Geom2d_Curve)& c, double f, double l, const std::vector<double>& v_knots) {
+  std::vector<double> t = {f, l};
+  const Geom2dAdaptor_Curve a(c, f, l);
+  if (const int n = a.NbIntervals(GeomAbs_CN); n > 1) {
+    TColStd_Array1OfReal T(1, n + 1);
+    a.Intervals(T, GeomAbs_CN);
+    for (int i = 2; i <= n; ++i) t.push_back(T(i));
+  }
+  const int samples = 64;
+  for (double knot : v_knots) {
+    double prev = c->Value(f).Y() - knot;
+    for (int k = 1; k <= samples; ++k) {
+      const double t1 = f + (l - f) * k / samples, now = c->Value(t1).Y() - knot;
+      if (prev == 0 && k > 1) t.push_back(t1 - (l - f) / samples);
+      if ((prev < 0 && now > 0) || (prev > 0 && now < 0)) {
+        double lo = t1 - (l - f) / samples, hi = t1;
+        for (int it = 0; it < 60; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          ((c->Value(mid).Y() - knot < 0) == (prev < 0) ? lo : hi) = mid;
+        }
+        t.push_back(0.5 * (lo + hi));
+      }
+      prev = now;
+    }
+  }
+  std::sort(t.begin(), t.end());
+  const double eps = 1e-12 * (1 + std::abs(l - f));
+  std::vector<double> r;
+  for (double x : t)
+    if (r.empty() || x > r.back() + eps) r.push_back(x);
+  if (r.size() < 2) r = {f, l};
+  r.back() = l;
+  return r;
+}
+
 }  // namespace
 
 MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameters& sp, const Eigen::VectorXd& p,
@@ -88,6 +144,7 @@ MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameter
     const TopoDS_Face face = TopoDS::Face(original.Oriented(TopAbs_FORWARD));
     const BRepAdaptor_Surface surface(face, false);
     const optimize::ParameterBlock* block = sp.block(fi);
+    const PoleBlock* poles = sp.poles(fi);
     double u0, u1, v0, v1;
     BRepTools::UVBounds(face, u0, u1, v0, v1);
     // h(u, v)·du dv summed into the moments and gradient.
@@ -102,6 +159,12 @@ MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameter
       const double dA = weight * jac;
       r.moments += dA * flux(X, n);
       ++r.points;
+      if (poles) {  // ∂X/∂P_ij = R_ij(u, v) I: V_n = R_ij n_c for coordinate c of pole (i, j)
+        const Moments g = monomials(X);
+        for (const PoleInfluence& w : pole_influence(poles->surface, u, v))
+          for (int c = 0; c < 3; ++c)
+            if (const double vn = w.value * n[c]; vn != 0) r.gradient.col(poles->offset + 3 * w.index + c) += (dA * vn) * g;
+      }
       if (!block) return;
       const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, X);
       const int nb = block->size();
@@ -114,25 +177,37 @@ MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameter
         if (vn != 0) r.gradient.col(block->offset + k) += (dA * vn) * g;
       }
     };
+    // Knots of a B-spline surface (where h is only C¹ or less) split the Gauss rules: the inner
+    // integral at the u knots, each edge where its pcurve crosses a v knot or has its own knot.
+    const std::vector<double> u_knots = interior_breaks(surface, true, u0, u1), v_knots = interior_breaks(surface, false, v0, v1);
     for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
       const TopoDS_Edge& edge = TopoDS::Edge(e.Current());
       double f, l;
       const Handle(Geom2d_Curve) c = BRep_Tool::CurveOnSurface(edge, face, f, l);
       PARAFAB_VERIFY(!c.IsNull(), part.source << ": face " << fi << ": an edge has no pcurve");
       const double dir = edge.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
-      for (int sgm = 0; sgm < options.edge_segments; ++sgm)
-        for (int q = 0; q < options.edge_points; ++q) {
-          const double t = f + (l - f) * (sgm + ex[q]) / options.edge_segments;
-          gp_Pnt2d uv;
-          gp_Vec2d d;
-          c->D1(t, uv, d);
-          const double dvdt = d.Y() * dir * (l - f) / options.edge_segments * ew[q];
-          if (dvdt == 0) continue;
-          // ∫_{u0}^{u} h(s, v) ds by Gauss in s.
-          const double span = uv.X() - u0;
-          if (span == 0) continue;
-          for (int k = 0; k < options.inner_points; ++k) point(u0 + span * ix[k], uv.Y(), dvdt * span * iw[k]);
-        }
+      const std::vector<double> pieces = edge_pieces(c, f, l, v_knots);
+      for (size_t piece = 0; piece + 1 < pieces.size(); ++piece) {
+        const double a = pieces[piece], b = pieces[piece + 1];
+        for (int sgm = 0; sgm < options.edge_segments; ++sgm)
+          for (int q = 0; q < options.edge_points; ++q) {
+            const double t = a + (b - a) * (sgm + ex[q]) / options.edge_segments;
+            gp_Pnt2d uv;
+            gp_Vec2d d;
+            c->D1(t, uv, d);
+            const double dvdt = d.Y() * dir * (b - a) / options.edge_segments * ew[q];
+            if (dvdt == 0) continue;
+            // ∫_{u0}^{u} h(s, v) ds by Gauss in s, piece by piece between the u knots.
+            double lo = u0;
+            for (size_t k = 0; k <= u_knots.size(); ++k) {
+              const double hi = k < u_knots.size() ? std::min(u_knots[k], uv.X()) : uv.X();
+              if (hi <= lo) continue;
+              const double span = hi - lo;
+              for (int j = 0; j < options.inner_points; ++j) point(lo + span * ix[j], uv.Y(), dvdt * span * iw[j]);
+              lo = hi;
+            }
+          }
+      }
     }
   }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -15,6 +15,7 @@
 #include <GeomAPI_IntSS.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomProjLib.hxx>
+#include <Geom_BSplineSurface.hxx>
 #include <Geom_Circle.hxx>
 #include <Geom_ConicalSurface.hxx>
 #include <Geom_CylindricalSurface.hxx>
@@ -40,6 +41,7 @@
 
 #include "common/error.h"
 #include "occt_shape.h"
+#include "part_reader.h"
 
 namespace parafab::occ {
 
@@ -88,10 +90,25 @@ class ParameterModification : public BRepTools_Modification {
     const int nf = part.face_count();
     surfaces_.resize(nf);
     modified_.assign(nf, false);
+    pole_face_.assign(nf, false);
     primitives_.resize(nf);
     for (int f = 0; f < nf; ++f) {
       primitives_[f] = model.faces[f].primitive;
       surfaces_[f] = BRep_Tool::Surface(part.face(f));
+      if (const PoleBlock* pb = sp.poles(f)) {  // a B-spline face: the same surface with its poles moved
+        const Eigen::VectorXd old = sp.initial.segment(pb->offset, pb->size());
+        if ((p.segment(pb->offset, pb->size()) - old).cwiseAbs().maxCoeff() <= Precision::Confusion()) continue;
+        const auto moved = Handle(Geom_BSplineSurface)::DownCast(surfaces_[f]->Copy());
+        if (moved.IsNull()) throw Failure{"face " + std::to_string(f) + " is no longer a B-spline surface"};
+        for (int i = 1; i <= pb->count_u; ++i)
+          for (int j = 1; j <= pb->count_v; ++j)
+            moved->SetPole(i, j, gp_Pnt(p[pb->entry(i, j, 0)], p[pb->entry(i, j, 1)], p[pb->entry(i, j, 2)]));
+        surfaces_[f] = moved;
+        modified_[f] = true;
+        pole_face_[f] = true;
+        ++modified_count;
+        continue;
+      }
       const auto* b = sp.block(f);
       if (!b) continue;
       // Moves below OCCT's confusion tolerance (Precision::Confusion, 1e-7) are not written: the
@@ -116,6 +133,7 @@ class ParameterModification : public BRepTools_Modification {
       curves_[e] = BRep_Tool::Curve(part.edge(e), f, l);
       if (info.degenerated) continue;
       if (!modified_[info.faces[0]] && !modified_[info.faces[1]]) continue;
+      if (stays_on_moved_poles(e, info)) continue;
       curves_[e] = new_curve(e, info);
       edge_modified_[e] = true;
     }
@@ -125,8 +143,13 @@ class ParameterModification : public BRepTools_Modification {
     for (int v = 0; v < vertices.Extent(); ++v) {
       const TopoDS_Vertex& V = TopoDS::Vertex(vertices(v + 1));
       points_[v] = BRep_Tool::Pnt(V);
+      // A vertex moves when an analytic face at it moves or one of its edges got a new curve.
       bool any = false;
-      for (const TopoDS_Shape& F : vertex_faces_.FindFromKey(V)) any = any || modified_[part.face_index(F)];
+      for (const TopoDS_Shape& F : vertex_faces_.FindFromKey(V)) {
+        const int f = part.face_index(F);
+        any = any || (modified_[f] && !pole_face_[f]);
+      }
+      for (const TopoDS_Shape& E : vertex_edges_.FindFromKey(V)) any = any || edge_modified_[part.edge_index(E)];
       if (!any) continue;
       points_[v] = new_point(V);
       vertex_modified_[v] = true;
@@ -172,6 +195,10 @@ class ParameterModification : public BRepTools_Modification {
     double of, ol;
     const Handle(Geom2d_Curve) old = BRep_Tool::CurveOnSurface(E, F, of, ol);
     tol = BRep_Tool::Tolerance(E);
+    if (!edge_modified_[e] && pole_face_[f]) {  // the old pcurve on the moved poles: see stays_on_moved_poles
+      C = Handle(Geom2d_Curve)::DownCast(old->Copy());
+      return Standard_True;
+    }
     if (BRep_Tool::Degenerated(E)) {  // a pole: same (u, v) line on the moved surface
       C = Handle(Geom2d_Curve)::DownCast(old->Copy());
       return Standard_True;
@@ -220,6 +247,31 @@ class ParameterModification : public BRepTools_Modification {
   }
 
  private:
+  // An edge whose moved faces are all B-spline faces with moved poles keeps its curve and its
+  // pcurves when the moved surfaces still pass through the old curve at the old pcurves (the
+  // moved poles' basis functions vanish there: an interior pole of a clamped surface leaves its
+  // boundary alone), checked at 17 points to 1e-9 of the part's scale.
+  bool stays_on_moved_poles(int e, const EdgeInfo& info) const {
+    const TopoDS_Edge& E = part_.edge(e);
+    double f, l;
+    const Handle(Geom_Curve) c = BRep_Tool::Curve(E, f, l);
+    if (c.IsNull()) return false;
+    for (int fi : info.faces) {
+      if (fi < 0 || !modified_[fi]) continue;
+      if (!pole_face_[fi]) return false;
+      double pf, pl;
+      const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(E, part_.face(fi), pf, pl);
+      if (pc.IsNull()) return false;
+      for (int k = 0; k <= 16; ++k) {
+        const double t = f + (l - f) * k / 16.0, tp = pf + (pl - pf) * k / 16.0;
+        const gp_Pnt2d uv = pc->Value(tp);
+        const gp_Pnt X = c->Value(t);
+        if (surfaces_[fi]->Value(uv.X(), uv.Y()).Distance(X) > 1e-9 * (1 + X.XYZ().Modulus())) return false;
+      }
+    }
+    return true;
+  }
+
   // The parameter of the (new) vertex on the (new) curve of edge e, nearest `old` modulo a period.
   double parameter(const TopoDS_Vertex& V, int e, double old) const {
     const int v = part_.vertices.FindIndex(V) - 1;
@@ -416,7 +468,7 @@ class ParameterModification : public BRepTools_Modification {
 
   const PartShape& part_;
   std::vector<Handle(Geom_Surface)> surfaces_;
-  std::vector<bool> modified_, edge_modified_, vertex_modified_;
+  std::vector<bool> modified_, pole_face_, edge_modified_, vertex_modified_;
   std::vector<Primitive> primitives_;
   std::vector<Handle(Geom_Curve)> curves_;
   std::vector<gp_Pnt> points_;
@@ -448,9 +500,9 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
     if (!modifier.IsDone()) return finish("BRepTools_Modifier failed");
     TopoDS_Shape result = modifier.ModifiedShape(part.shape);
     BRepLib::SameParameter(result, 1e-7, Standard_True);
-    BRepCheck_Analyzer check(result);
-    if (!check.IsValid()) return finish("the modified solid fails BRepCheck_Analyzer");
     std::shared_ptr<const PartShape> out = make_part(result, part.source + " (optimized)");
+    if (!BRepCheck_Analyzer(result).IsValid())
+      return finish("the modified solid fails BRepCheck_Analyzer: " + check_failure_description(*out));
     if (out->face_count() != part.face_count() || out->edge_count() != part.edge_count() ||
         out->vertices.Extent() != part.vertices.Extent())
       return finish("the modified solid has another topology");

@@ -100,18 +100,45 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     sp.blocks.push_back({f.index, k, offset});
     offset += optimize::block_size(k);
   }
+  sp.pole_block_of_face.assign(nf, -1);
+  const int analytic_entries = offset;
+  for (const FaceInfo& f : model.faces) {
+    if (f.primitive.type != SurfaceType::bspline) continue;
+    if (f.bspline.count_u == 0) {
+      sp.notes.push_back("face " + std::to_string(f.index) + ": its B-spline surface is periodic; its poles are not parameters");
+      continue;
+    }
+    sp.pole_block_of_face[f.index] = static_cast<int>(sp.pole_blocks.size());
+    sp.pole_blocks.push_back({f.index, f.bspline.count_u, f.bspline.count_v, offset, f.bspline});
+    offset += sp.pole_blocks.back().size();
+  }
   sp.initial.resize(offset);
   sp.lower = Eigen::VectorXd::Constant(offset, -1e19);
   sp.upper = Eigen::VectorXd::Constant(offset, 1e19);
+  sp.names.resize(analytic_entries);
+  for (const PoleBlock& b : sp.pole_blocks) {
+    const NurbsSurface& s = model.faces[b.face].bspline;
+    for (int i = 1; i <= b.count_u; ++i)
+      for (int j = 1; j <= b.count_v; ++j) {
+        const Eigen::Vector4d& q = s.pole(i - 1, j - 1);
+        for (int c = 0; c < 3; ++c) sp.initial[b.entry(i, j, c)] = q[c] / q[3];
+      }
+  }
   for (const auto& b : sp.blocks) {
     write_block(b, model.faces[b.face].primitive, sp.initial);
     const auto& names = optimize::block_parameter_names(b.kind);
     for (int k = 0; k < b.size(); ++k) {
-      sp.names.push_back("face " + std::to_string(b.face) + " " + optimize::to_string(b.kind) + " " + names[k]);
+      sp.names[b.offset + k] = "face " + std::to_string(b.face) + " " + optimize::to_string(b.kind) + " " + names[k];
       if (names[k].find("radius") != std::string::npos) sp.lower[b.offset + k] = options.min_radius;
       if (names[k] == "half-angle") sp.lower[b.offset + k] = 1e-3, sp.upper[b.offset + k] = M_PI / 2 - 1e-3;
     }
   }
+  for (const PoleBlock& b : sp.pole_blocks)
+    for (int i = 1; i <= b.count_u; ++i)
+      for (int j = 1; j <= b.count_v; ++j)
+        for (int c = 0; c < 3; ++c)
+          sp.names.push_back("face " + std::to_string(b.face) + " bspline pole " + std::to_string(i) + " " +
+                             std::to_string(j) + " " + "xyz"[c]);
   // Fixed faces: the user's, and analytic faces tangent to a face without parameters.
   std::set<int> fixed;
   for (int f : options.fixed_faces) {
@@ -129,11 +156,14 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
       fixed.insert(r.faces[1]);
     }
   }
-  for (int f : fixed)
-    if (const auto* b = sp.block(f)) {
-      sp.fixed_faces.push_back(f);
-      for (int k = 0; k < b->size(); ++k) sp.lower[b->offset + k] = sp.upper[b->offset + k] = sp.initial[b->offset + k];
-    }
+  for (int f : fixed) {
+    int first = -1, size = 0;
+    if (const auto* b = sp.block(f)) first = b->offset, size = b->size();
+    if (const auto* b = sp.poles(f)) first = b->offset, size = b->size();
+    if (first < 0) continue;
+    sp.fixed_faces.push_back(f);
+    for (int k = first; k < first + size; ++k) sp.lower[k] = sp.upper[k] = sp.initial[k];
+  }
   auto is_fixed = [&](int face) { return fixed.count(face) > 0; };
 
   sp.constraints = optimize::ConstraintSystem(offset);
@@ -263,8 +293,20 @@ Eigen::VectorXd projection_weights(const ShapeParameters& sp, const std::vector<
 }
 
 int parameter_index(const ShapeParameters& sp, int face, const std::string& parameter) {
+  if (const PoleBlock* pb = sp.poles(face)) {
+    std::istringstream in(parameter);
+    std::string word, coordinate, rest;
+    int i = 0, j = 0;
+    if (in >> word >> i >> j >> coordinate && !(in >> rest) && word == "pole" && coordinate.size() == 1 &&
+        std::string("xyz").find(coordinate[0]) != std::string::npos && i >= 1 && i <= pb->count_u && j >= 1 &&
+        j <= pb->count_v)
+      return pb->entry(i, j, coordinate[0] - 'x');
+    PARAFAB_INPUT_ERROR("face " << face << " (bspline, " << pb->count_u << " x " << pb->count_v
+                                << " poles) has no parameter '" << parameter << "'; its parameters are 'pole i j x|y|z' with i in 1.."
+                                << pb->count_u << " and j in 1.." << pb->count_v);
+  }
   const auto* b = sp.block(face);
-  PARAFAB_VERIFY(b, "face " << face << " has no shape parameters (not an analytic face of the part, or absent)");
+  PARAFAB_VERIFY(b, "face " << face << " has no shape parameters (not an analytic or non-periodic B-spline face of the part, or absent)");
   const auto& names = optimize::block_parameter_names(b->kind);
   for (int k = 0; k < b->size(); ++k)
     if (names[k] == parameter) return b->offset + k;

@@ -51,9 +51,26 @@ struct ShapeParameterOptions {
   double min_radius = 1e-3;  ///< lower bound of every radius (units of the part)
 };
 
+/// The poles of a B-spline face as entries of p (§6.5.1: "B-spline poles for free-form faces"):
+/// pole (i, j), i = 1..count_u along u, j = 1..count_v along v (OCCT's and FreeCAD's numbering),
+/// coordinate c = 0, 1, 2 (x, y, z, world) at offset + 3 ((i − 1) count_v + j − 1) + c; weights
+/// and knots stay. q(p) is then p itself, so its Jacobian is the identity.
+struct PoleBlock {
+  int face = -1;
+  int count_u = 0, count_v = 0;
+  int offset = 0;
+  NurbsSurface surface;  ///< the surface as read (knots and weights stay; its poles are p0's)
+  int size() const { return 3 * count_u * count_v; }
+  int entry(int i, int j, int c) const { return offset + 3 * ((i - 1) * count_v + j - 1) + c; }
+};
+
 struct ShapeParameters {
   std::vector<optimize::ParameterBlock> blocks;  ///< one per analytic face
   std::vector<int> block_of_face;                ///< per face: index into blocks, or −1
+  /// One per B-spline face on a non-periodic surface, after all analytic blocks in p. A face
+  /// tangent (G1) to another keeps its poles fixed, as its neighbours keep theirs.
+  std::vector<PoleBlock> pole_blocks;
+  std::vector<int> pole_block_of_face;           ///< per face: index into pole_blocks, or −1
   std::vector<std::string> names;                ///< per entry of p: "face 7 cylinder radius"
   Eigen::VectorXd initial, lower, upper;         ///< p of the part as read; bounds (fixed: equal)
   optimize::ConstraintSystem constraints;
@@ -67,6 +84,11 @@ struct ShapeParameters {
                ? &blocks[block_of_face[face]]
                : nullptr;
   }
+  const PoleBlock* poles(int face) const {
+    return face >= 0 && face < static_cast<int>(pole_block_of_face.size()) && pole_block_of_face[face] >= 0
+               ? &pole_blocks[pole_block_of_face[face]]
+               : nullptr;
+  }
 };
 
 /// Builds p, its names, bounds and c_para from the face model. Throws parafab::Error naming
@@ -74,7 +96,8 @@ struct ShapeParameters {
 /// and for a mirror or rotation the part as read does not satisfy.
 ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParameterOptions& options = {});
 
-/// Index in p of (face, parameter name); throws parafab::Error listing the face's parameters.
+/// Index in p of (face, parameter name): a block parameter, or "pole i j x|y|z" on a B-spline
+/// face; throws parafab::Error listing the face's parameters.
 int parameter_index(const ShapeParameters& parameters, int face, const std::string& parameter);
 
 /// Weights of the projection distance ½ Σ w_i (p_i − p̃_i)²: lengths (offsets, points, radii)

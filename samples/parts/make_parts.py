@@ -138,10 +138,45 @@ def flange():
     return s.removeSplitter()
 
 
+def bump_block():
+    # A block 60 x 40 whose top is a free-form face: the cubic x cubic B-spline with 6 x 5 poles
+    # on the regular grid x = 12 i, y = 10 j, z = 12 + 0.05 x, the 12 interior poles raised by
+    # 2 + 0.5 i (a bump rising towards +x); the sides and the bottom are planes. The top's
+    # boundary rows of poles lie in the side planes, so its edges are its iso-curves and moving
+    # an interior pole leaves them alone (`parafab optimize` parameters "pole i j z").
+    poles = []
+    for i in range(6):
+        row = []
+        for j in range(5):
+            x, y = 12.0 * i, 10.0 * j
+            z = 12.0 + 0.05 * x + ((2.0 + 0.5 * i) if 0 < i < 5 and 0 < j < 4 else 0.0)
+            row.append(V(x, y, z))
+        poles.append(row)
+    surf = Part.BSplineSurface()
+    surf.buildFromPolesMultsKnots(poles, [4, 1, 1, 4], [4, 1, 4], [0, 1.0 / 3, 2.0 / 3, 1], [0, 0.5, 1],
+                                  False, False, 3, 3)
+    top = surf.toShape()
+    corners = [V(0, 0, 0), V(60, 0, 0), V(60, 40, 0), V(0, 40, 0)]
+    up = [surf.value(u, v) for u, v in ((0, 0), (1, 0), (1, 1), (0, 1))]
+    isos = [surf.vIso(0).toShape(), surf.uIso(1).toShape(), surf.vIso(1).toShape(), surf.uIso(0).toShape()]
+    faces = [top, Part.Face(Part.makePolygon(corners + [corners[0]]))]
+    for k in range(4):
+        a, b = k, (k + 1) % 4
+        faces.append(Part.Face(Part.Wire(Part.__sortEdges__([
+            Part.makeLine(corners[a], corners[b]), Part.makeLine(corners[b], up[b]), isos[k],
+            Part.makeLine(up[a], corners[a])]))))
+    shell = Part.Shell(faces)
+    shell.sewShape()
+    solid = Part.Solid(shell)
+    if solid.Volume < 0:
+        solid.reverse()
+    return solid
+
+
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
          "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
          "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes,
-         "flange": flange}
+         "flange": flange, "bump_block": bump_block}
 # PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
 only = [n for n in os.environ.get("PARAFAB_PARTS_ONLY", "").split(",") if n]
 
