@@ -7,6 +7,9 @@
 #include <BRepAdaptor_Surface.hxx>
 #include <Eigen/Geometry>
 #include <BRepTools.hxx>
+#include <BRep_Tool.hxx>
+#include <Geom2d_Curve.hxx>
+#include <TopoDS.hxx>
 #include <TopExp.hxx>
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
 #include <TopTools_ListOfShape.hxx>
@@ -326,6 +329,8 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   auto flag = [&](int face) {
     if (const optimize::ParameterBlock* b = sp.block(face))
       for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
+    if (const PoleBlock* b = sp.poles(face))
+      for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
   };
   // Supports and loads (their own motion is not differentiated here), and the faces sharing an
   // edge with one of them: when such a neighbour moves, the support's or load's patch gains or
@@ -334,9 +339,6 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   for (const auto& d : setup.dirichlet) conditioned.insert(d.face);
   for (const auto& t : at.tractions) conditioned.insert(t.face);
   for (int f : conditioned) flag(f);
-  // B-spline poles: V_n needs each boundary point's (u, v) on the face; not done here yet.
-  for (const PoleBlock& b : sp.pole_blocks)
-    for (int k = 0; k < b.size(); ++k) r.incomplete[b.offset + k] = 1;
   std::map<int, std::vector<int>> neighbours;  // support/load face → moving faces sharing an edge with it
   std::vector<double> sign(part.face_count(), 0.0);
   {
@@ -348,8 +350,27 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       for (TopTools_ListOfShape::Iterator it(edge_faces(i)); it.More(); it.Next()) faces.push_back(part.face_index(it.Value()));
       for (int g : faces)
         if (conditioned.count(g))
-          for (int f : faces)
+          for (int f : faces) {
             if (f != g && sp.block(f) && !conditioned.count(f)) sets[g].insert(f);
+            // A B-spline face next to a support or load: the poles whose basis functions reach
+            // the shared edge move it (a strip term not computed here), flagged; the others
+            // (interior poles of a clamped surface whose edges are its iso-boundaries) leave the
+            // edge in place and are exact. Checked at 33 points of the edge's pcurve.
+            const PoleBlock* pb = f != g && !conditioned.count(f) ? sp.poles(f) : nullptr;
+            if (!pb) continue;
+            double t0, t1;
+            const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(edge_faces.FindKey(i)), part.face(f), t0, t1);
+            if (pc.IsNull()) {
+              flag(f);
+              continue;
+            }
+            for (int k = 0; k <= 32; ++k) {
+              const gp_Pnt2d uv = pc->Value(t0 + (t1 - t0) * k / 32.0);
+              for (const PoleInfluence& w : pole_influence(pb->surface, uv.X(), uv.Y()))
+                if (std::abs(w.value) > 1e-12)
+                  for (int c = 0; c < 3; ++c) r.incomplete[pb->offset + 3 * w.index + c] = 1;
+            }
+          }
     }
     for (auto& [g, fs] : sets) {
       neighbours[g].assign(fs.begin(), fs.end());
@@ -371,7 +392,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   for (size_t e = 0; e < elements.size(); ++e)
     if (elements[e].subvolume)
       for (const xfem::CutPatch& patch : elements[e].subvolume->patches)
-        if (sp.block(patch.source_face) || conditioned.count(patch.source_face)) {
+        if (sp.block(patch.source_face) || sp.poles(patch.source_face) || conditioned.count(patch.source_face)) {
           work.push_back(static_cast<int>(e));
           break;
         }
@@ -424,6 +445,26 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           for (int k = 0; k < nb; ++k)
             if (sum[k] != 0) out.gradient.emplace_back(block->offset + k, sum[k]);
         }
+      }
+      // Bulk on a B-spline face: Vₙ = R_ij(u, v) n_c for coordinate c of pole (i, j), at the
+      // rule's (u, v) on the B-rep's own surface (the patch's surface; the pole block's knots).
+      const PoleBlock* poles = conditioned.count(patch.source_face) ? nullptr : sp.poles(patch.source_face);
+      if (poles) {
+        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
+        out.used = out.used || !sr.points.empty();
+        out.points += static_cast<int>(sr.points.size());
+        const std::vector<double> psi = sr.points.empty() ? std::vector<double>{}
+                                                          : xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+        std::map<int, double> sum;  // entry of p → contribution
+        for (size_t q = 0; q < sr.points.size(); ++q) {
+          double density = -psi[q];
+          if (gravity)
+            density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
+          for (const PoleInfluence& w : pole_influence(poles->surface, sr.uv[q].x(), sr.uv[q].y()))
+            for (int c = 0; c < 3; ++c) sum[poles->offset + 3 * w.index + c] += sr.weights[q] * density * w.value * sr.normals[q][c];
+        }
+        for (const auto& [i, v] : sum)
+          if (v != 0) out.gradient.emplace_back(i, v);
       }
       if (!conditioned.count(patch.source_face)) continue;
       // A support's or load's patch: its Nitsche / traction terms (the last condition of each

@@ -89,7 +89,8 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// (a fillet running into a support), the edge moves with the cylinder's axis (the null-space
 /// completion of Fig. 6.12, case 2). Not included, flagged `incomplete`: a support's or load's own
 /// motion, other tangent contacts with a support or load (a torus or sphere, a cone), and the
-/// poles of B-spline faces.
+/// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
+/// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)).
 struct ComplianceGradient {
   bool done = false;
   std::string message;
