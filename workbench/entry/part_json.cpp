@@ -49,10 +49,13 @@ json face(const occ::FaceInfo& f) {
     for (const auto& p : l.uv) uv.push_back({p.x(), p.y()});
     loops.push_back({{"outer", l.outer}, {"edges", l.edges}, {"uv", uv}});
   }
-  return {{"index", f.index},         {"type", occ::to_string(f.primitive.type)},
-          {"reversed", f.reversed},   {"area", f.area},
-          {"uv_bounds", f.uv_bounds}, {"parameters", parameters(f.primitive)},
-          {"nurbs", nurbs(f.nurbs)},  {"loops", loops}};
+  json j = {{"index", f.index},         {"type", occ::to_string(f.primitive.type)},
+            {"reversed", f.reversed},   {"area", f.area},
+            {"uv_bounds", f.uv_bounds}, {"parameters", parameters(f.primitive)},
+            {"nurbs", nurbs(f.nurbs)},  {"loops", loops}};
+  // A non-periodic B-spline face: its poles are shape parameters "pole i j x|y|z" (1-based).
+  if (f.bspline.count_u > 0) j["pole_count"] = {f.bspline.count_u, f.bspline.count_v};
+  return j;
 }
 
 }  // namespace

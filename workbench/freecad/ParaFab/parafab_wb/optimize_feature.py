@@ -106,6 +106,16 @@ PARAMETER_NAMES = {
 }
 
 
+def parameter_names(face):
+    """Parameter names of one face of ``parafab.inspect_part``: the block names of an analytic
+    face, ``pole i j x|y|z`` (1-based, as ``BSplineSurface.getPole``) of a non-periodic B-spline
+    face, none otherwise."""
+    if "pole_count" in face:
+        nu, nv = face["pole_count"]
+        return ["pole %d %d %s" % (i, j, c) for i in range(1, nu + 1) for j in range(1, nv + 1) for c in "xyz"]
+    return list(PARAMETER_NAMES.get(face["type"], ()))
+
+
 def default_parameter(face_type):
     """The parameter a picked face contributes by default (offset or radius), or None."""
     names = PARAMETER_NAMES.get(face_type)
@@ -167,7 +177,7 @@ def face_model(obj):
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     faces = [{"name": "Face%d" % (f["index"] + 1), "index": f["index"], "type": f["type"],
-              "parameters": list(PARAMETER_NAMES.get(f["type"], ()))} for f in model["faces"]]
+              "parameters": parameter_names(f)} for f in model["faces"]]
     parent = list(range(len(faces)))
 
     def find(i):

@@ -260,7 +260,7 @@ class OptimizeTaskPanel(object):
             child.setCheckState(0, QtCore.Qt.Unchecked)
             self._param_items[(face["name"], name)] = child
         if not face["parameters"]:
-            item.setText(0, "%s (%s: fixed, no analytic parameters)" % (face["name"], face["type"]))
+            item.setText(0, "%s (%s: fixed, no shape parameters)" % (face["name"], face["type"]))
 
     def check_faces(self, names):
         """Check the default parameter (offset, radius) of faces ``names``; returns those checked."""
