@@ -14,12 +14,16 @@ upright's back, 500 N down on the base end), design = the two bolt-hole radii, V
      from OCCT (the written STEP). FD step 0.05 mm: remeshing noise makes smaller steps useless
      (measured dC/dr 3.8 at h = 0.001 mm, 0.95 at 0.01, 0.68 at 0.05).
 
+`--case bump`: the same two routes on a free-form face (samples/parts/bump_block.step, clamped
+at x = 0, 500 N down at x = 60, V <= V0), design = the z of six interior poles of its B-spline
+top (rows i = 2 and 5; tests/python/test_optimize_poles.py), each within [0, 2 z0].
+
 Each route's objective is its own discretization of C, so the common target is a relative
 reduction: 90 % of the smaller of the two routes' final reductions. Reported: time and
 evaluations to reach it, time per evaluation, final C of both results and of the original by
 one common reference (CalculiX tet10 on a fine mesh), OCCT volume ratios. Writes
 DIR/optimize_routes.json and DIR/optimize_routes.png (objective reduction vs time).
-Usage: PARAFAB_CLI=build/workbench/entry/parafab /usr/bin/python3 tests/bench/bench_optimize_routes.py [--quick] [--out DIR]
+Usage: PARAFAB_CLI=build/workbench/entry/parafab /usr/bin/python3 tests/bench/bench_optimize_routes.py [--quick] [--case bracket|bump] [--out DIR]
 """
 import argparse
 import json
@@ -44,13 +48,30 @@ CLI = os.environ.get("PARAFAB_CLI", os.path.join(REPO, "build", "workbench", "en
 ap = argparse.ArgumentParser()
 ap.add_argument("--quick", action="store_true")
 ap.add_argument("--out", default=".")
+ap.add_argument("--case", choices=("bracket", "bump"), default="bracket")
 args = ap.parse_args()
 os.makedirs(args.out, exist_ok=True)
 
-ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 30]}],
-           "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
-HOLES = [{"point": [44, 12, 4], "parameter": "radius"}, {"point": [44, 28, 4], "parameter": "radius"}]
-RATIO = 1.005
+if args.case == "bracket":
+    PART = BRACKET
+    ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 30]}],
+               "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
+    DESIGN = [{"point": [44, 12, 4], "parameter": "radius"}, {"point": [44, 28, 4], "parameter": "radius"}]
+    X0, BOUNDS = [4.0, 4.0], [(2.4, 5.6)] * 2
+    RATIO = 1.005
+    A_OPTIONS = {"first_step": 0.5, "bound": 0.4}
+    TITLE = "L-bracket hole radii, V <= %.3f V0" % RATIO
+else:
+    PART = os.path.join(REPO, "samples", "parts", "bump_block.step")
+    ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 5]}],
+               "loads": [{"point": [60, 20, 5], "force": [0, 0, -500]}]}
+    POLES = [(i, j) for i in (2, 5) for j in (2, 3, 4)]
+    DESIGN = [{"face": 2, "parameter": "pole %d %d z" % p} for p in POLES]
+    X0 = [15.1 if i == 2 else 18.4 for i, _ in POLES]
+    BOUNDS = [(0.0, 2 * z) for z in X0]
+    RATIO = 1.0
+    A_OPTIONS = {"bound": 1.0}
+    TITLE = "bump block, z of six B-spline poles, V <= V0"
 ITERATIONS = 2 if args.quick else 8
 MESH = 6.0 if args.quick else 4.0        # route B's Gmsh size (mm)
 REFERENCE = 4.0 if args.quick else 2.0   # the common reference's Gmsh size (mm)
@@ -77,17 +98,16 @@ def calculix_compliance(step, size):
 # --- route A ------------------------------------------------------------------------------
 out_a = os.path.join(args.out, "optimize_routes_A")
 t0 = time.time()
-h = cli(["optimize", BRACKET, "-o", out_a],
-        dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8}, parameters=HOLES,
-             constraints=[{"type": "volume", "max_ratio": RATIO}], max_iterations=ITERATIONS,
-             first_step=0.5, bound=0.4))
+h = cli(["optimize", PART, "-o", out_a],
+        dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8}, parameters=DESIGN,
+             constraints=[{"type": "volume", "max_ratio": RATIO}], max_iterations=ITERATIONS, **A_OPTIONS))
 wall_a = time.time() - t0
 startup_a = wall_a - h["seconds"]  # process start, STEP read, face model: before the history's clock
 trace_a = [(startup_a + it["seconds"], it["objective"], it["constraint_violation"]) for it in h["iterations"]]
 route_a = {"status": h["status"], "evaluations": h["evaluations"], "seconds": wall_a,
            "seconds_per_evaluation": h["seconds"] / h["evaluations"], "initial": h["initial_objective"],
            "final": h["final_objective"], "final_violation": h["final_violation"],
-           "radii": [p["final"] for p in h["parameters"]], "step": h["optimized_step"],
+           "design": [p["final"] for p in h["parameters"]], "step": h["optimized_step"],
            "volume_ratio": h["final_volume"] / h["initial_volume"], "gradient": h["gradient"]}
 
 # --- route B ------------------------------------------------------------------------------
@@ -100,16 +120,16 @@ def evaluate(x):
     key = tuple(np.round(x, 12))
     if key not in cache:
         d = os.path.join(work, "eval%d" % len(evals_b))
-        hb = cli(["optimize", BRACKET, "-o", d],
-                 dict(ELASTIC, objective={"type": "volume"}, parameters=HOLES, start=list(map(float, x)),
-                      max_iterations=0, bound=0.4))
+        hb = cli(["optimize", PART, "-o", d],
+                 dict(ELASTIC, objective={"type": "volume"}, parameters=DESIGN, start=list(map(float, x)),
+                      max_iterations=0, bound=A_OPTIONS["bound"]))
         c, _ = calculix_compliance(hb["optimized_step"], MESH)
         cache[key] = (c, hb["final_volume"], hb["optimized_step"])
         evals_b.append((time.time() - t0_b, c, hb["final_volume"]))
     return cache[key]
 
 
-x0 = np.array([4.0, 4.0])
+x0 = np.array(X0)
 C0, V0, _ = evaluate(x0)
 
 
@@ -133,7 +153,7 @@ def record(x):
 
 
 run = minimize(lambda x: evaluate(x)[0] / C0, x0, jac=lambda x: gradients(x)[0] / C0, method="SLSQP",
-               bounds=[(2.4, 5.6)] * 2, callback=record, options={"maxiter": ITERATIONS, "ftol": 1e-6},
+               bounds=BOUNDS, callback=record, options={"maxiter": ITERATIONS, "ftol": 1e-6},
                constraints=[{"type": "ineq", "fun": lambda x: RATIO - evaluate(x)[1] / V0,
                              "jac": lambda x: -gradients(x)[1] / V0}])
 wall_b = time.time() - t0_b
@@ -141,7 +161,7 @@ cb, vb, step_b = evaluate(run.x)
 shutil.copy(step_b, os.path.join(args.out, "optimize_routes_B.step"))
 route_b = {"status": run.message, "evaluations": len(evals_b), "seconds": wall_b,
            "seconds_per_evaluation": wall_b / len(evals_b), "initial": C0, "final": cb,
-           "final_violation": max(0.0, vb / V0 / RATIO - 1), "volume_ratio": vb / V0, "radii": list(map(float, run.x)),
+           "final_violation": max(0.0, vb / V0 / RATIO - 1), "volume_ratio": vb / V0, "design": list(map(float, run.x)),
            "mesh_size": MESH, "fd_step": FD_STEP}
 
 # --- common target, common reference ------------------------------------------------------
@@ -161,7 +181,7 @@ route_b["evaluations_to_target"] = None if first is None else sum(1 for t, _, _ 
 route_a["evaluations_to_target"] = None if route_a["iterations_to_target"] is None else \
     h["iterations"][route_a["iterations_to_target"]].get("evaluations")
 ref = {}
-for name, step in (("original", BRACKET), ("A", route_a["step"]), ("B", step_b)):
+for name, step in (("original", PART), ("A", route_a["step"]), ("B", step_b)):
     t = time.time()
     c, nodes = calculix_compliance(step, REFERENCE)
     ref[name] = {"compliance": c, "nodes": nodes, "seconds": time.time() - t}
@@ -171,7 +191,7 @@ for name, route in (("A", route_a), ("B", route_b)):
 shutil.rmtree(work, ignore_errors=True)
 
 summary = {"target_reduction": target, "reference_mesh_size": REFERENCE, "reference": ref, "A": route_a, "B": route_b,
-           "trace_A": red_a, "trace_B": red_b, "quick": args.quick}
+           "trace_A": red_a, "trace_B": red_b, "quick": args.quick, "case": args.case}
 with open(os.path.join(args.out, "optimize_routes.json"), "w") as f:
     json.dump(summary, f, indent=2)
 
@@ -186,7 +206,7 @@ for trace, mark, label in ((red_a, "o", "A: parafab optimize (XFEM 8 cells, %s g
 ax.axhline(100 * target, color="gray", ls=":", label="common target (90 % of the smaller final reduction)")
 ax.set_xlabel("wall time (s)")
 ax.set_ylabel("compliance reduction, own model (%); filled: feasible")
-ax.set_title("L-bracket hole radii, V <= %.3f V0" % RATIO)
+ax.set_title(TITLE)
 ax.legend(fontsize=7)
 fig.tight_layout()
 fig.savefig(os.path.join(args.out, "optimize_routes.png"), dpi=120)
