@@ -97,6 +97,23 @@ Primitive primitive_of(const TopoDS_Face& face) {
   return p;
 }
 
+// A non-periodic B-spline surface with homogeneous poles [w x, w y, w z, w].
+NurbsSurface projective(const Geom_BSplineSurface& bs) {
+  NurbsSurface n;
+  n.degree_u = bs.UDegree();
+  n.degree_v = bs.VDegree();
+  n.count_u = bs.NbUPoles();
+  n.count_v = bs.NbVPoles();
+  for (double k : bs.UKnotSequence()) n.knots_u.push_back(k);
+  for (double k : bs.VKnotSequence()) n.knots_v.push_back(k);
+  for (int i = 1; i <= n.count_u; ++i)
+    for (int j = 1; j <= n.count_v; ++j) {
+      const double w = bs.Weight(i, j);
+      n.poles.emplace_back(w * bs.Pole(i, j).X(), w * bs.Pole(i, j).Y(), w * bs.Pole(i, j).Z(), w);
+    }
+  return n;
+}
+
 // The converted face's B-spline surface, segmented to the face's uv bounds and made
 // non-periodic, in projective coordinates.
 NurbsSurface nurbs_of(const TopoDS_Face& nface, int index) {
@@ -112,39 +129,15 @@ NurbsSurface nurbs_of(const TopoDS_Face& nface, int index) {
   bs->CheckAndSegment(u0, u1, v0, v1);
   if (bs->IsUPeriodic()) bs->SetUNotPeriodic();
   if (bs->IsVPeriodic()) bs->SetVNotPeriodic();
-  NurbsSurface n;
-  n.degree_u = bs->UDegree();
-  n.degree_v = bs->VDegree();
-  n.count_u = bs->NbUPoles();
-  n.count_v = bs->NbVPoles();
-  for (double k : bs->UKnotSequence()) n.knots_u.push_back(k);
-  for (double k : bs->VKnotSequence()) n.knots_v.push_back(k);
-  for (int i = 1; i <= n.count_u; ++i)
-    for (int j = 1; j <= n.count_v; ++j) {
-      const double w = bs->Weight(i, j);
-      n.poles.emplace_back(w * bs->Pole(i, j).X(), w * bs->Pole(i, j).Y(), w * bs->Pole(i, j).Z(), w);
-    }
-  return n;
+  return projective(*bs);
 }
 
 // The B-rep's own B-spline surface of a face (located, not segmented), or count_u = 0 for other
 // surfaces and periodic B-splines (whose poles wrap around and are not parameters here).
 NurbsSurface own_bspline(const TopoDS_Face& face) {
-  NurbsSurface n;
   const auto bs = Handle(Geom_BSplineSurface)::DownCast(BRep_Tool::Surface(face));
-  if (bs.IsNull() || bs->IsUPeriodic() || bs->IsVPeriodic()) return n;
-  n.degree_u = bs->UDegree();
-  n.degree_v = bs->VDegree();
-  n.count_u = bs->NbUPoles();
-  n.count_v = bs->NbVPoles();
-  for (double k : bs->UKnotSequence()) n.knots_u.push_back(k);
-  for (double k : bs->VKnotSequence()) n.knots_v.push_back(k);
-  for (int i = 1; i <= n.count_u; ++i)
-    for (int j = 1; j <= n.count_v; ++j) {
-      const double w = bs->Weight(i, j);
-      n.poles.emplace_back(w * bs->Pole(i, j).X(), w * bs->Pole(i, j).Y(), w * bs->Pole(i, j).Z(), w);
-    }
-  return n;
+  if (bs.IsNull() || bs->IsUPeriodic() || bs->IsVPeriodic()) return {};
+  return projective(*bs);
 }
 
 // Parameters at which to sample a pcurve: its ends for a line, its knots for a polyline

@@ -199,22 +199,10 @@ TEST(BsplinePoles, ComplianceDerivativeOfAPoleMatchesTheFullPipeline) {
   const double degrees = 11;
   auto turned = [&](const Vec3& X) -> Vec3 { return center + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - center); };
   const auto part = rotated_part(*read_part(sample_part("bump_block")), center, axis, degrees);
-  ComplianceSetup setup;
-  setup.material.youngs_modulus = 210000;
-  setup.material.poisson_ratio = 0.3;
-  xfem::DirichletCondition d;
-  d.face = face_at_point(*part, turned({0, 20, 5}), 1e-6);
-  setup.dirichlet.push_back(d);
-  xfem::TractionCondition t;
-  t.face = face_at_point(*part, turned({60, 20, 5}), 1e-6);
-  const Vec3 force = turned(Vec3(0, 0, -500)) - turned(Vec3::Zero());
-  t.traction = force / face_area(*part, t.face);
-  setup.tractions.push_back(t);
-  setup.forces.push_back(force);
-  setup.grid.grid.cells_longest = 10;
-  setup.grid.grid.block_cells = 4;
-  setup.grid.grid.method = CutMethod::FaceCut;
-  const testing::DesignSpace space(*part, {d.face, t.face});
+  const ComplianceSetup setup = testing::steel_cantilever(*part, face_at_point(*part, turned({0, 20, 5}), 1e-6),
+                                                          face_at_point(*part, turned({60, 20, 5}), 1e-6),
+                                                          turned(Vec3(0, 0, -500)) - turned(Vec3::Zero()));
+  const testing::DesignSpace space(*part, {setup.dirichlet[0].face, setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
   const int top = bspline_face(model);

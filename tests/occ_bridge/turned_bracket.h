@@ -34,6 +34,29 @@ inline Vec3 turned(const Vec3& X) {
   return kBracketCenter + Eigen::AngleAxisd(kBracketDegrees * M_PI / 180, kBracketAxis) * (X - kBracketCenter);
 }
 
+/// Steel in N/mm/MPa on `part`: face `support` clamped, face `load` pulled by the total force
+/// `force` (spread over the face's area on every model, so the load term of the derivatives is
+/// exercised when that area changes), a 10-cell face-route grid in blocks of 4 (the Boolean
+/// splitter lost cell pieces of perturbed models whose planes move; compliance_at refuses such
+/// models).
+inline ComplianceSetup steel_cantilever(const PartShape& part, int support, int load, const Vec3& force) {
+  ComplianceSetup setup;
+  setup.material.youngs_modulus = 210000;
+  setup.material.poisson_ratio = 0.3;
+  xfem::DirichletCondition d;
+  d.face = support;
+  setup.dirichlet.push_back(d);
+  xfem::TractionCondition t;
+  t.face = load;
+  t.traction = force / face_area(part, load);
+  setup.tractions.push_back(t);
+  setup.forces.push_back(force);
+  setup.grid.grid.cells_longest = 10;
+  setup.grid.grid.block_cells = 4;
+  setup.grid.grid.method = CutMethod::FaceCut;
+  return setup;
+}
+
 /// The turned bracket: back of the upright (x = 0) supported, the free end of the base (x = 60)
 /// pulled down by 500 N given as a total force (samples/simulations/l_bracket.json), steel in
 /// N/mm/MPa, a 10-cell face-route grid.
@@ -51,24 +74,8 @@ struct TurnedBracket {
     upright_inner = face_at_point(*part, turned({8, 20, 30}), tol);
     outer = face_at_point(*part, turned({12 - 12 * std::sqrt(0.5), 20, 12 - 12 * std::sqrt(0.5)}), tol);
     fillet = face_at_point(*part, turned({8 + 5 - 5 * std::sqrt(0.5), 20, 8 + 5 - 5 * std::sqrt(0.5)}), tol);
-    setup.material.youngs_modulus = 210000;
-    setup.material.poisson_ratio = 0.3;
-    xfem::DirichletCondition d;
-    d.face = support;
-    setup.dirichlet.push_back(d);
-    xfem::TractionCondition t;
-    t.face = load;
-    // A total force (spread over the load face of every model: its area changes when the base
-    // top plane moves, so the load term of the derivatives is exercised).
-    const Vec3 force = turned(Vec3(0, 0, -500)) - turned(Vec3::Zero());
-    t.traction = force / face_area(*part, load);
-    setup.tractions.push_back(t);
-    setup.forces.push_back(force);
-    setup.grid.grid.cells_longest = 10;
-    setup.grid.grid.block_cells = 4;
-    // The face route: the Boolean splitter lost cell pieces of perturbed models whose planes
-    // move (the rules missed OCCT's volume; compliance_at refuses such models).
-    setup.grid.grid.method = CutMethod::FaceCut;
+    // The load face's area changes when the base top plane moves.
+    setup = steel_cantilever(*part, support, load, turned(Vec3(0, 0, -500)) - turned(Vec3::Zero()));
   }
 };
 

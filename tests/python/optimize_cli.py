@@ -1,5 +1,5 @@
-"""Shared by the optimize tests: run `parafab optimize` on a job through the CLI (a temporary
-job file) and return its exit code and the message of its JSON error."""
+"""Shared by the optimize tests: run `parafab optimize` (or `simulate`) on a job through the CLI
+(a temporary job file) and return its exit code with its JSON output or error message."""
 import json
 import os
 import subprocess
@@ -21,3 +21,15 @@ def optimize_cli_error(part, job):
     except (ValueError, KeyError, TypeError):
         message = None
     return p.returncode, message
+
+
+def cli(args, job):
+    """(exit code, JSON output) of `parafab ARGS[0] ARGS[1] JOB ARGS[2:]`, e.g.
+    cli(["optimize", part, "-o", out], job) or cli(["simulate", part], job)."""
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+        json.dump(job, f)
+    try:
+        p = subprocess.run([CLI] + args[:1] + [args[1], f.name] + args[2:], capture_output=True, text=True, timeout=600)
+        return p.returncode, json.loads(p.stdout)
+    finally:
+        os.unlink(f.name)

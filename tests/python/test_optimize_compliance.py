@@ -11,15 +11,14 @@ import json
 import math
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import unittest
 
 sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"))
 import parafab  # noqa: E402
+from optimize_cli import cli  # noqa: E402
 
-CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
 THICKNESS = 8.0  # the base plate the bolt holes go through (mm)
@@ -35,16 +34,6 @@ JOB = dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8},
 def sha(path):
     with open(path, "rb") as f:
         return hashlib.sha256(f.read()).hexdigest()
-
-
-def cli(args, job):
-    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
-        json.dump(job, f)
-    try:
-        p = subprocess.run([CLI] + args[:1] + [args[1], f.name] + args[2:], capture_output=True, text=True, timeout=600)
-        return p.returncode, json.loads(p.stdout)
-    finally:
-        os.unlink(f.name)
 
 
 class OptimizeCompliance(unittest.TestCase):

@@ -6,18 +6,16 @@ by the original's. Independent checks: the poles of the written STEP read back b
 (`parafab.inspect_part`), OCCT's volume of the written STEP, a fresh `parafab simulate` of both
 parts on other grids, the symmetry of the design in y (the part and its load are symmetric), and
 the exact gradient of the poles against the semi-analytic one (two perturbed re-cut models)."""
-import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import unittest
 
 sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"))
 import parafab  # noqa: E402
+from optimize_cli import cli  # noqa: E402
 
-CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BUMP = os.path.join(SAMPLES, "parts", "bump_block.step")
 
@@ -33,16 +31,6 @@ def job(top, **extra):
              constraints=[{"type": "volume", "max_ratio": 1.0}], max_iterations=8, bound=1.0)
     j.update(extra)
     return j
-
-
-def cli(args, job):
-    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
-        json.dump(job, f)
-    try:
-        p = subprocess.run([CLI] + args[:1] + [args[1], f.name] + args[2:], capture_output=True, text=True, timeout=600)
-        return p.returncode, json.loads(p.stdout)
-    finally:
-        os.unlink(f.name)
 
 
 def top_face(path):
