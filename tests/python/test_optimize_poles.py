@@ -120,6 +120,19 @@ class OptimizePoles(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("pole i j x|y|z", err["error"]["message"])
 
+    def test_a_boundary_pole_moved_off_its_side_plane_is_an_invalid_model(self):
+        # Where the write-back fails: pole (1, 3) lies in the clamped side x = 0; moved along x
+        # the top's boundary leaves that plane between the fixed corners (+x: a gap; -x: the
+        # plane meets the surface only along its border, which OCCT's intersector does not
+        # return). The model is invalid and says which edge; an optimizer step there is
+        # rejected and shortened (`invalid_models`), a given start is an error.
+        for x in (-0.5, 0.5):
+            code, err = cli(["optimize", BUMP, "-o", os.path.join(self.dir, "off")],
+                            {"objective": {"type": "volume"}, "parameters": [{"face": self.top, "parameter": "pole 1 3 x"}],
+                             "start": [x], "max_iterations": 0})
+            self.assertEqual(code, 2, err)
+            self.assertIn("no longer intersect", err["error"]["message"])
+
 
 if __name__ == "__main__":
     unittest.main()
