@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <BRepAdaptor_Curve.hxx>
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepAlgoAPI_Fuse.hxx>
 #include <BRepClass3d_SolidClassifier.hxx>
@@ -22,12 +23,15 @@
 #include <TColStd_Array2OfReal.hxx>
 #include <TColgp_Array2OfPnt.hxx>
 #include <TopExp_Explorer.hxx>
+#include <TopoDS.hxx>
+#include <gp.hxx>
 #include <cmath>
 #include <map>
 #include <set>
 
 #include "common/error.h"
 #include "occt_shape.h"
+#include "part_reader.h"
 
 namespace parafab::occ {
 namespace {
@@ -304,6 +308,47 @@ TEST(FaceModel, RelationsHoldOnEverySample) {
 }
 
 std::shared_ptr<const PartShape> part_of(const TopoDS_Shape& shape) { return make_part(shape, "test shape"); }
+
+// A boss on a plate, its foot filleted by OCCT, the part turned by 11°: the boss's cylinder and the fillet's torus are
+// full-turn faces whose u bounds start a round-off before the periodic surface's knot (the
+// cylinder's at −1.8e-15, ending at 2π), which made the segmentation to the face's bounds
+// fail ("face 6: NURBS form failed: NCollection_Array2::Allocate"). A full turn now takes the
+// surface's own period; the NURBS forms reproduce the B-rep and the fillet's two tangencies
+// are found with their closed forms.
+TEST(FaceModel, FullTurnFacesOfAFilletedBoss) {
+  const TopoDS_Shape plate = BRepPrimAPI_MakeBox(60, 40, 8).Shape();
+  const TopoDS_Shape boss = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(30, 20, 8), gp::DZ()), 8, 20).Shape();
+  BRepAlgoAPI_Fuse fuse(plate, boss);
+  ASSERT_TRUE(fuse.IsDone());
+  BRepFilletAPI_MakeFillet fillet(fuse.Shape());
+  for (TopExp_Explorer e(fuse.Shape(), TopAbs_EDGE); e.More(); e.Next()) {
+    const BRepAdaptor_Curve c(TopoDS::Edge(e.Current()));
+    if (c.GetType() == GeomAbs_Circle && std::abs(c.Circle().Location().Z() - 8) < 1e-9) fillet.Add(3, TopoDS::Edge(e.Current()));
+  }
+  ASSERT_EQ(fillet.NbContours(), 1);
+  fillet.Build();
+  ASSERT_TRUE(fillet.IsDone());
+  // Turned off the axes, as the compliance tests turn parts against the grid.
+  const auto part = rotated_part(*make_part(fillet.Shape(), "filleted boss"), Vec3(30, 20, 14), Vec3(1, 2, 3).normalized(), 11);
+  const FaceModel m = build_face_model(*part);
+  std::multiset<std::string> kinds;
+  for (const auto& r : m.relations) kinds.insert(r.kind);
+  EXPECT_EQ(kinds, (std::multiset<std::string>{"plane-torus", "cylinder-torus"}));
+  int full_turns = 0;
+  for (const auto& f : m.faces) {
+    if (f.primitive.type != SurfaceType::cylinder && f.primitive.type != SurfaceType::torus) continue;
+    EXPECT_NEAR(f.uv_bounds[1] - f.uv_bounds[0], 2 * M_PI, 1e-12);
+    ++full_turns;
+    for (int a = 0; a <= 8; ++a) {  // the NURBS form on the B-rep surface, all the way round
+      Vec3 X, Xu, Xv;
+      evaluate(f.nurbs, f.uv_bounds[0] + (f.uv_bounds[1] - f.uv_bounds[0]) * a / 8, 0.5 * (f.uv_bounds[2] + f.uv_bounds[3]), X, Xu, Xv);
+      GeomAPI_ProjectPointOnSurf onto(gp_Pnt(X.x(), X.y(), X.z()), BRep_Tool::Surface(part->face(f.index)));
+      ASSERT_GT(onto.NbPoints(), 0);
+      EXPECT_LT(onto.LowerDistance(), 1e-9);
+    }
+  }
+  EXPECT_EQ(full_turns, 2);
+}
 
 TEST(FaceModel, RoundedBoxHasCylinderSphereCorners) {
   const TopoDS_Shape box = BRepPrimAPI_MakeBox(20, 30, 40).Shape();
