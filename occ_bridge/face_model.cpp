@@ -126,10 +126,17 @@ NurbsSurface nurbs_of(const TopoDS_Face& nface, int index) {
   bs->Bounds(su0, su1, sv0, sv1);
   if (!bs->IsUPeriodic()) u0 = std::max(u0, su0), u1 = std::min(u1, su1);
   if (!bs->IsVPeriodic()) v0 = std::max(v0, sv0), v1 = std::min(v1, sv1);
-  // A full turn is the surface's own period: a face's bounds can start a round-off before a
-  // knot (u from −1.8e-15 to 2π on a filleted boss's cylinder), where CheckAndSegment fails.
-  if (bs->IsUPeriodic() && u1 - u0 >= bs->UPeriod() - 1e-9) u0 = su0, u1 = su0 + bs->UPeriod();
-  if (bs->IsVPeriodic() && v1 - v0 >= bs->VPeriod() - 1e-9) v0 = sv0, v1 = sv0 + bs->VPeriod();
+  // A full turn whose start is a round-off off the surface's own period start (u from
+  // −1.8e-15 to 2π on a turned filleted boss's cylinder), where CheckAndSegment fails: snapped
+  // onto it. A full turn starting elsewhere keeps its start.
+  auto full_turn = [](double& a, double& b, double start, double period) {
+    if (b - a < period - 1e-9) return;
+    const double k = std::round((a - start) / period);
+    if (std::abs(a - (start + k * period)) <= 1e-9) a = start + k * period;
+    b = a + period;
+  };
+  if (bs->IsUPeriodic()) full_turn(u0, u1, su0, bs->UPeriod());
+  if (bs->IsVPeriodic()) full_turn(v0, v1, sv0, bs->VPeriod());
   bs->CheckAndSegment(u0, u1, v0, v1);
   if (bs->IsUPeriodic()) bs->SetUNotPeriodic();
   if (bs->IsVPeriodic()) bs->SetVNotPeriodic();

@@ -16,6 +16,7 @@
 #include <Geom_Surface.hxx>
 #include <BRepGProp.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <Geom_BSplineSurface.hxx>
 #include <GProp_GProps.hxx>
 #include <Message_Report.hxx>
 #include <TopExp.hxx>
@@ -592,7 +593,10 @@ bool same_edge(const EdgeSignature& a, const EdgeSignature& b, double tol) {
          (a.box.min - b.box.min).norm() <= tol && (a.box.max - b.box.max).norm() <= tol;
 }
 
-// Points of the face's underlying surface over its uv box (they need not lie on the face).
+// Points of the face's underlying surface over its uv box (they need not lie on the face). A
+// B-spline surface adds the centre of every knot span in the box: a moved pole changes the
+// surface everywhere inside its support (its basis function is positive there), which holds
+// at least one whole span, so a pole moved on an otherwise unchanged surface is seen.
 std::vector<gp_Pnt> surface_samples(const TopoDS_Face& f) {
   double u0, u1, v0, v1;
   BRepTools::UVBounds(f, u0, u1, v0, v1);
@@ -600,6 +604,18 @@ std::vector<gp_Pnt> surface_samples(const TopoDS_Face& f) {
   std::vector<gp_Pnt> pts;
   for (double a : {0.1, 0.5, 0.9})
     for (double b : {0.1, 0.5, 0.9}) pts.push_back(s->Value(u0 + a * (u1 - u0), v0 + b * (v1 - v0)));
+  if (const auto bs = Handle(Geom_BSplineSurface)::DownCast(s)) {
+    auto centres = [](const TColStd_Array1OfReal& knots, double lo, double hi) {
+      std::vector<double> c;
+      for (int k = knots.Lower(); k < knots.Upper(); ++k) {
+        const double a = std::max(knots(k), lo), b = std::min(knots(k + 1), hi);
+        if (b > a) c.push_back(0.5 * (a + b));
+      }
+      return c;
+    };
+    for (double u : centres(bs->UKnots(), u0, u1))
+      for (double v : centres(bs->VKnots(), v0, v1)) pts.push_back(s->Value(u, v));
+  }
   return pts;
 }
 

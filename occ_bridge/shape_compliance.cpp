@@ -355,7 +355,8 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
             // A B-spline face next to a support or load: the poles whose basis functions reach
             // the shared edge move it (a strip term not computed here), flagged; the others
             // (interior poles of a clamped surface whose edges are its iso-boundaries) leave the
-            // edge in place and are exact. Checked at 33 points of the edge's pcurve.
+            // edge in place and are exact. Checked at 16 points of the edge's pcurve per knot
+            // span of the surface.
             const PoleBlock* pb = f != g && !conditioned.count(f) ? sp.poles(f) : nullptr;
             if (!pb) continue;
             double t0, t1;
@@ -364,8 +365,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
               flag(f);
               continue;
             }
-            for (int k = 0; k <= 32; ++k) {
-              const gp_Pnt2d uv = pc->Value(t0 + (t1 - t0) * k / 32.0);
+            const int samples = 16 * (pb->surface.count_u - pb->surface.degree_u + pb->surface.count_v - pb->surface.degree_v);
+            for (int k = 0; k <= samples; ++k) {
+              const gp_Pnt2d uv = pc->Value(t0 + (t1 - t0) * k / samples);
               for (const PoleInfluence& w : pole_influence(pb->surface, uv.X(), uv.Y()))
                 if (std::abs(w.value) > 1e-12)
                   for (int c = 0; c < 3; ++c) r.incomplete[pb->offset + 3 * w.index + c] = 1;

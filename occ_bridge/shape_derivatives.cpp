@@ -86,9 +86,10 @@ std::vector<double> interior_breaks(const BRepAdaptor_Surface& s, bool along_u, 
   return r;
 }
 
-// [f, ..., l]: the pcurve's own knots and the parameters where its v crosses one of
-// `v_knots` (sign changes on 64 samples, then bisection), sorted.
-std::vector<double> edge_pieces(const Handle(Geom2d_Curve)& c, double f, double l, const std::vector<double>& v_knots) {
+// [f, ..., l]: the pcurve's own knots and the parameters where its u crosses one of `u_knots`
+// or its v one of `v_knots` (sign changes on 64 samples, then bisection), sorted.
+std::vector<double> edge_pieces(const Handle(Geom2d_Curve)& c, double f, double l, const std::vector<double>& u_knots,
+                                const std::vector<double>& v_knots) {
   std::vector<double> t = {f, l};
   const Geom2dAdaptor_Curve a(c, f, l);
   if (const int n = a.NbIntervals(GeomAbs_CN); n > 1) {
@@ -97,22 +98,24 @@ std::vector<double> edge_pieces(const Handle(Geom2d_Curve)& c, double f, double 
     for (int i = 2; i <= n; ++i) t.push_back(T(i));
   }
   const int samples = 64;
-  for (double knot : v_knots) {
-    double prev = c->Value(f).Y() - knot;
-    for (int k = 1; k <= samples; ++k) {
-      const double t1 = f + (l - f) * k / samples, now = c->Value(t1).Y() - knot;
-      if (prev == 0 && k > 1) t.push_back(t1 - (l - f) / samples);
-      if ((prev < 0 && now > 0) || (prev > 0 && now < 0)) {
-        double lo = t1 - (l - f) / samples, hi = t1;
-        for (int it = 0; it < 60; ++it) {
-          const double mid = 0.5 * (lo + hi);
-          ((c->Value(mid).Y() - knot < 0) == (prev < 0) ? lo : hi) = mid;
+  for (int coordinate = 0; coordinate < 2; ++coordinate)
+    for (double knot : coordinate == 0 ? u_knots : v_knots) {
+      auto side = [&](double x) { return c->Value(x).Coord(coordinate + 1) - knot; };
+      double prev = side(f);
+      for (int k = 1; k <= samples; ++k) {
+        const double t1 = f + (l - f) * k / samples, now = side(t1);
+        if (prev == 0 && k > 1) t.push_back(t1 - (l - f) / samples);
+        if ((prev < 0 && now > 0) || (prev > 0 && now < 0)) {
+          double lo = t1 - (l - f) / samples, hi = t1;
+          for (int it = 0; it < 60; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            ((side(mid) < 0) == (prev < 0) ? lo : hi) = mid;
+          }
+          t.push_back(0.5 * (lo + hi));
         }
-        t.push_back(0.5 * (lo + hi));
+        prev = now;
       }
-      prev = now;
     }
-  }
   std::sort(t.begin(), t.end());
   const double eps = 1e-12 * (1 + std::abs(l - f));
   std::vector<double> r;
@@ -178,7 +181,7 @@ MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameter
       }
     };
     // Knots of a B-spline surface (where h is only C¹ or less) split the Gauss rules: the inner
-    // integral at the u knots, each edge where its pcurve crosses a v knot or has its own knot.
+    // integral at the u knots, each edge where its pcurve crosses a knot or has its own knot.
     const std::vector<double> u_knots = interior_breaks(surface, true, u0, u1), v_knots = interior_breaks(surface, false, v0, v1);
     for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
       const TopoDS_Edge& edge = TopoDS::Edge(e.Current());
@@ -186,7 +189,7 @@ MomentDerivatives moment_derivatives(const PartShape& part, const ShapeParameter
       const Handle(Geom2d_Curve) c = BRep_Tool::CurveOnSurface(edge, face, f, l);
       PARAFAB_VERIFY(!c.IsNull(), part.source << ": face " << fi << ": an edge has no pcurve");
       const double dir = edge.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
-      const std::vector<double> pieces = edge_pieces(c, f, l, v_knots);
+      const std::vector<double> pieces = edge_pieces(c, f, l, u_knots, v_knots);
       for (size_t piece = 0; piece + 1 < pieces.size(); ++piece) {
         const double a = pieces[piece], b = pieces[piece + 1];
         for (int sgm = 0; sgm < options.edge_segments; ++sgm)

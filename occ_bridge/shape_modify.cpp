@@ -250,7 +250,8 @@ class ParameterModification : public BRepTools_Modification {
   // An edge whose moved faces are all B-spline faces with moved poles keeps its curve and its
   // pcurves when the moved surfaces still pass through the old curve at the old pcurves (the
   // moved poles' basis functions vanish there: an interior pole of a clamped surface leaves its
-  // boundary alone), checked at 17 points to 1e-9 of the part's scale.
+  // boundary alone), checked at 16 points per knot span of the surface to 1e-9 of the part's
+  // scale.
   bool stays_on_moved_poles(int e, const EdgeInfo& info) const {
     const TopoDS_Edge& E = part_.edge(e);
     double f, l;
@@ -262,8 +263,10 @@ class ParameterModification : public BRepTools_Modification {
       double pf, pl;
       const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(E, part_.face(fi), pf, pl);
       if (pc.IsNull()) return false;
-      for (int k = 0; k <= 16; ++k) {
-        const double t = f + (l - f) * k / 16.0, tp = pf + (pl - pf) * k / 16.0;
+      const auto bs = Handle(Geom_BSplineSurface)::DownCast(surfaces_[fi]);
+      const int n = 16 * (bs.IsNull() ? 1 : bs->NbUKnots() + bs->NbVKnots() - 2);  // 16 per knot span
+      for (int k = 0; k <= n; ++k) {
+        const double t = f + (l - f) * k / n, tp = pf + (pl - pf) * k / n;
         const gp_Pnt2d uv = pc->Value(tp);
         const gp_Pnt X = c->Value(t);
         if (surfaces_[fi]->Value(uv.X(), uv.Y()).Distance(X) > 1e-9 * (1 + X.XYZ().Modulus())) return false;

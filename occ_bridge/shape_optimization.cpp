@@ -158,7 +158,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     for (const auto& b : sp.blocks)
       if (!fixed.count(b.face))
         for (int k = 0; k < b.size(); ++k) design.push_back(b.offset + k);
-  PARAFAB_VERIFY(!design.empty(), "no design parameters: every analytic face is fixed");
+  PARAFAB_VERIFY(!design.empty(), "no design parameters: every analytic face is fixed (B-spline poles are design parameters only when listed)");
   for (int i : design) {
     PARAFAB_VERIFY(i >= 0 && i < sp.size(), "design parameter index " << i << " outside 0.." << sp.size() - 1);
     PARAFAB_VERIFY(sp.lower[i] < sp.upper[i], "design parameter '" << sp.names[i] << "' belongs to a fixed face");

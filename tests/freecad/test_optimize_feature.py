@@ -438,7 +438,7 @@ class OptimizeFeatureTest(unittest.TestCase):
         print("\n[optimize] bump block poles (2 3 z) %.4f, (5 3 z) %.4f; compliance on a fresh 12-cell grid %.6g -> %.6g "
               "(ratio %.4f); optimizer's 8-cell grid %.6g -> %.6g" % (root, tip, c0, c1, c1 / c0, new.InitialObjective,
                                                                      new.FinalObjective), file=sys.stderr)
-        self.assertLess(c1, c0)
+        self.assertLess(c1, 0.98 * c0)  # measured 0.9656
 
     def test_mirror_faces_become_pairs_in_the_parts_frame(self):
         """The panel's mirror: four flange holes picked in any order, plane through the axis and

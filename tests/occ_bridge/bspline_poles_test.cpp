@@ -136,7 +136,8 @@ TEST(BsplinePoles, MovedPolesGiveValidPartsAndExactMassDerivatives) {
   const Moments reference = top_surface_moments(top_surface(*part, top)), occt = occt_moments(*part);
   std::printf("moments: boundary quadrature %.2e, OCCT's mass properties %.2e off the closed form (volume %.10g)\n",
               worst_relative(md.moments, reference), worst_relative(occt, reference), reference[0]);
-  EXPECT_LE(worst_relative(md.moments, reference), 1e-13);  // measured 5.2e-15 (before the knot splits 1.6e-5)
+  EXPECT_LE(worst_relative(md.moments, reference), 2e-14);  // measured 5.2e-15 (before the knot splits 1.6e-5)
+  EXPECT_LE(worst_relative(occt, reference), 1e-14);        // measured 8.0e-16 (adaptive BRepGProp)
   struct Case {
     const char* parameter;
     bool boundary;
@@ -166,7 +167,7 @@ TEST(BsplinePoles, MovedPolesGiveValidPartsAndExactMassDerivatives) {
         if (f != top) sides_changed += std::abs(face_area(*mod.part, f) - face_area(*part, f)) > 1e-9 * face_area(*part, f);
       EXPECT_EQ(sides_changed, c.boundary ? 1 : 0) << c.parameter;
     }
-    EXPECT_LE(written, 1e-13) << c.parameter;  // measured 4e-16 .. 1.4e-15
+    EXPECT_LE(written, 1e-14) << c.parameter;  // measured 4e-16 .. 1.4e-15
     // Reference derivative: Richardson-extrapolated central differences of the closed form with
     // the pole moved in a copy of OCCT's surface (cubic in the pole: exact up to round-off).
     auto moved_moments = [&](double s) {

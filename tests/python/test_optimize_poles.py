@@ -66,7 +66,7 @@ class OptimizePoles(unittest.TestCase):
             self.assertGreater(final[name % (2, j)], 20.0)
             self.assertLess(final[name % (5, j)], 10.0)
         for i in (2, 5):  # symmetric in y: rows j = 2 and j = 4 alike (measured to 1e-10)
-            self.assertAlmostEqual(final[name % (i, 2)], final[name % (i, 4)], delta=1e-8)
+            self.assertAlmostEqual(final[name % (i, 2)], final[name % (i, 4)], delta=1e-9)
         # Independent: OCCT reads the written STEP back; its top surface has the final poles.
         step = os.path.join(out, "optimized.step")
         face = top_face(step)
@@ -87,6 +87,9 @@ class OptimizePoles(unittest.TestCase):
             for p in (BUMP, step):
                 code, r = cli(["simulate", p], dict(ELASTIC, grid={"cells": cells}))
                 self.assertEqual(code, 0, r)
+                # The face route holds: its rules match OCCT's adaptive volume of a B-spline face
+                # (the fixed-rule volume, 1e-5 off, sent this part to the splitter).
+                self.assertEqual(r["grid"]["method"], "face", r["grid"].get("fallback_reason"))
                 c.append(-2 * r["potential"])
             ratios.append(c[1] / c[0])
         print("\n[optimize poles] %.6g -> %.6g; fresh ratios %s" % (h["initial_objective"], h["final_objective"],
