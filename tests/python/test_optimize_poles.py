@@ -123,6 +123,19 @@ class OptimizePoles(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("pole i j x|y|z", err["error"]["message"])
 
+    def test_chart_false_writes_no_chart(self):
+        base = {"objective": {"type": "volume"}, "parameters": [{"face": self.top, "parameter": "pole 3 2 z"}],
+                "start": [16.0], "max_iterations": 0}
+        out = os.path.join(self.dir, "nochart")
+        code, h = cli(["optimize", BUMP, "-o", out], dict(base, chart=False))
+        self.assertEqual(code, 0, h)
+        self.assertIsNone(h["chart"])
+        self.assertFalse(os.path.exists(os.path.join(out, "history.png")))
+        self.assertTrue(os.path.exists(os.path.join(out, "optimized.step")))
+        code, err = cli(["optimize", BUMP, "-o", os.path.join(self.dir, "bad")], dict(base, chart="no"))
+        self.assertEqual(code, 2)
+        self.assertIn("chart must be true or false", err["error"]["message"])
+
     def test_a_boundary_pole_moved_off_its_side_plane_is_an_invalid_model(self):
         # Where the write-back fails: pole (1, 3) lies in the clamped side x = 0; moved along x
         # the top's boundary leaves that plane between the fixed corners (+x: a gap; -x: the

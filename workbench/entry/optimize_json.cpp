@@ -170,6 +170,10 @@ occ::ObjectiveSpec objective_spec(const json& obj, const std::string& path, bool
 json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
                         const OptimizeProgressFn& progress) {
   if (!job.is_object()) PARAFAB_INPUT_ERROR("the optimization job must be a JSON object");
+  // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
+  if (job.contains("chart") && !job["chart"].is_boolean())
+    PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
+  const bool chart = job.value("chart", true);
   const auto part = occ::read_part(part_path);
   occ::ShapeOptimizationOptions o;
 
@@ -436,7 +440,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     // The chart: a small matplotlib script (optional: the history is complete without it).
     const std::string script = std::string(PARAFAB_SCRIPTS_DIR) + "/plot_optimization.py";
     const std::string png = out_dir + "/history.png";
-    if (std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
+    if (chart && std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
       const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";
       if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
     }
