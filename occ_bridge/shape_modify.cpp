@@ -100,8 +100,8 @@ class ParameterModification : public BRepTools_Modification {
         if ((p.segment(pb->offset, pb->size()) - old).cwiseAbs().maxCoeff() <= Precision::Confusion()) continue;
         const auto moved = Handle(Geom_BSplineSurface)::DownCast(surfaces_[f]->Copy());
         if (moved.IsNull()) throw Failure{"face " + std::to_string(f) + " is no longer a B-spline surface"};
-        for (int i = 1; i <= pb->count_u; ++i)
-          for (int j = 1; j <= pb->count_v; ++j)
+        for (int i = 1; i <= pb->count_u(); ++i)
+          for (int j = 1; j <= pb->count_v(); ++j)
             moved->SetPole(i, j, gp_Pnt(p[pb->entry(i, j, 0)], p[pb->entry(i, j, 1)], p[pb->entry(i, j, 2)]));
         surfaces_[f] = moved;
         modified_[f] = true;

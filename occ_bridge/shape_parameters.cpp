@@ -110,7 +110,7 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
       continue;
     }
     sp.pole_block_of_face[f.index] = static_cast<int>(sp.pole_blocks.size());
-    sp.pole_blocks.push_back({f.index, f.bspline.count_u, f.bspline.count_v, offset, f.bspline});
+    sp.pole_blocks.push_back({f.index, offset, f.bspline});
     offset += sp.pole_blocks.back().size();
   }
   sp.initial.resize(offset);
@@ -118,9 +118,9 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
   sp.upper = Eigen::VectorXd::Constant(offset, 1e19);
   sp.names.resize(analytic_entries);
   for (const PoleBlock& b : sp.pole_blocks) {
-    const NurbsSurface& s = model.faces[b.face].bspline;
-    for (int i = 1; i <= b.count_u; ++i)
-      for (int j = 1; j <= b.count_v; ++j) {
+    const NurbsSurface& s = b.surface;
+    for (int i = 1; i <= b.count_u(); ++i)
+      for (int j = 1; j <= b.count_v(); ++j) {
         const Eigen::Vector4d& q = s.pole(i - 1, j - 1);
         for (int c = 0; c < 3; ++c) sp.initial[b.entry(i, j, c)] = q[c] / q[3];
       }
@@ -135,8 +135,8 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     }
   }
   for (const PoleBlock& b : sp.pole_blocks)
-    for (int i = 1; i <= b.count_u; ++i)
-      for (int j = 1; j <= b.count_v; ++j)
+    for (int i = 1; i <= b.count_u(); ++i)
+      for (int j = 1; j <= b.count_v(); ++j)
         for (int c = 0; c < 3; ++c)
           sp.names.push_back("face " + std::to_string(b.face) + " bspline pole " + std::to_string(i) + " " +
                              std::to_string(j) + " " + "xyz"[c]);
@@ -299,12 +299,12 @@ int parameter_index(const ShapeParameters& sp, int face, const std::string& para
     std::string word, coordinate, rest;
     int i = 0, j = 0;
     if (in >> word >> i >> j >> coordinate && !(in >> rest) && word == "pole" && coordinate.size() == 1 &&
-        std::string("xyz").find(coordinate[0]) != std::string::npos && i >= 1 && i <= pb->count_u && j >= 1 &&
-        j <= pb->count_v)
+        std::string("xyz").find(coordinate[0]) != std::string::npos && i >= 1 && i <= pb->count_u() && j >= 1 &&
+        j <= pb->count_v())
       return pb->entry(i, j, coordinate[0] - 'x');
-    PARAFAB_INPUT_ERROR("face " << face << " (bspline, " << pb->count_u << " x " << pb->count_v
+    PARAFAB_INPUT_ERROR("face " << face << " (bspline, " << pb->count_u() << " x " << pb->count_v()
                                 << " poles) has no parameter '" << parameter << "'; its parameters are 'pole i j x|y|z' with i in 1.."
-                                << pb->count_u << " and j in 1.." << pb->count_v);
+                                << pb->count_u() << " and j in 1.." << pb->count_v());
   }
   const auto* b = sp.block(face);
   PARAFAB_VERIFY(b, "face " << face << " has no shape parameters (not an analytic or non-periodic B-spline face of the part, or absent)");

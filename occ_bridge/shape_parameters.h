@@ -57,11 +57,12 @@ struct ShapeParameterOptions {
 /// and knots stay. q(p) is then p itself, so its Jacobian is the identity.
 struct PoleBlock {
   int face = -1;
-  int count_u = 0, count_v = 0;
   int offset = 0;
   NurbsSurface surface;  ///< the surface as read (knots and weights stay; its poles are p0's)
-  int size() const { return 3 * count_u * count_v; }
-  int entry(int i, int j, int c) const { return offset + 3 * ((i - 1) * count_v + j - 1) + c; }
+  int count_u() const { return surface.count_u; }
+  int count_v() const { return surface.count_v; }
+  int size() const { return 3 * count_u() * count_v(); }
+  int entry(int i, int j, int c) const { return offset + 3 * ((i - 1) * count_v() + j - 1) + c; }
 };
 
 struct ShapeParameters {

@@ -50,8 +50,8 @@ TEST(BsplinePoles, PolesAreParametersNumberedAsInOcct) {
   const ShapeParameters sp = build_shape_parameters(model);
   ASSERT_NE(sp.poles(top), nullptr);
   const PoleBlock& b = *sp.poles(top);
-  EXPECT_EQ(b.count_u, 6);
-  EXPECT_EQ(b.count_v, 5);
+  EXPECT_EQ(b.count_u(), 6);
+  EXPECT_EQ(b.count_v(), 5);
   EXPECT_EQ(sp.size(), 5 * 4 + 90);  // five planes (n, d), then the 30 poles
   EXPECT_EQ(sp.blocks.size(), 5u);   // "auto" designs take the analytic blocks only
   for (int i = 1; i <= 6; ++i)
@@ -157,8 +157,8 @@ TEST(BsplinePoles, MovedPolesGiveValidPartsAndExactMassDerivatives) {
       const Handle(Geom_BSplineSurface) moved = top_surface(*mod.part, top);
       ASSERT_FALSE(moved.IsNull());
       const PoleBlock& b = *sp.poles(top);
-      for (int pi = 1; pi <= b.count_u; ++pi)
-        for (int pj = 1; pj <= b.count_v; ++pj)
+      for (int pi = 1; pi <= b.count_u(); ++pi)
+        for (int pj = 1; pj <= b.count_v(); ++pj)
           for (int k = 0; k < 3; ++k) EXPECT_EQ(moved->Pole(pi, pj).Coord(k + 1), p[b.entry(pi, pj, k)]);
       m[side] = top_surface_moments(moved);
       written = std::max(written, worst_relative(occt_moments(*mod.part), m[side]));  // OCCT's mass properties
@@ -173,7 +173,7 @@ TEST(BsplinePoles, MovedPolesGiveValidPartsAndExactMassDerivatives) {
     auto moved_moments = [&](double s) {
       const auto copy = Handle(Geom_BSplineSurface)::DownCast(top_surface(*part, top)->Copy());
       const PoleBlock& b = *sp.poles(top);
-      const int k = i - b.offset, pi = k / 3 / b.count_v + 1, pj = k / 3 % b.count_v + 1;
+      const int k = i - b.offset, pi = k / 3 / b.count_v() + 1, pj = k / 3 % b.count_v() + 1;
       gp_Pnt P = copy->Pole(pi, pj);
       P.SetCoord(k % 3 + 1, P.Coord(k % 3 + 1) + s);
       copy->SetPole(pi, pj, P);
