@@ -74,12 +74,22 @@ double PlaneCurve::parameter_at(double s) const {
   double u = (2 * t3 - 3 * t2 + 1) * lo + (t3 - 2 * t2 + t) * ds / table_v_[i] +
              (-2 * t3 + 3 * t2) * hi + (t3 - t2) * ds / table_v_[i + 1];
   if (!(u > lo && u < hi)) u = lo + (hi - lo) * t;
+  const double tolerance = 1e-15 * length(), interval = hi - lo;
   for (int iter = 0; iter < 60; ++iter) {
     const double f = s_lo + integrate_speed(table_u_[i], u) - s;
-    if (std::abs(f) <= 1e-15 * length()) break;
+    if (std::abs(f) <= tolerance) break;
     if (f > 0) hi = u; else lo = u;
-    double next = u - f / speed(u);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    const auto d = curve_.derivatives(u, 2);
+    const double v = d[1].norm(), step = -f / v;
+    double next = u + step;
+    if (!(next > lo && next < hi)) {
+      next = 0.5 * (lo + hi);
+    } else if (std::abs(step) <= 1e-3 * interval &&
+               0.5 * std::abs(d[1].dot(d[2]) / v) * step * step <= 0.1 * tolerance) {
+      // The residual after this Newton step is ½ v′ step² + O(step³) (v′ = d|γ′|/du): a tenth
+      // of the tolerance, so the step is taken without integrating again.
+      return next;
+    }
     if (std::abs(next - u) <= 1e-16 * std::max(1.0, std::abs(u))) { u = next; break; }
     u = next;
   }

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <map>
 #include <sstream>
 
 #include <tbb/parallel_for.h>
@@ -32,33 +31,45 @@ double lap(Clock::time_point& t) {
 
 std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
                                              const std::vector<ZeroCurvaturePoint>& zeros,
-                                             std::map<double, CurvePoint>* cache) {
+                                             ArcLengthSampleCache* cache) {
   PARAFAB_VERIFY(count >= 2, "need at least 2 samples, got " << count);
   const double l = curve.length();
-  // Equally spaced arc lengths plus the interior knots, where K may have a kink (κ' jumps on
-  // a cubic) or a jump (κ jumps on a quadratic): there sup K is attained exactly.
-  std::vector<double> at;
-  at.reserve(count + curve.bspline().knots().size());
-  for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
-  const std::vector<double>& bs = curve.breakpoint_arc_lengths();
-  at.insert(at.end(), bs.begin() + 1, bs.end() - 1);
-  std::sort(at.begin(), at.end());
-  std::vector<CurvePoint> out;
-  out.reserve(at.size());
-  for (size_t k = 0; k < at.size(); ++k) {
-    const double s = at[k];
-    if (k > 0 && s - at[k - 1] <= 1e-12 * l) continue;
-    bool near_zero = false;
-    for (const auto& z : zeros) near_zero |= std::abs(z.at.s - s) <= kZeroExclusion * l;
-    if (near_zero) continue;
-    if (!cache) {
-      out.push_back(curve.at_arc_length(s));
-      continue;
+  ArcLengthSampleCache local;
+  ArcLengthSampleCache& c = cache ? *cache : local;
+  PARAFAB_VERIFY(c.curve == nullptr || c.curve == &curve, "sample_by_arc_length: the cache belongs to another curve");
+  // The interior knots, where K may have a kink (κ' jumps on a cubic) or a jump (κ jumps on
+  // a quadratic): there sup K is attained exactly. Their parameters are known: no inversion.
+  if (c.curve == nullptr) {
+    c.curve = &curve;
+    const std::vector<double> bp = curve.bspline().breakpoints();
+    const std::vector<double>& bs = curve.breakpoint_arc_lengths();
+    for (size_t k = 1; k + 1 < bp.size(); ++k) {
+      CurvePoint p = curve.geometry_at(bp[k]);
+      p.s = bs[k];
+      c.knots.push_back(p);
     }
-    auto it = cache->find(s);
-    if (it == cache->end()) it = cache->emplace(s, curve.at_arc_length(s)).first;
-    out.push_back(it->second);
   }
+  // Equally spaced points; those of the previous grid are reused when it is nested in this one.
+  const int previous = static_cast<int>(c.spaced.size());
+  const int step = previous >= 2 && (count - 1) % (previous - 1) == 0 ? (count - 1) / (previous - 1) : 0;
+  std::vector<CurvePoint> spaced(static_cast<size_t>(count));
+  for (int k = 0; k < count; ++k)
+    spaced[k] = step > 0 && k % step == 0 ? c.spaced[k / step] : curve.at_arc_length(l * k / (count - 1));
+  // Merge both in order of s, dropping near-duplicates and points next to a zero.
+  std::vector<CurvePoint> out;
+  out.reserve(spaced.size() + c.knots.size());
+  double last_s = -INFINITY;
+  auto take = [&](const CurvePoint& p) {
+    if (p.s - last_s <= 1e-12 * l) return;
+    last_s = p.s;
+    for (const auto& z : zeros)
+      if (std::abs(z.at.s - p.s) <= kZeroExclusion * l) return;
+    out.push_back(p);
+  };
+  size_t a = 0, b = 0;
+  while (a < spaced.size() || b < c.knots.size())
+    take(b == c.knots.size() || (a < spaced.size() && spaced[a].s <= c.knots[b].s) ? spaced[a++] : c.knots[b++]);
+  c.spaced = std::move(spaced);
   return out;
 }
 
@@ -357,31 +368,10 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   }
   d.collinearity_error = check.collinearity_error;
 
-  // Samples as in sample_by_arc_length, with the curve evaluations of coarser nested grids
-  // reused (l·k/(n−1) is bit-identical to l·2k/(2n−2)).
-  std::map<double, CurvePoint> cache;
-  const std::vector<double>& bs = curve.breakpoint_arc_lengths();
-  auto sample_cached = [&](int count) {
-    std::vector<double> at;
-    for (int k = 0; k < count; ++k) at.push_back(l * k / (count - 1));
-    at.insert(at.end(), bs.begin() + 1, bs.end() - 1);
-    std::sort(at.begin(), at.end());
-    std::vector<CurvePoint> pts;
-    for (size_t k = 0; k < at.size(); ++k) {
-      const double sk = at[k];
-      if (k > 0 && sk - at[k - 1] <= 1e-12 * l) continue;
-      bool near_zero = false;
-      for (const auto& z : zeros.points) near_zero |= std::abs(z.at.s - sk) <= kZeroExclusion * l;
-      if (near_zero) continue;
-      auto it = cache.find(sk);
-      if (it == cache.end()) it = cache.emplace(sk, curve.at_arc_length(sk)).first;
-      pts.push_back(it->second);
-    }
-    return pts;
-  };
+  ArcLengthSampleCache cache;
   auto lp_samples = [&](int count) {
     std::vector<StripLpSample> out;
-    for (const auto& p : sample_cached(count)) {
+    for (const auto& p : sample_by_arc_length(curve, count, zeros.points, &cache)) {
       StripLpSample q;
       q.s = p.s, q.point = p.point, q.tangent = p.tangent, q.kappa = p.kappa;
       q.mu = o.law.moment(p.kappa - o.natural_curvature);
@@ -586,7 +576,7 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   // R_c / R_n − 1 ≤ tolerance. R_c is estimated (the largest sampled extrema refined by
   // golden-section search), so the gap is an estimate of the error of R, not a certificate.
   ContinuousRatio cont;
-  std::map<double, CurvePoint> cache;
+  ArcLengthSampleCache cache;
   for (int n = options.initial_samples + 1;; n = std::min(2 * n - 1, options.max_samples)) {
     lap(tp);
     samples = sample_by_arc_length(curve, n, zeros.points, &cache);

@@ -164,11 +164,21 @@ StripDesign design_strip(const BSplineCurve2& curve, const StripDesignOptions& o
 std::vector<StripDesign> design_strips(const std::vector<BSplineCurve2>& curves,
                                        const StripDesignOptions& options = {}, int threads = 0);
 
+/// Curve evaluations kept between the nested grids of one design: the interior knots
+/// (evaluated once, at their exact parameters) and the last grid's equally spaced points
+/// (l·k/(n−1) is bit-identical to l·2k/(2n−2), so a refined grid evaluates only its new
+/// points). Belongs to one curve.
+struct ArcLengthSampleCache {
+  const PlaneCurve* curve = nullptr;
+  std::vector<CurvePoint> knots;   ///< interior breakpoints, in order
+  std::vector<CurvePoint> spaced;  ///< the last grid's equally spaced points
+};
+
 /// Samples equally spaced in arc length plus the interior knots, leaving out points within
-/// 1e-6·length of a zero. `cache` (optional) keeps the curve evaluations by arc length, so
-/// nested grids (l·k/(n−1) is bit-identical to l·2k/(2n−2)) evaluate each point once.
+/// 1e-6·length of a zero. `cache` (optional) keeps the curve evaluations between calls on
+/// nested grids of the same curve.
 std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
                                              const std::vector<ZeroCurvaturePoint>& zeros,
-                                             std::map<double, CurvePoint>* cache = nullptr);
+                                             ArcLengthSampleCache* cache = nullptr);
 
 }  // namespace parafab

@@ -124,10 +124,32 @@ TEST(BSplineCurve2, TaylorFormsMatchTheTextbookRecursionForEveryDegree) {
   std::printf("largest difference to the textbook recursion: %.2e of the derivative's size\n", worst);
 }
 
+// parameter_at (Newton that may stop on the predicted size of its last step's residual)
+// against bisection on arc_length_at, on a rational arc and a 400-point interpolant.
 TEST(PlaneCurve, ParameterAtInvertsArcLength) {
-  const PlaneCurve c(quarter_circle(2.0));
-  for (double s = 0; s <= c.length(); s += c.length() / 17) {
-    EXPECT_NEAR(c.arc_length_at(c.parameter_at(s)), s, 1e-12);
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 400; ++i) {
+    const double x = -0.135 + 0.27 * i / 399, t = x / 0.15;
+    pts.emplace_back(x, 0.06 * (t * t * t - t));
+  }
+  for (const PlaneCurve& c : {PlaneCurve(quarter_circle(2.0)), PlaneCurve(interpolate_points(pts, 4))}) {
+    const double l = c.length();
+    double worst_s = 0, worst_u = 0;
+    for (int k = 0; k <= 1000; ++k) {
+      const double s = l * k / 1000, u = c.parameter_at(s);
+      double lo = c.first_parameter(), hi = c.last_parameter();
+      for (int it = 0; it < 200 && hi - lo > 0; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (mid <= lo || mid >= hi) break;
+        (c.arc_length_at(mid) < s ? lo : hi) = mid;
+      }
+      const double speed = c.bspline().derivatives(u, 1)[1].norm();
+      worst_s = std::max(worst_s, std::abs(c.arc_length_at(u) - s) / l);
+      worst_u = std::max(worst_u, std::abs(u - 0.5 * (lo + hi)) * speed / l);  // in units of length
+    }
+    std::printf("parameter_at: |s(u) - s| <= %.1e l, |u - u_bisection| |γ'| <= %.1e l\n", worst_s, worst_u);
+    EXPECT_LE(worst_s, 2e-15);
+    EXPECT_LE(worst_u, 4e-15);
   }
 }
 
