@@ -622,10 +622,13 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   lap(tp);
   // Normalize K so that min K = 1 exactly, over samples and zeros alike.
   std::vector<StripSample> all;
+  all.reserve(samples.size() + zero_points.size());
   for (const auto& p : samples)
     all.push_back({p.s, p.point, p.kappa, stiffness_at(p, lp.a, lp.b, false)});
   for (const auto& z : zero_points) all.push_back({z.s, z.point, 0.0, stiffness_at(z, lp.a, lp.b, true)});
-  std::sort(all.begin(), all.end(), [](const StripSample& x, const StripSample& y) { return x.s < y.s; });
+  // Both runs are in order of s already (sample_by_arc_length, the zero finder).
+  std::inplace_merge(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(samples.size()), all.end(),
+                     [](const StripSample& x, const StripSample& y) { return x.s < y.s; });
   double kmin = INFINITY, kmax = 0;
   for (const auto& p : all) kmin = std::min(kmin, p.K), kmax = std::max(kmax, p.K);
   PARAFAB_VERIFY(kmin > 0, "stiffness LP returned a non-positive stiffness " << kmin

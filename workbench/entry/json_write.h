@@ -5,6 +5,8 @@
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 namespace parafab::entry::json_write {
 
@@ -36,6 +38,60 @@ inline void dismantle(nlohmann::json& j) {
       if (kv.second.is_structured()) dismantle(kv.second);
     o.clear();
   }
+}
+
+/// A large numeric array of a result kept flat until the caller needs it (see ColumnarResult).
+struct Column {
+  std::vector<std::string> path;  ///< keys from the root of the result
+  std::vector<double> values;     ///< row by row
+  int width = 1;                  ///< 1: [v, ...]; 2, 3: [[x, y(, z)], ...]
+};
+
+/// A result whose bulk (thousands of numbers and [x, y] rows) is held as flat columns: `tree`
+/// has null where each column goes. expand() writes them into the tree (the CLI and the text
+/// routes); the Python binding builds its lists straight from the columns instead, skipping
+/// one small nlohmann array per row.
+struct ColumnarResult {
+  nlohmann::json tree;
+  std::vector<Column> columns;
+
+  void put(std::vector<std::string> path, std::vector<double> values, int width = 1) {
+    nlohmann::json* at = &tree;
+    for (const auto& key : path) at = &(*at)[key];
+    *at = nullptr;
+    columns.push_back({std::move(path), std::move(values), width});
+  }
+};
+
+/// The rows of a column as nlohmann arrays (non-finite numbers stay as they are: dump() writes
+/// them as null).
+inline nlohmann::json column_json(const Column& c) {
+  nlohmann::json a(nlohmann::json::value_t::array);
+  auto& e = a.get_ref<nlohmann::json::array_t&>();
+  const size_t w = static_cast<size_t>(c.width), rows = c.values.size() / w;
+  e.reserve(rows);
+  for (size_t r = 0; r < rows; ++r) {
+    if (w == 1) {
+      e.emplace_back(c.values[r]);
+      continue;
+    }
+    nlohmann::json row(nlohmann::json::value_t::array);
+    auto& re = row.get_ref<nlohmann::json::array_t&>();
+    re.reserve(w);
+    for (size_t k = 0; k < w; ++k) re.emplace_back(c.values[r * w + k]);
+    e.push_back(std::move(row));
+  }
+  return a;
+}
+
+/// The whole result as one JSON tree.
+inline nlohmann::json expand(ColumnarResult&& r) {
+  for (const Column& c : r.columns) {
+    nlohmann::json* at = &r.tree;
+    for (const auto& key : c.path) at = &(*at)[key];
+    *at = column_json(c);
+  }
+  return std::move(r.tree);
 }
 
 }  // namespace parafab::entry::json_write

@@ -172,7 +172,21 @@ PyObject* to_python_raw(const nlohmann::json& j) {
   }
 }
 
+// The cyclic collector paused while a result is built: its thousands of new lists would
+// otherwise trigger young-generation passes over objects that cannot form cycles yet (they
+// stay tracked, so later passes see them). Restores the previous state.
+class CollectorPause {
+ public:
+#if PY_VERSION_HEX >= 0x030A0000
+  CollectorPause() : was_enabled_(PyGC_Disable()) {}
+  ~CollectorPause() { if (was_enabled_) PyGC_Enable(); }
+ private:
+  int was_enabled_;
+#endif
+};
+
 py::object to_python(const nlohmann::json& j) {
+  const CollectorPause pause;
   PyObject* o = to_python_raw(j);
   if (!o) throw py::error_already_set();
   return py::reinterpret_steal<py::object>(o);
@@ -184,6 +198,48 @@ py::object to_python(nlohmann::json&& j) {
   py::object o = to_python(static_cast<const nlohmann::json&>(j));
   parafab::entry::json_write::dismantle(j);
   return o;
+}
+
+// A column's rows as a list of floats (width 1) or of [x, y(, z)] lists; non-finite numbers
+// become None, as in to_python_raw. New reference, nullptr with a Python error set on failure.
+PyObject* column_to_python(const parafab::entry::json_write::Column& c) {
+  const size_t w = static_cast<size_t>(c.width), rows = c.values.size() / w;
+  auto number = [](double x) -> PyObject* {
+    if (std::isfinite(x)) return PyFloat_FromDouble(x);
+    Py_RETURN_NONE;
+  };
+  PyObject* list = PyList_New(static_cast<Py_ssize_t>(rows));
+  if (!list) return nullptr;
+  for (size_t r = 0; r < rows; ++r) {
+    PyObject* item = nullptr;
+    if (w == 1) {
+      item = number(c.values[r]);
+    } else if ((item = PyList_New(static_cast<Py_ssize_t>(w)))) {
+      for (size_t k = 0; k < w; ++k) {
+        PyObject* x = number(c.values[r * w + k]);
+        if (!x) { Py_CLEAR(item); break; }
+        PyList_SET_ITEM(item, static_cast<Py_ssize_t>(k), x);
+      }
+    }
+    if (!item) { Py_DECREF(list); return nullptr; }
+    PyList_SET_ITEM(list, static_cast<Py_ssize_t>(r), item);
+  }
+  return list;
+}
+
+// A columnar result: the tree converted (each column's key holds None there, in its sorted
+// place), then every column put in its place; equal to to_python(expand(r)).
+py::object to_python(parafab::entry::json_write::ColumnarResult&& r) {
+  const CollectorPause pause;
+  py::object root = to_python(std::move(r.tree));
+  for (const auto& c : r.columns) {
+    py::dict parent = root;
+    for (size_t k = 0; k + 1 < c.path.size(); ++k) parent = parent[c.path[k].c_str()].cast<py::dict>();
+    PyObject* list = column_to_python(c);
+    if (!list) throw py::error_already_set();
+    parent[c.path.back().c_str()] = py::reinterpret_steal<py::object>(list);
+  }
+  return root;
 }
 }  // namespace
 
@@ -245,10 +301,10 @@ PYBIND11_MODULE(parafab, m) {
       "design_strip",
       [](const py::dict& request) {
         const nlohmann::json in = to_json(request);
-        nlohmann::json out;
+        parafab::entry::json_write::ColumnarResult out;
         {
           py::gil_scoped_release release;
-          out = parafab::entry::design_strip_json(in);
+          out = parafab::entry::design_strip_columns(in);
         }
         return to_python(std::move(out));
       },

@@ -202,7 +202,9 @@ json error_json(const std::string& message, const std::string& kind) {
   return json{{"error", {{"message", message}, {"kind", kind}}}};
 }
 
-json design_strip_json(const json& request) {
+json design_strip_json(const json& request) { return json_write::expand(design_strip_columns(request)); }
+
+json_write::ColumnarResult design_strip_columns(const json& request) {
   const auto t_entry = std::chrono::steady_clock::now();
   auto since = [](std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -355,21 +357,25 @@ json design_strip_json(const json& request) {
   const double interpolation_seconds = since(t_curve);
   const StripDesign d = design_strip(curve, o);
 
-  json out;
+  json_write::ColumnarResult result;
+  json& out = result.tree;
   out["feasible"] = d.feasible;
   out["reason"] = d.reason;
   out["reason_code"] = d.reason_code;
   out["where"] = d.reason_s >= 0 ? json{{"s", d.reason_s}} : json(nullptr);
   out["length"] = d.length;
+  auto xy = [](const std::vector<Vec2>& v) {
+    std::vector<double> flat;
+    flat.reserve(2 * v.size());
+    for (const auto& p : v) flat.push_back(p.x()), flat.push_back(p.y());
+    return flat;
+  };
   {  // the curve as designed (the interpolant when points were given)
-    json poles = json::array();
-    poles.get_ref<json::array_t&>().reserve(curve.poles().size());
-    for (const auto& p : curve.poles()) poles.push_back(to_json(p));
     json& bspline = out["bspline"];
     bspline["degree"] = curve.degree();
-    bspline["knots"] = curve.knots();
-    bspline["poles"] = std::move(poles);
-    if (curve.rational()) out["bspline"]["weights"] = curve.weights();
+    if (curve.rational()) bspline["weights"] = curve.weights();
+    result.put({"bspline", "knots"}, curve.knots());
+    result.put({"bspline", "poles"}, xy(curve.poles()), 2);
   }
   json infl = json::array();
   for (const auto& z : d.zeros)
@@ -378,24 +384,21 @@ json design_strip_json(const json& request) {
   out["inflections"] = std::move(infl);
   out["line"] = {{"a", d.a}, {"b", to_json(d.b)}};
   out["R"] = d.feasible ? json(d.R) : json(nullptr);
-  json s = json::array(), pts = json::array(), kap = json::array(), K = json::array();
-  for (json* a : {&s, &pts, &kap, &K}) a->get_ref<json::array_t&>().reserve(d.samples.size());
-  for (const auto& p : d.samples) {
-    s.push_back(p.s);
-    pts.push_back(to_json(p.point));
-    kap.push_back(p.kappa);
-    K.push_back(p.K);
+  {
+    const size_t n = d.samples.size();
+    std::vector<double> s(n), pts(2 * n), kap(n), K(n);
+    for (size_t i = 0; i < n; ++i) {
+      const StripSample& p = d.samples[i];
+      s[i] = p.s, pts[2 * i] = p.point.x(), pts[2 * i + 1] = p.point.y(), kap[i] = p.kappa, K[i] = p.K;
+    }
+    result.put({"s"}, std::move(s));
+    result.put({"points"}, std::move(pts), 2);
+    result.put({"curvature"}, std::move(kap));
+    result.put({"K"}, std::move(K));
+    result.put({"width"}, d.width);
+    result.put({"bending_stiffness"}, d.bending_stiffness);
+    result.put({"outline"}, xy(d.outline), 2);
   }
-  out["s"] = std::move(s);
-  out["points"] = std::move(pts);
-  out["curvature"] = std::move(kap);
-  out["K"] = std::move(K);
-  out["width"] = d.width;
-  out["bending_stiffness"] = d.bending_stiffness;
-  json outline = json::array();
-  outline.get_ref<json::array_t&>().reserve(d.outline.size());
-  for (const auto& p : d.outline) outline.push_back(to_json(p));
-  out["outline"] = std::move(outline);
   json refinement = json::array();
   auto num = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
   for (const auto& r : d.refinement)
@@ -571,7 +574,7 @@ json design_strip_json(const json& request) {
                                   {"zeros", ph.zeros}, {"check", ph.check}, {"sampling", ph.sampling},
                                   {"lp", ph.lp}, {"ratio", ph.ratio}, {"outputs", ph.outputs},
                                   {"stability", stability_seconds}, {"entry", since(t_entry)}};
-  return out;
+  return result;
 }
 
 }  // namespace parafab::entry

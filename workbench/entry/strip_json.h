@@ -5,11 +5,16 @@
 
 #include <nlohmann/json.hpp>
 
+#include "json_write.h"
+
 namespace parafab::entry {
 
 /// Parses a strip request, designs the strip and returns the result JSON.
 /// Throws parafab::Error naming the offending field for invalid input.
 nlohmann::json design_strip_json(const nlohmann::json& request);
+/// The same result with its per-sample arrays, outline and curve poles and knots as flat
+/// columns (design_strip_json expands them; the Python binding converts them directly).
+json_write::ColumnarResult design_strip_columns(const nlohmann::json& request);
 
 /// {"error": {"message": ..., "kind": ...}}: what the CLI prints for bad input.
 nlohmann::json error_json(const std::string& message, const std::string& kind);
