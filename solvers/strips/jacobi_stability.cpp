@@ -9,6 +9,9 @@
 #include <cmath>
 #include <sstream>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "common/error.h"
 #include "strips/plane_rod_discretization.h"
 #include "strips/strip_validation.h"
@@ -481,10 +484,10 @@ DiscreteRodState rod_state(const BSplineCurve2& bspline, const StripDesign& desi
   const double u0 = bspline.first_parameter(), u1 = bspline.last_parameter();
   std::vector<Vec2> fine(M + 1);
   std::vector<double> cum(M + 1, 0.0);
-  for (int i = 0; i <= M; ++i) {
-    fine[i] = bspline.point(u0 + (u1 - u0) * i / M);
-    if (i > 0) cum[i] = cum[i - 1] + (fine[i] - fine[i - 1]).norm();
-  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, M + 1, 1024), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) fine[i] = bspline.point(u0 + (u1 - u0) * i / M);
+  });
+  for (int i = 1; i <= M; ++i) cum[i] = cum[i - 1] + (fine[i] - fine[i - 1]).norm();
   const double l = design.length > 0 ? design.length : cum[M];
   for (double& c : cum) c *= l / cum[M];
   DiscreteRodState s;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <sstream>
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -53,8 +54,10 @@ std::vector<CurvePoint> sample_by_arc_length(const PlaneCurve& curve, int count,
   const int previous = static_cast<int>(c.spaced.size());
   const int step = previous >= 2 && (count - 1) % (previous - 1) == 0 ? (count - 1) / (previous - 1) : 0;
   std::vector<CurvePoint> spaced(static_cast<size_t>(count));
-  for (int k = 0; k < count; ++k)
-    spaced[k] = step > 0 && k % step == 0 ? c.spaced[k / step] : curve.at_arc_length(l * k / (count - 1));
+  tbb::parallel_for(tbb::blocked_range<int>(0, count, 128), [&](const tbb::blocked_range<int>& r) {
+    for (int k = r.begin(); k != r.end(); ++k)
+      spaced[k] = step > 0 && k % step == 0 ? c.spaced[k / step] : curve.at_arc_length(l * k / (count - 1));
+  });
   // Merge both in order of s, dropping near-duplicates and points next to a zero.
   std::vector<CurvePoint> out;
   out.reserve(spaced.size() + c.knots.size());

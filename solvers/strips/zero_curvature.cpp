@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 namespace parafab {
 
 const char* to_string(ZeroKind kind) {
@@ -67,10 +70,10 @@ ZeroCurvatureResult find_zero_curvature(const PlaneCurve& curve,
   const size_t n = u.size();
   std::vector<double>& kappa = r.scan_kappa;
   kappa.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    kappa[i] = offset_curvature(curve, u[i], k0);
-    r.kappa_scale = std::max(r.kappa_scale, std::abs(kappa[i]));
-  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& b) {
+    for (size_t i = b.begin(); i != b.end(); ++i) kappa[i] = offset_curvature(curve, u[i], k0);
+  });
+  for (size_t i = 0; i < n; ++i) r.kappa_scale = std::max(r.kappa_scale, std::abs(kappa[i]));
   const double l = curve.length();
   if (r.kappa_scale * l <= options.zero_tolerance) {
     r.straight = true;
