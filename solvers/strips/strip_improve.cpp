@@ -299,14 +299,14 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
       ok = Rt.valid || !bounded;
       if (!ok) res.last_rejection = "K changes sign on the samples (the line meets the curve)";
     }
+    if (ok && bounded) {  // before F: R_p is cheap, F designs the strip (and may run a stability test)
+      ok = Rp.valid && Rt.valid && Rt.value <= std::max(o.R_max * (1 + o.bound_tolerance), Rp.value * (1 + 1e-3));
+      if (!ok) res.last_rejection = "R_p exceeds R_max after the step";
+    }
     if (ok) {
       ft = F(trial, tc, &gt);
       ok = std::isfinite(ft) && ft < f - 1e-4 * std::abs(gF.dot(dq));
       if (!ok) res.last_rejection = "no sufficient decrease of F";
-      if (ok && bounded) {
-        ok = Rp.valid && Rt.valid && Rt.value <= std::max(o.R_max * (1 + o.bound_tolerance), Rp.value * (1 + 1e-3));
-        if (!ok) res.last_rejection = "R_p exceeds R_max after the step";
-      }
     }
     if (!ok) {
       ++res.rejected_steps;
