@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "common/error.h"
+
 namespace parafab::entry::json_write {
 
 /// [v0, v1, ...] of a fixed-size Eigen vector, built in place (json::array({x, y}) goes
@@ -56,6 +58,8 @@ struct ColumnarResult {
   std::vector<Column> columns;
 
   void put(std::vector<std::string> path, std::vector<double> values, int width = 1) {
+    PARAFAB_VERIFY(!path.empty() && width >= 1 && values.size() % static_cast<size_t>(width) == 0,
+                   "result column: " << values.size() << " numbers do not make rows of " << width);
     nlohmann::json* at = &tree;
     for (const auto& key : path) at = &(*at)[key];
     *at = nullptr;
