@@ -4,7 +4,10 @@
 
 #include <cmath>
 
+#include <tbb/task_arena.h>
+
 #include "common/error.h"
+#include "strips/jacobi_stability.h"
 #include "strips/strip_design.h"
 #include "strip_test_curves.h"
 
@@ -69,6 +72,37 @@ TEST(StripScene, WarmStartedLpsEqualColdStarts) {
     }
   }
   EXPECT_LT(warm_iterations, cold_iterations);
+}
+
+// The arc-length table, the zero scan, a grid's new samples and the stability verdict's fine
+// polyline run on TBB workers: on one thread the same bits. A 400-point interpolant (the
+// Python benchmark's cubic with one inflection), long enough for every loop to be split.
+TEST(StripScene, TbbLoopsGiveTheSameBitsAsOneThread) {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 400; ++i) {
+    const double x = -0.135 + 0.27 * i / 399, u = x / 0.15;
+    pts.emplace_back(x, 0.06 * (u * u * u - u));
+  }
+  const BSplineCurve2 c = interpolate_points(pts, 4);
+  for (const bool gravity : {false, true}) {
+    SCOPED_TRACE(gravity ? "gravity" : "Eq. 4.4");
+    StripDesignOptions o;
+    o.gravity.enabled = gravity;
+    auto run = [&](int threads) {
+      std::pair<StripDesign, StripStability> r{StripDesign{}, StripStability{}};
+      tbb::task_arena(threads).execute([&] {
+        r.first = design_strip(c, o);
+        r.second = strip_stability(c, r.first, o);
+      });
+      return r;
+    };
+    const auto one = run(1), two = run(2);
+    expect_same(one.first, two.first);
+    EXPECT_EQ(one.second.stable, two.second.stable);
+    EXPECT_EQ(std::isnan(one.second.sigma), std::isnan(two.second.sigma));
+    if (!std::isnan(one.second.sigma)) EXPECT_EQ(one.second.sigma, two.second.sigma);
+    EXPECT_EQ(one.second.jacobi.Z_raw, two.second.jacobi.Z_raw);
+  }
 }
 
 TEST(StripScene, ErrorNamesTheStrip) {
