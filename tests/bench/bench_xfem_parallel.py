@@ -43,6 +43,7 @@ def run_child(cli, cells, threads, out_dir):
     child's CPU time (user + system) is added to the result as "cpu_seconds"."""
     job = json.load(open(JOB))
     job["grid"] = {"cells": cells}
+    job["element"] = "hex8"  # the element of the README's figures (the default is hex27 since 2026-11-27)
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(job, f)
     try:

@@ -19,7 +19,9 @@ from optimize_cli import cli  # noqa: E402
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
 
-ELASTIC = {"material": {"E": 210000, "nu": 0.3},
+# hex8 throughout: the optimizer's default element, and the fresh simulations that check it use
+# the same element on grids of their own.
+ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8",
            "supports": [{"point": [0, 20, 30]}],
            "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
 INNER_FILLET = [8 + 5 - 5 * 0.5 ** 0.5, 20, 8 + 5 - 5 * 0.5 ** 0.5]

@@ -87,7 +87,8 @@ class MaximaFromTheMaterial(unittest.TestCase):
 
 
 class RuleFailuresAreReported(unittest.TestCase):
-    JOB = {"material": {"E": 210000, "nu": 0.3}, "grid": {"cells": 6},
+    # hex8: the flux-refinement settings below make its degree-4 rules fail on the cylinder.
+    JOB = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8", "grid": {"cells": 6},
            "supports": [{"point": [0, 0, 0]}], "loads": [{"point": [0, 0, 40], "force": [100, 0, 0]}]}
 
     def cylinder_faces(self):

@@ -19,6 +19,14 @@ constexpr double kMbPerCutCell = 0.012;
 constexpr double kMbPerCell = 0.0005;
 constexpr double kSecondsPerCutCell = 3e-3;
 
+xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType default_element) {
+  if (!job.contains("element")) return default_element;
+  if (!job["element"].is_string()) PARAFAB_INPUT_ERROR("element must be \"hex8\" or \"hex27\", got " << job["element"].dump());
+  return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
+}
+
+int default_cells(xfem::ElementType element) { return element == xfem::ElementType::Hex27 ? 8 : 16; }
+
 GridEstimate estimate_grid(const occ::PartInfo& part, const occ::GridOptions& grid) {
   GridEstimate e;
   const Eigen::Vector3d ext = part.bbox_max - part.bbox_min;

@@ -9,6 +9,7 @@
 
 #include "grid_cut.h"
 #include "part_reader.h"
+#include "xfem/linear_xfem.h"
 
 namespace parafab::entry {
 
@@ -25,6 +26,13 @@ struct GridEstimate {
 GridEstimate estimate_grid(const occ::PartInfo& part, const occ::GridOptions& grid);
 
 nlohmann::json to_json(const GridEstimate& e);
+
+/// The job's "element" ("hex8" | "hex27"), or `default_element` when it names none.
+xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType default_element);
+
+/// The default grid.cells for an element: the same node lattice for both (16 hex8 cells or
+/// 8 hex27 cells along the part's longest side, nodes every half cell for hex27).
+int default_cells(xfem::ElementType element);
 
 /// Throws parafab::Error with the estimate and `override_hint` unless e.fits.
 void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint);
