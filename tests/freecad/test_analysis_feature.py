@@ -310,6 +310,28 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.assertMeshShows(a, a.DeformationScale)
         self.assertEqual(self.doc.recompute(), 0)
 
+    def test_document_from_before_the_element_choice_keeps_hex8(self):
+        fresh = analysis_feature.make_analysis(self.beam, [_face_at(self.beam.Shape, 0, 0)])
+        self.assertEqual((fresh.Element, fresh.Cells), ("hex27", 8))  # the defaults of a new analysis
+        self.doc.removeObject(fresh.ResultMesh.Name)
+        self.doc.removeObject(fresh.Name)
+        a = self.make(Cells=CELLS)
+        hex27 = a.MaxDisplacement.Value
+        # What a document saved by version 2 looks like: no Element; its runs were hex8.
+        a.removeProperty("Element")
+        a.Proxy.Version = 2
+        a.Proxy.onDocumentRestored(a)
+        self.assertEqual(a.Element, "hex8")
+        a.touch()
+        self.doc.recompute()
+        self.assertNotIn("Invalid", a.State, a.Status)
+        brep = os.path.join(self.tmp, "beam.brep")
+        self.beam.Shape.exportBrep(brep)
+        job = analysis_feature.build_job(a)
+        self.assertEqual(job["element"], "hex8")
+        self.assertAlmostEqual(a.MaxDisplacement.Value, parafab.simulate(brep, job)["max_displacement"], delta=1e-9)
+        self.assertNotAlmostEqual(a.MaxDisplacement.Value, hex27, delta=1e-6)
+
     def test_save_and_reopen(self):
         a = self.make()
         path = os.path.join(self.tmp, "analysis.FCStd")

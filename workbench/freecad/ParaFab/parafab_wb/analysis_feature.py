@@ -36,7 +36,7 @@ from . import feature_proxy
 from . import result_display
 
 TYPE = "ParaFab::Analysis"
-VERSION = 2
+VERSION = 3
 _READ_ONLY, _OUTPUT = feature_proxy.READ_ONLY, feature_proxy.OUTPUT
 
 _PROPERTIES = (
@@ -49,7 +49,7 @@ _PROPERTIES = (
     ("App::PropertyFloat", "PoissonRatio", "Material", "Poisson's ratio", 0.3, 0),
     ("App::PropertyFloat", "Density", "Material", "Density [kg/m^3]", 7850.0, 0),
     ("App::PropertyEnumeration", "Model", "Material", "Material law", None, 0),
-    ("App::PropertyInteger", "Cells", "Grid", "Cells along the longest side", 16, 0),
+    ("App::PropertyInteger", "Cells", "Grid", "Cells along the longest side", 8, 0),
     ("App::PropertyPath", "OutputDir", "Output", "Folder for result.json and result.vtu", "", 0),
     ("App::PropertyInteger", "Dofs", "Results", "Unknowns solved for", 0, _READ_ONLY | _OUTPUT),
     ("App::PropertyLength", "MaxDisplacement", "Results", "Largest displacement", "0 mm", _READ_ONLY | _OUTPUT),
@@ -68,8 +68,12 @@ _PROPERTIES = (
      "0 MPa", _READ_ONLY | _OUTPUT),
     ("App::PropertyPressure", "ColorScaleMax", "Display", "von Mises stress shown red (largest on the surface)",
      "0 MPa", _READ_ONLY | _OUTPUT),
+    # Version 3: the element (documents of versions 1-2 ran hex8 and keep it, see onDocumentRestored).
+    ("App::PropertyEnumeration", "Element", "Grid",
+     "hex27: triquadratic (the default, more accurate per unknown); hex8: trilinear", None, 0),
 )
 MODELS = ["linear", "neo_hooke", "neo_hooke_isochoric", "mooney_rivlin"]
+ELEMENTS = ["hex27", "hex8"]
 
 #: Material presets of the task panel: E [MPa], nu, density [kg/m^3], model.
 MATERIALS = (
@@ -101,7 +105,7 @@ def inputs_of(obj):
     return {"fixed": list(obj.FixedFaces), "loaded": list(obj.LoadedFaces), "force": (f.x, f.y, f.z),
             "gravity": bool(obj.Gravity), "E": float(obj.YoungsModulus.getValueAs("MPa")),
             "nu": float(obj.PoissonRatio), "density": float(obj.Density), "model": obj.Model,
-            "cells": int(obj.Cells), "output_dir": obj.OutputDir}
+            "cells": int(obj.Cells), "element": obj.Element, "output_dir": obj.OutputDir}
 
 
 def apply_inputs(obj, inputs):
@@ -115,6 +119,7 @@ def apply_inputs(obj, inputs):
     obj.Density = float(inputs["density"])
     obj.Model = inputs["model"]
     obj.Cells = int(inputs["cells"])
+    obj.Element = inputs.get("element", ELEMENTS[0])
     obj.OutputDir = inputs.get("output_dir") or ""
 
 
@@ -131,6 +136,7 @@ def job_from_inputs(part_obj, inputs):
     job = {
         "material": {"E": float(inputs["E"]), "nu": float(inputs["nu"]),
                      "density": float(inputs["density"]) * 1e-12, "model": inputs["model"]},
+        "element": inputs.get("element", ELEMENTS[0]),
         "grid": {"cells": int(inputs["cells"])},
         "supports": [{"face": i} for i in fixed],
         # The total force is spread over all loaded faces by area.
@@ -147,15 +153,15 @@ def build_job(obj):
     return job_from_inputs(obj.Part, inputs_of(obj))
 
 
-def estimate(part_obj, cells):
-    """``(unknowns, factor_mb)`` of a run with ``cells`` cells along the longest side.
+def estimate(part_obj, cells, element=ELEMENTS[0]):
+    """``(unknowns, factor_mb)`` of a run with ``cells`` ``element`` cells along the longest side.
 
     Shown by the task panel before a run; the solver's own estimate
     (``parafab.Simulation(...).estimate()``, the figures it refuses a run with), on the part
     exported as BREP. ``(0, 0)`` when the part cannot be read.
     """
     import parafab
-    job = {"material": {"E": 1.0, "nu": 0.3}, "grid": {"cells": max(int(cells), 1)},
+    job = {"material": {"E": 1.0, "nu": 0.3}, "element": element, "grid": {"cells": max(int(cells), 1)},
            "supports": [{"face": 0}]}
     try:
         with tempfile.TemporaryDirectory() as tmp:
@@ -184,7 +190,7 @@ class AnalysisFeature(feature_proxy.FeatureProxy):
     TYPE = TYPE
     VERSION = VERSION
     PROPERTIES = _PROPERTIES
-    ENUMERATIONS = {"Model": MODELS}
+    ENUMERATIONS = {"Model": MODELS, "Element": ELEMENTS}
 
     #: Transient (not saved): ``progress(phase, fraction)`` during an in-process run;
     #: returning False cancels it.
@@ -192,7 +198,10 @@ class AnalysisFeature(feature_proxy.FeatureProxy):
     _quiet = False
 
     def onDocumentRestored(self, obj):
+        had_element = "Element" in obj.PropertiesList
         super(AnalysisFeature, self).onDocumentRestored(obj)
+        if not had_element:  # saved before the element choice: those runs were hex8; keep their results
+            obj.Element = "hex8"
         if FreeCAD.GuiUp and obj.ViewObject is not None and not obj.ViewObject.Proxy:
             ViewProviderAnalysis(obj.ViewObject)  # documents saved before the task panel existed
 

@@ -190,6 +190,12 @@ class AnalysisTaskPanel(object):
         self.cells.valueChanged.connect(self.update_estimate)
         self.cells.setToolTip("Grid cells along the part's longest side")
         form_out.addRow("Cells (longest side)", self.cells)
+        self.element = _narrow(QtGui.QComboBox())
+        self.element.addItems(analysis_feature.ELEMENTS)
+        self.element.setCurrentIndex(max(0, self.element.findText(inputs["element"])))
+        self.element.currentTextChanged.connect(self.update_estimate)
+        self.element.setToolTip("hex27: triquadratic, more accurate per unknown (default); hex8: trilinear")
+        form_out.addRow("Element", self.element)
         folder_row = QtGui.QHBoxLayout()
         self.output_dir = _narrow(QtGui.QLineEdit(inputs["output_dir"]))
         self.output_dir.setPlaceholderText(analysis_feature.output_dir(self.obj, {"output_dir": ""}))
@@ -258,13 +264,14 @@ class AnalysisTaskPanel(object):
                 "force": tuple(box.value() for box in self.force), "gravity": self.gravity.isChecked(),
                 "E": self.E.value(), "nu": self.nu.value(), "density": self.density.value(),
                 "model": self.model.currentText(), "cells": self.cells.value(),
+                "element": self.element.currentText(),
                 "output_dir": self.output_dir.text().strip()}
 
     def update_estimate(self, *args):
         if self.obj.Part is None:
             self.estimate_label.setText("No part linked")
             return
-        unknowns, mb = analysis_feature.estimate(self.obj.Part, self.cells.value())
+        unknowns, mb = analysis_feature.estimate(self.obj.Part, self.cells.value(), self.element.currentText())
         self.estimate_label.setText("Estimate: about %d unknowns, %.0f MB for the factorization" % (unknowns, mb))
 
     # -- running -----------------------------------------------------------------------------
