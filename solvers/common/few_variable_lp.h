@@ -12,13 +12,16 @@
 
 namespace parafab {
 
-/// minimize cᵀx over free x ∈ R^d subject to G x ≥ h (inequalities) and E x = f (equalities).
+/// minimize cᵀx + Σ_k |D_k x| over free x ∈ R^d subject to G x ≥ h (inequalities) and
+/// E x = f (equalities). The absolute-value rows D (none by default) make the objective
+/// piecewise linear, as in the strip's smoothing phase under gravity (Σ |ΔK′|).
 struct FewVariableLp {
   Eigen::VectorXd c;
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> G;
   Eigen::VectorXd h;
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> E;
   Eigen::VectorXd f;
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> D;
 };
 
 enum class LpForm {
@@ -43,21 +46,27 @@ struct FewVariableLpOptions {
   /// can differ in the last bits; the dense solver computes x from the final basis, so it
   /// returns the same bits whenever it ends on the same basis (off when empty).
   std::vector<int> basic_hint;
+  /// Programs with absolute-value rows: a point near the optimum (e.g. the x of a similar
+  /// program). Dense form: when it is feasible the primal simplex with long steps starts there
+  /// (dense_primal_simplex.h), else the dual simplex takes |D_k x| as sign(D_k x_hint) D_k x at
+  /// first; Clp's dual form starts its μ_k at those signs. Empty: +D_k x, dual simplex.
+  Eigen::VectorXd x_hint;
 };
 
 struct FewVariableLpResult {
   LpStatus status = LpStatus::Failed;
   Eigen::VectorXd x;           ///< primal solution (valid when Optimal)
-  double objective = 0;        ///< cᵀx
-  double dual_objective = 0;   ///< hᵀy + fᵀz of the dual solution (Dual form only)
-  /// Multipliers (valid when Optimal): c = Gᵀy + Eᵀz with y ≥ 0, so the optimal value V of
+  double objective = 0;        ///< cᵀx + Σ_k |D_k x|
+  double dual_objective = 0;   ///< hᵀy + fᵀz of the dual solution (Dense and Dual forms)
+  /// Multipliers (valid when Optimal): c + Dᵀμ = Gᵀy + Eᵀz with y ≥ 0, |μ| ≤ 1 (μ_k = sign(D_k x)
+  /// where D_k x ≠ 0), so the optimal value V of
   /// a program whose rows depend on a parameter θ has dV/dθ = −yᵀ ∂(Gx − h)/∂θ − zᵀ ∂(Ex − f)/∂θ
   /// (envelope theorem; used for dR/dP in strips/strip_improve).
-  Eigen::VectorXd y, z;
-  std::vector<int> basic;      ///< Dense, dual form: rows of [G; E] whose dual columns are basic at the end
+  Eigen::VectorXd y, z, mu;
+  std::vector<int> basic;      ///< Dense, dual form: rows of [G; E; D] whose dual columns are basic at the end
   int iterations = 0;          ///< simplex iterations (of the solver that gave the result)
   LpForm solved_by = LpForm::Dense;  ///< the form that gave the result (Dual after a fallback)
-  std::string fallback;        ///< why the dense solver handed over to Clp (empty: it did not)
+  std::string fallback;        ///< why the dense solver handed over to Clp or its primal method to its dual one (empty: neither)
   double max_violation = 0;    ///< max over rows of (h − Gx)⁺ and |Ex − f| at x
   double seconds = 0;          ///< wall time of load + solve
   std::string message;         ///< the solver's status in words when not Optimal
