@@ -1,6 +1,5 @@
 #include "strips/gravity_lp.h"
 
-#include <ClpSimplex.hpp>
 #include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
@@ -212,67 +211,42 @@ GravityLpResult solve_gravity_lp(const std::vector<StripLpSample>& samples_in, d
   if (o.smooth && n >= 3) {
     // Phase two: minimize Σ_j |D_j x| (D_j x = ĥ ΔK′_j, the second difference of K over the
     // spacings times the mean spacing) subject to the rows of phase one with R ≤ R₁(1+ε).
-    // K is affine in x ∈ R³, so this is a 3-variable problem with n − 2 absolute values.
-    // Clp solves its dual, which has 3 rows (one per component of x) and one column per
-    // primal row or absolute value (μ_j ∈ [−1, 1]):
-    //   max hᵀy  s.t.  Gᵀy + Eᵀz − Dᵀμ = 0,  y ≥ 0, |μ| ≤ 1,
-    // and x is read back from the row prices, as in solve_few_variable_lp.
+    // K is affine in x ∈ R³, so this is a 3-variable program with n − 2 absolute values,
+    // solved like phase one (the dense dual simplex bounds their multipliers to [−1, 1]),
+    // in y = x / xs, started from |D_j x| = sign(D_j x₁) D_j x.
     const auto t2 = Clock::now();
     const int nt = n - 2;
     const double hm = (w.sh(n - 1) - w.sh(0)) / (n - 1);
     const double xs = std::max(1e-300, x1.cwiseAbs().maxCoeff());  // x = xs · y
     const double Rb = out.R_first * (1.0 + o.smoothing_margin);
-    Rows3 D(nt, 3);
+    FewVariableLp lp2;
+    lp2.c = Eigen::Vector3d::Zero();
+    lp2.G.resize(2 * n, 3);
+    lp2.h.resize(2 * n);
+    for (int i = 0; i < n; ++i) {  // sg Num x ≥ |den| and −sg Num x ≥ −Rb |den|
+      const double sg = w.den(i) > 0 ? 1.0 : -1.0, ad = std::abs(w.den(i));
+      lp2.G.row(2 * i) = sg * w.num.row(i) * xs;
+      lp2.h(2 * i) = ad;
+      lp2.G.row(2 * i + 1) = -sg * w.num.row(i) * xs;
+      lp2.h(2 * i + 1) = -Rb * ad;
+    }
+    lp2.E.resize(static_cast<int>(eq.size()), 3);
+    lp2.f = Eigen::VectorXd::Zero(static_cast<int>(eq.size()));
+    for (size_t q = 0; q < eq.size(); ++q) lp2.E.row(q) = eq[q] * xs;
+    lp2.D.resize(nt, 3);
     for (int j = 0; j < nt; ++j) {
       const int i = j + 1;
       const double h1 = w.sh(i + 1) - w.sh(i), h0 = w.sh(i) - w.sh(i - 1);
-      D.row(j) = hm * ((w.A.row(i + 1) - w.A.row(i)) / h1 - (w.A.row(i) - w.A.row(i - 1)) / h0);
+      lp2.D.row(j) = hm * xs * ((w.A.row(i + 1) - w.A.row(i)) / h1 - (w.A.row(i) - w.A.row(i - 1)) / h0);
     }
-    const int ne = static_cast<int>(eq.size());
-    const int cols = 2 * n + ne + nt;
-    std::vector<CoinBigIndex> start(cols + 1, 0);
-    std::vector<int> index;
-    std::vector<double> value, collb(cols), colub(cols), obj(cols, 0.0);
-    index.reserve(3 * cols);
-    value.reserve(3 * cols);
-    const double inf = COIN_DBL_MAX;
-    int col = 0;
-    auto push = [&](const Row3& v, double lb, double ub, double cost) {
-      for (int k = 0; k < 3; ++k)
-        if (v(k) != 0.0) index.push_back(k), value.push_back(v(k));
-      collb[col] = lb, colub[col] = ub, obj[col] = cost;
-      start[++col] = static_cast<CoinBigIndex>(index.size());
-    };
-    for (int i = 0; i < n; ++i) {  // sg Num x ≥ |den| and −sg Num x ≥ −Rb |den|
-      const double sg = w.den(i) > 0 ? 1.0 : -1.0, ad = std::abs(w.den(i));
-      const Row3 g = sg * w.num.row(i) * xs;
-      push(g, 0.0, inf, -ad);  // maximize hᵀy ⇔ minimize −hᵀy
-      push(-g, 0.0, inf, Rb * ad);
-    }
-    for (int q = 0; q < ne; ++q) push(eq[q] * xs, -inf, inf, 0.0);
-    for (int j = 0; j < nt; ++j) push(-D.row(j) * xs, -1.0, 1.0, 0.0);
-    std::vector<double> rhs(3, 0.0);
-    ClpSimplex model;
-    model.setLogLevel(0);
-    model.loadProblem(cols, 3, start.data(), index.data(), value.data(), collb.data(),
-                      colub.data(), obj.data(), rhs.data(), rhs.data());
-    model.scaling(0);
-    model.setPrimalTolerance(1e-10);
-    model.setDualTolerance(1e-10);
-    // Warm start: μ_j = sign(D_j x₁), the optimal multiplier of |D_j x| at phase one's x.
-    std::vector<double> mu0(cols, 0.0);
-    for (int j = 0; j < nt; ++j) {
-      const int cj = 2 * n + ne + j;
-      const bool up = D.row(j).dot(x1) > 0;
-      mu0[cj] = up ? 1.0 : -1.0;
-      model.setColumnStatus(cj, up ? ClpSimplex::atUpperBound : ClpSimplex::atLowerBound);
-    }
-    model.setColSolution(mu0.data());
-    model.primal(1);
-    out.iterations_second = model.numberIterations();
-    if (model.status() == 0) {
-      const double* price = model.getRowPrice();
-      Eigen::Vector3d x2(-price[0] * xs, -price[1] * xs, -price[2] * xs);
+    FewVariableLpOptions lo2;
+    lo2.form = o.form;
+    lo2.x_hint = x1 / xs;
+    out.phase_two_lp = solve_few_variable_lp(lp2, lo2);
+    const FewVariableLpResult& r2 = out.phase_two_lp;
+    out.iterations_second = r2.iterations;
+    if (r2.ok()) {
+      const Eigen::Vector3d x2 = r2.x * xs;
       std::vector<double> K2;
       double kmin2 = 1;
       const double R2 = profile(x2, K2, kmin2);
@@ -292,8 +266,7 @@ GravityLpResult solve_gravity_lp(const std::vector<StripLpSample>& samples_in, d
         out.message = os.str();
       }
     } else {
-      out.message = "phase two: Clp status " + std::to_string(model.status()) +
-                    "; phase one returned";
+      out.message = "phase two: " + std::string(to_string(r2.status)) + " (" + r2.message + "); phase one returned";
     }
     out.seconds_second = since(t2);
   }

@@ -11,9 +11,10 @@
 // sweep from s = l, so Eq. 4.6 (3n + 4 variables) reduces exactly to a 4-variable LP solved
 // with solve_few_variable_lp. At a zero of μ the equation becomes the equality
 // rhs(s₀) = 0 and K(s₀) its l'Hôpital limit (⟨b, γ′⟩ + ⟨Re, γ′⟩F)/μ′, as in Eq. 4.4.
-// Phase two, min Σ|ΔK′| over the same 3 unknowns, is solved by Clp through its dual: 3 rows
-// and one column per bound row or absolute value (μ_j ∈ [−1, 1], warm-started at the signs
-// of phase one's ΔK′), so both phases stay linear in the number of samples.
+// Phase two, min Σ|ΔK′| over the same 3 unknowns, is a few-variable program with n − 2
+// absolute-value rows (FewVariableLp::D), solved like phase one by the dense dual simplex
+// with bounded multipliers μ_j ∈ [−1, 1] (Clp's dual form as fallback and with `form`),
+// started at the signs of phase one's ΔK′; both phases stay linear in the number of samples.
 #pragma once
 
 #include <string>
@@ -85,7 +86,8 @@ struct GravityLpResult {
   int equality_rows = 0;
   int iterations_first = 0, iterations_second = 0;
   std::vector<std::pair<double, int>> active_rows;  ///< basic rows of phase one, as warm_rows
-  FewVariableLpResult phase_one_lp;                 ///< Clp's phase-one result (for phase_one)
+  FewVariableLpResult phase_one_lp;                 ///< phase one's LP result (for phase_one)
+  FewVariableLpResult phase_two_lp;                 ///< phase two's (in x / max|x₁|; empty without it)
   double seconds_first = 0, seconds_second = 0, seconds = 0;
   double max_violation = 0;   ///< of phase one's normalized program
   std::string message;

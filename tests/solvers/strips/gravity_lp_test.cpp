@@ -135,6 +135,42 @@ TEST(GravityLp, PhaseTwoRemovesSpikesOfTheLiteralProgram) {
   }
 }
 
+// Phase two (min Σ|ΔK′|) by ParaFab's dense solver (the primal simplex with long steps from
+// phase one's optimum) against Clp's dual form, on curves with and without inflections, the
+// literal Eq. 4.6 included: the same total variation and ratio, no fallback.
+TEST(GravityLp, PhaseTwoDenseSolverMatchesClp) {
+  StripGravity grav;
+  grav.enabled = true;
+  const std::vector<std::pair<const char*, BSplineCurve2>> curves = {
+      {"ellipse", test::ellipse_arc()}, {"one inflection", test::one_inflection()},
+      {"spiral", test::spiral()}};
+  for (const auto& [name, curve] : curves)
+    for (const bool rows : {true, false}) {
+      const PlaneCurve c(curve);
+      const auto smp = lp_samples(c, 401);
+      GravityLpOptions dense, clp;
+      dense.load = clp.load = grav.load();
+      dense.inflection_rows = clp.inflection_rows = rows;
+      clp.form = LpForm::Dual;
+      const GravityLpResult a = solve_gravity_lp(smp, c.length(), dense), b = solve_gravity_lp(smp, c.length(), clp);
+      SCOPED_TRACE(::testing::Message() << name << (rows ? "" : ", literal Eq. 4.6"));
+      ASSERT_TRUE(a.ok() && a.smoothed) << a.message;
+      ASSERT_TRUE(b.ok() && b.smoothed) << b.message;
+      EXPECT_EQ(a.phase_two_lp.solved_by, LpForm::Dense);
+      EXPECT_EQ(a.phase_two_lp.fallback, "");
+      EXPECT_EQ(b.phase_two_lp.solved_by, LpForm::Dual);
+      const double fa = a.phase_two_lp.objective, fb = b.phase_two_lp.objective;
+      std::printf("[ phase two %s%s ] objective %.12g (dense, %d steps) vs %.12g (Clp, %d): %.1e; TV %.10g vs %.10g\n",
+                  name, rows ? "" : " literal", fa, a.iterations_second, fb, b.iterations_second, std::abs(fa / fb - 1),
+                  a.tv, b.tv);
+      EXPECT_NEAR(fa, fb, 1e-10 * fb);  // measured ≤ 6e-12
+      EXPECT_NEAR(a.phase_two_lp.dual_objective, fa, 1e-10 * fb);
+      // The optimum need not be unique (the spiral's two solutions have TV 1.5e-7 apart), so the
+      // profiles are compared by their bound only.
+      EXPECT_LE(a.R, a.R_first * (1 + dense.smoothing_margin) * (1 + 1e-9));
+    }
+}
+
 TEST(GravityLp, FourHundredSamplesWithPhaseTwoIsFast) {
   StripGravity grav;
   grav.enabled = true;
