@@ -830,6 +830,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
       try {
         auto rf = std::make_shared<ReusedFactorization>(cholesky_, *p.factored, sys.K, old_of, options.reuse.preconditioner);
         info.mapped_dofs = rf->mapped_dofs(), info.changed_dofs = rf->changed_dofs(), info.local_dofs = rf->local_dofs();
+        info.pcg_setup_seconds = rf->setup_seconds;
         tried = true;
         PcgResult pcg = rf->solve(sys.f, x0, options.reuse.pcg);
         info.iterations = pcg.iterations;

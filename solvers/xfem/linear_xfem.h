@@ -111,6 +111,7 @@ struct SolveInfo {
   double residual = 0;       ///< ‖f − K u‖ / ‖f‖ of the reduced system
   int mapped_dofs = 0, changed_dofs = 0, local_dofs = 0;  ///< see ReusedFactorization
   double pcg_seconds = 0, factorize_seconds = 0;
+  double pcg_setup_seconds = 0;  ///< of pcg_seconds: the changed rows and the local factorization
 };
 
 struct LinearXfemResult {

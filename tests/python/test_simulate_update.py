@@ -74,6 +74,10 @@ class SimulationUpdate(unittest.TestCase):
         self.assertGreater(s["residual"], 0)  # the true residual ‖f − K u‖ / ‖f‖ (measured 3.9e-11), not a default
         self.assertLessEqual(s["residual"], 1e-10)
         self.assertGreaterEqual(s["cached_element_matrices"], rc["subvolumes_kept"])
+        parts = up["seconds"]["solve_parts"]  # the preconditioner's set-up is part of the PCG time
+        self.assertGreater(parts["pcg_setup"], 0)
+        self.assertLess(parts["pcg_setup"], parts["pcg"])
+        self.assertEqual(parts["factorize"], 0)
         self.assertEqual(up["dofs"], self.fresh["dofs"])
         self.assertLess(gap(up, self.fresh), 5e-12)  # measured 2.9e-13 (CG to a relative residual of 1e-10)
         self.assertAlmostEqual(up["max_displacement"], self.fresh["max_displacement"],

@@ -867,7 +867,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"local_dofs", si.local_dofs}};
     out["seconds"]["assemble_parts"] = {{"number", r.number_seconds}, {"integrate", r.integrate_seconds},
                                         {"scatter", r.scatter_seconds}, {"aggregate", r.aggregate_seconds}};
-    out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"factorize", si.factorize_seconds}};
+    out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"pcg_setup", si.pcg_setup_seconds}, {"factorize", si.factorize_seconds}};
   }
   if (!out_dir.empty()) {
     const auto t_write = std::chrono::steady_clock::now();
