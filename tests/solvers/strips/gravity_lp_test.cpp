@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 
 #include "common/error.h"
 #include "strips/gravity_lp.h"
@@ -171,30 +170,22 @@ TEST(GravityLp, PhaseTwoDenseSolverMatchesClp) {
     }
 }
 
-TEST(GravityLp, FourHundredSamplesWithPhaseTwoIsFast) {
+// The work of a 400-sample gravity LP in simplex steps (deterministic; its time is
+// bench_strip_scene's and bench_strip_python's): phase one's dense dual simplex, phase two's
+// primal long steps from phase one's optimum (measured 15 and 29).
+TEST(GravityLp, FourHundredSamplesTakeFewSimplexSteps) {
   StripGravity grav;
   grav.enabled = true;
   const PlaneCurve c(test::one_inflection());
-  const auto smp = lp_samples(c, 400);
   GravityLpOptions o;
   o.load = grav.load();
-  std::vector<double> t, t1, t2;
-  int it1 = 0, it2 = 0;
-  for (int rep = 0; rep < 15; ++rep) {
-    const auto t0 = std::chrono::steady_clock::now();
-    const GravityLpResult g = solve_gravity_lp(smp, c.length(), o);
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    t1.push_back(g.seconds_first), t2.push_back(g.seconds_second);
-    it1 = g.iterations_first, it2 = g.iterations_second;
-    ASSERT_TRUE(g.ok() && g.smoothed) << g.message;
-  }
-  auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
-  std::printf("[ gravity LP 400 samples + phase two ] median %.3f ms (phase one %.3f ms, %d it; "
-              "phase two %.3f ms, %d it)\n", 1e3 * median(t), 1e3 * median(t1), it1, 1e3 * median(t2), it2);
-  EXPECT_LT(median(t), 0.02);  // goal 5 ms; loose bound for a shared machine
+  const GravityLpResult g = solve_gravity_lp(lp_samples(c, 400), c.length(), o);
+  ASSERT_TRUE(g.ok() && g.smoothed) << g.message;
+  std::printf("[ gravity LP 400 samples ] phase one %d steps, phase two %d steps\n", g.iterations_first,
+              g.iterations_second);
+  EXPECT_LE(g.iterations_first, 18);
+  EXPECT_LE(g.iterations_second, 35);
+  EXPECT_EQ(g.phase_two_lp.fallback, "");
 }
 
 TEST(GravityLp, RejectsUnsortedSamples) {
