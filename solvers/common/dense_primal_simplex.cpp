@@ -85,6 +85,7 @@ class DensePrimalSimplex {
       }
     in_w_.assign(n_, 0);
     abs_in_w_.assign(t_, 0);
+    sign_.assign(t_, 1.0);
     Mat rows(0, d_);
     auto try_add = [&](const WorkingRow& w) {
       if (static_cast<int>(work_.size()) >= d_) return;
@@ -121,17 +122,19 @@ class DensePrimalSimplex {
     return true;
   }
 
-  // Signs of the absolute-value rows off W at x (D x = ax_), and the local cost c̃.
+  // Signs of the absolute-value rows off W at x (D x = ax_), and the local cost c̃. A row at
+  // its kink off W (it left W on a step of length 0) keeps the side it left towards.
   Vec cost() {
-    sign_.assign(t_, 1.0);
     Vec c = lp_.c;
     for (int k = 0; k < t_; ++k) {
       if (abs_in_w_[k]) continue;
-      sign_[k] = ax_(k) < 0 ? -1.0 : 1.0;
+      if (ax_(k) != 0) sign_[k] = ax_(k) < 0 ? -1.0 : 1.0;
       c.noalias() += sign_[k] * lp_.D.row(k).transpose();
     }
     return c;
   }
+  // A fixed order of rows for Bland's rule: equality, inequality, absolute-value, free rows.
+  static long label(const WorkingRow& w) { return static_cast<long>(w.kind) * (1L << 40) + w.index; }
 
   // ---- the steps ----
   bool iterate(FewVariableLpResult& r) {
@@ -153,11 +156,11 @@ class DensePrimalSimplex {
           case Kind::Free: v = std::abs(l); break;
           case Kind::Equality: v = 0; break;
         }
-        if (v <= best) continue;
-        if (bland) {
-          if (p < 0) p = i;
+        if (bland) {  // the violated row of smallest label
+          if (v > tol && (p < 0 || label(work_[i]) < label(work_[p]))) p = i;
           continue;
         }
+        if (v <= best) continue;
         best = v, p = i;
       }
       if (p < 0) return true;
@@ -189,7 +192,7 @@ class DensePrimalSimplex {
         const double t = std::max(0.0, sign_[k] * ax_(k)) / -(sign_[k] * ad(k));
         if (t <= tmax) kinks_.push_back({t, k});
       }
-      std::sort(kinks_.begin(), kinks_.end());
+      std::sort(kinks_.begin(), kinks_.end());  // by step, ties by row: a fixed order
       WorkingRow enter{Kind::Inequality, block};
       double step = tmax;
       for (const auto& [t, k] : kinks_) {
@@ -209,7 +212,7 @@ class DensePrimalSimplex {
       gx_ += step * gd_;  // G x and D x follow x (recomputed at the end)
       ax_ += step * ad_;
       if (left.kind == Kind::Inequality) in_w_[left.index] = 0;
-      if (left.kind == Kind::Abs) abs_in_w_[left.index] = 0;
+      if (left.kind == Kind::Abs) abs_in_w_[left.index] = 0, sign_[left.index] = sigma;  // D_p dx = σ
       work_[p] = enter;
       if (enter.kind == Kind::Inequality) in_w_[enter.index] = 1;
       else abs_in_w_[enter.index] = 1;
@@ -225,8 +228,7 @@ class DensePrimalSimplex {
       std::sort(work_.begin(), work_.end(), [](const WorkingRow& a, const WorkingRow& b) {
         return a.kind != b.kind ? a.kind < b.kind : a.index < b.index;
       });
-      FewVariableLpResult dummy;
-      if (!factor(dummy)) return;
+      if (!factor(r)) return;
       Vec rhsB(d_);
       for (int i = 0; i < d_; ++i) rhsB(i) = rhs(work_[i]);
       x_ = lu_.solve(rhsB);

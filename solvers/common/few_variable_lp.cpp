@@ -96,7 +96,7 @@ void solve_dual(const FewVariableLp& lp, const FewVariableLpOptions& options,
   }
   if (!options.basic_hint.empty()) {
     int basic = 0;
-    for (int j = 0; j < cols; ++j)
+    for (int j = 0; j < n + m; ++j)  // the μ columns keep the statuses set from x_hint above
       model.setColumnStatus(j, j < n ? ClpSimplex::atLowerBound : ClpSimplex::isFree);
     for (int j : options.basic_hint)
       if (j >= 0 && j < cols && basic < d) model.setColumnStatus(j, ClpSimplex::basic), ++basic;

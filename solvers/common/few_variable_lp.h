@@ -2,8 +2,10 @@
 // Eq. 4.4, 4 variables) and the rod LP (Eq. 5.19, 7 variables) have this shape. Solving the
 // dual (d equality rows, one column per primal row) keeps the simplex basis d×d, so the cost
 // grows linearly with the number of constraints. ParaFab's dense dual simplex does this
-// without any set-up (dense_dual_simplex.h); COIN-OR Clp on the dual or the primal program is
-// the reference and the fallback.
+// without any set-up (dense_dual_simplex.h); absolute-value terms Σ|D_k x| (the strip's
+// smoothing under gravity) from a feasible start go to its primal simplex with long steps
+// (dense_primal_simplex.h); COIN-OR Clp on the dual or the primal program is the reference and
+// the fallback.
 #pragma once
 
 #include <Eigen/Core>
@@ -25,7 +27,8 @@ struct FewVariableLp {
 };
 
 enum class LpForm {
-  Dense,  ///< ParaFab's dense dual simplex, d×d basis (default); Clp's dual form if it fails
+  Dense,  ///< ParaFab's dense dual simplex, d×d basis (default; with absolute-value rows and a
+          ///< feasible x_hint its primal simplex with long steps); Clp's dual form if it fails
   Dual,   ///< Clp solves the dual: d rows, n + m columns (linear growth; the reference)
   Primal  ///< Clp solves the row-wise primal: n + m rows, d columns (baseline for benchmarks)
 };
@@ -57,7 +60,7 @@ struct FewVariableLpResult {
   LpStatus status = LpStatus::Failed;
   Eigen::VectorXd x;           ///< primal solution (valid when Optimal)
   double objective = 0;        ///< cᵀx + Σ_k |D_k x|
-  double dual_objective = 0;   ///< hᵀy + fᵀz of the dual solution (Dense and Dual forms)
+  double dual_objective = 0;   ///< hᵀy + fᵀz of the dual solution
   /// Multipliers (valid when Optimal): c + Dᵀμ = Gᵀy + Eᵀz with y ≥ 0, |μ| ≤ 1 (μ_k = sign(D_k x)
   /// where D_k x ≠ 0), so the optimal value V of
   /// a program whose rows depend on a parameter θ has dV/dθ = −yᵀ ∂(Gx − h)/∂θ − zᵀ ∂(Ex − f)/∂θ

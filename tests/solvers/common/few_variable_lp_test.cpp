@@ -204,39 +204,44 @@ TEST(FewVariableLp, AbsoluteValueRowsGiveTheWeightedMedian) {
   }
 }
 
-// Random programs with absolute-value rows: inequality rows around a feasible point and a box
-// that bounds them, equality rows, and D rows through the origin (so that many of them vanish
-// together when the optimum is there: degenerate). The dense solver agrees with Clp's dual and
-// primal forms and gives its own certificate, without falling back.
+// Random programs with absolute-value rows: inequality rows around a feasible point x* and a
+// box that bounds them, equality rows, and D rows through the origin. In half of them the origin
+// is feasible too, where every D row vanishes at once (an optimum there is highly degenerate).
+// Starts: none (dual simplex from its box), x* (primal simplex from inside) and the origin (the
+// primal simplex starting on every kink). The dense solver agrees with Clp's dual and primal
+// forms and gives its own certificate, without falling back.
 TEST(FewVariableLp, AbsoluteValueRowsMatchClpOnRandomPrograms) {
   std::mt19937 rng(20261127);
   std::normal_distribution<double> N(0.0, 1.0);
   std::uniform_real_distribution<double> U(0.0, 1.0);
-  int cases = 0, primal_steps = 0, dual_steps = 0;
+  int cases = 0, primal_steps = 0, dual_steps = 0, degenerate = 0;
   for (int d : {2, 3, 4})
     for (int t : {d, 40, 400})
       for (int equalities : {0, 1})
         for (int rep = 0; rep < 6; ++rep) {
-          const Eigen::VectorXd xs = Eigen::VectorXd::NullaryExpr(d, [&]() { return N(rng); });
+          const bool origin_inside = rep >= 3;
+          Eigen::VectorXd xs = Eigen::VectorXd::NullaryExpr(d, [&]() { return N(rng); });
           const int n = 20;
           FewVariableLp lp;
           lp.c = 0.3 * Eigen::VectorXd::NullaryExpr(d, [&]() { return N(rng); });
+          lp.E.resize(equalities, d);
+          lp.f.resize(equalities);
+          for (int i = 0; i < equalities; ++i) {
+            for (int k = 0; k < d; ++k) lp.E(i, k) = N(rng);
+            if (origin_inside) xs -= lp.E.row(i).dot(xs) / lp.E.row(i).squaredNorm() * lp.E.row(i).transpose();
+            lp.f(i) = origin_inside ? 0.0 : lp.E.row(i).dot(xs);
+          }
           lp.G.resize(n + 2 * d, d);
           lp.h.resize(n + 2 * d);
           for (int j = 0; j < n; ++j) {
             for (int k = 0; k < d; ++k) lp.G(j, k) = N(rng);
-            lp.h(j) = lp.G.row(j).dot(xs) - U(rng);
+            const double at = lp.G.row(j).dot(xs);
+            lp.h(j) = (origin_inside ? std::min(at, 0.0) : at) - U(rng);
           }
           for (int k = 0; k < d; ++k) {  // |x_k| ≤ 10
             lp.G.row(n + 2 * k) = Eigen::RowVectorXd::Unit(d, k);
             lp.G.row(n + 2 * k + 1) = -Eigen::RowVectorXd::Unit(d, k);
             lp.h(n + 2 * k) = lp.h(n + 2 * k + 1) = -10.0;
-          }
-          lp.E.resize(equalities, d);
-          lp.f.resize(equalities);
-          for (int i = 0; i < equalities; ++i) {
-            for (int k = 0; k < d; ++k) lp.E(i, k) = N(rng);
-            lp.f(i) = lp.E.row(i).dot(xs);
           }
           lp.D.resize(t, d);
           for (int i = 0; i < t; ++i)
@@ -245,17 +250,19 @@ TEST(FewVariableLp, AbsoluteValueRowsMatchClpOnRandomPrograms) {
           FewVariableLpOptions dense, dual, primal;
           dual.form = LpForm::Dual;
           primal.form = LpForm::Primal;
-          if (rep % 2) dense.x_hint = dual.x_hint = xs;  // half from a feasible start (primal method)
+          const int start = rep % 3;  // 0: none, 1: x*, 2: the origin (x* if it is not feasible)
+          if (start == 1 || (start == 2 && !origin_inside)) dense.x_hint = dual.x_hint = xs;
+          if (start == 2 && origin_inside) dense.x_hint = dual.x_hint = Eigen::VectorXd::Zero(d);
           const auto a = solve_few_variable_lp(lp, dense), b = solve_few_variable_lp(lp, dual),
                      c = solve_few_variable_lp(lp, primal);
           ASSERT_TRUE(b.ok()) << b.message;
           ASSERT_TRUE(c.ok()) << c.message;
           ASSERT_TRUE(a.ok()) << a.message;
           EXPECT_EQ(a.solved_by, LpForm::Dense) << a.fallback;
-          EXPECT_EQ(a.fallback, "");  // with the feasible start, the primal method's own result
+          EXPECT_EQ(a.fallback, "");  // the primal method's own result when started
           const double scale = std::max(1.0, std::abs(b.objective));
           EXPECT_NEAR(a.objective, b.objective, 1e-11 * scale);
-          EXPECT_NEAR(c.objective, b.objective, 1e-9 * scale);
+          EXPECT_NEAR(c.objective, b.objective, 1e-8 * scale);  // Clp primal form, default tolerances (measured 7.9e-9)
           EXPECT_LE(a.max_violation, 1e-12 * 10);
           EXPECT_NEAR(a.dual_objective, a.objective, 1e-11 * scale);
           EXPECT_GE(a.y.minCoeff(), 0.0);
@@ -264,14 +271,48 @@ TEST(FewVariableLp, AbsoluteValueRowsMatchClpOnRandomPrograms) {
           if (equalities) stat -= lp.E.transpose() * a.z;
           EXPECT_LE(stat.cwiseAbs().maxCoeff(), 1e-12 * (1 + lp.D.cwiseAbs().colwise().sum().maxCoeff()));
           const Eigen::VectorXd dx = lp.D * a.x;
-          for (int i = 0; i < t; ++i)
+          int zeros = 0;
+          for (int i = 0; i < t; ++i) {
             if (std::abs(dx(i)) > 1e-10) EXPECT_EQ(a.mu(i), dx(i) > 0 ? 1.0 : -1.0) << "row " << i;
-          (rep % 2 ? primal_steps : dual_steps) += a.iterations;
+            else ++zeros;
+          }
+          degenerate += zeros > d;
+          (dense.x_hint.size() ? primal_steps : dual_steps) += a.iterations;
           ++cases;
         }
   EXPECT_EQ(cases, 3 * 3 * 2 * 6);
-  std::printf("[ absolute-value rows ] %d random programs: dual simplex %d steps, primal from a feasible start %d\n",
-              cases, dual_steps, primal_steps);
+  EXPECT_GE(degenerate, 20);  // optima where more than d absolute-value rows vanish (measured 36)
+  std::printf("[ absolute-value rows ] %d random programs (%d degenerate optima): dual simplex %d steps, "
+              "primal %d steps\n", cases, degenerate, dual_steps, primal_steps);
+}
+
+// Infeasible and unbounded programs with absolute-value rows: the dense solver's verdict is
+// confirmed by Clp's dual form (as for every verdict), and the Clp forms agree.
+TEST(FewVariableLp, AbsoluteValueRowsInfeasibleAndUnbounded) {
+  FewVariableLp lp;
+  lp.c = Eigen::Vector2d(0, 0);
+  lp.D.resize(2, 2);
+  lp.D << 1, 0.5, -0.3, 1;
+  lp.G.resize(2, 2);
+  lp.G << 1, 0, -1, 0;  // x ≥ 1 and x ≤ 0
+  lp.h = Eigen::Vector2d(1, 0);
+  lp.E.resize(0, 2);
+  lp.f.resize(0);
+  for (LpForm form : {LpForm::Dense, LpForm::Dual, LpForm::Primal}) {
+    FewVariableLpOptions o;
+    o.form = form;
+    EXPECT_EQ(solve_few_variable_lp(lp, o).status, LpStatus::Infeasible) << to_string(form);
+  }
+  lp.G.resize(1, 2);
+  lp.G << 1, 0;  // x ≥ 1 only, and a cost falling faster along +x than the |D x| rise
+  lp.h = Eigen::VectorXd::Ones(1);
+  lp.c = Eigen::Vector2d(-3, 0);
+  for (LpForm form : {LpForm::Dense, LpForm::Dual, LpForm::Primal}) {
+    FewVariableLpOptions o;
+    o.form = form;
+    o.x_hint = Eigen::Vector2d(2, 0);  // feasible: the dense primal method finds the edge, Clp confirms
+    EXPECT_EQ(solve_few_variable_lp(lp, o).status, LpStatus::Unbounded) << to_string(form);
+  }
 }
 
 }  // namespace
