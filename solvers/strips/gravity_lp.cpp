@@ -212,8 +212,8 @@ GravityLpResult solve_gravity_lp(const std::vector<StripLpSample>& samples_in, d
     // Phase two: minimize Σ_j |D_j x| (D_j x = ĥ ΔK′_j, the second difference of K over the
     // spacings times the mean spacing) subject to the rows of phase one with R ≤ R₁(1+ε).
     // K is affine in x ∈ R³, so this is a 3-variable program with n − 2 absolute values,
-    // solved like phase one (the dense dual simplex bounds their multipliers to [−1, 1]),
-    // in y = x / xs, started from |D_j x| = sign(D_j x₁) D_j x.
+    // solved by the dense solver from phase one's optimum (feasible here; the primal simplex
+    // with long steps over the kinks), in y = x / xs.
     const auto t2 = Clock::now();
     const int nt = n - 2;
     const double hm = (w.sh(n - 1) - w.sh(0)) / (n - 1);

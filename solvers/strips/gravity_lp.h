@@ -12,9 +12,9 @@
 // with solve_few_variable_lp. At a zero of μ the equation becomes the equality
 // rhs(s₀) = 0 and K(s₀) its l'Hôpital limit (⟨b, γ′⟩ + ⟨Re, γ′⟩F)/μ′, as in Eq. 4.4.
 // Phase two, min Σ|ΔK′| over the same 3 unknowns, is a few-variable program with n − 2
-// absolute-value rows (FewVariableLp::D), solved like phase one by the dense dual simplex
-// with bounded multipliers μ_j ∈ [−1, 1] (Clp's dual form as fallback and with `form`),
-// started at the signs of phase one's ΔK′; both phases stay linear in the number of samples.
+// absolute-value rows (FewVariableLp::D), solved by the dense solver's primal simplex with
+// long steps from phase one's optimum (its dual simplex, then Clp's dual form as fallbacks;
+// Clp with `form`); both phases stay linear in the number of samples.
 #pragma once
 
 #include <string>
