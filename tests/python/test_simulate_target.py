@@ -16,6 +16,9 @@ REPO = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 PART = os.path.join(REPO, "samples", "parts", "l_bracket.step")
 JOB = os.path.join(REPO, "samples", "simulations", "l_bracket.json")
 REF = os.path.join(REPO, "tests", "reference", "calculix_reference.py")
+# CalculiX tet10 h = 1.5 mm on the same job (tests/python/test_simulate.py, CCX_TIP; 5 min to run),
+# 1.3 % from the h = 3 mm run this test makes itself.
+CCX_TIP_1_5 = -0.11056
 
 
 def job(grid):
@@ -39,9 +42,11 @@ class AccuracyTarget(unittest.TestCase):
         r = parafab.simulate(PART, j)
         a = r["accuracy"]
         cells = [lv["cells"] for lv in a["levels"]]
-        true_error = abs(r["probes"][0]["displacement"][2] - self.u_ref) / abs(self.u_ref)
-        print("%s: levels %s, estimated error %.3f, true error against CalculiX tet10 h = 3 mm %.4f"
-              % (r["element"], cells, a["estimated_error"], true_error))
+        tip = r["probes"][0]["displacement"][2]
+        true_error = max(abs(tip - u) / abs(u) for u in (self.u_ref, CCX_TIP_1_5))
+        print("%s: levels %s, estimated error %.3f, true error against CalculiX tet10 h = 3 / 1.5 mm %.4f / %.4f"
+              % (r["element"], cells, a["estimated_error"], abs(tip - self.u_ref) / abs(self.u_ref),
+                 abs(tip - CCX_TIP_1_5) / abs(CCX_TIP_1_5)))
         self.assertTrue(a["met"], a["stopped"])
         self.assertLessEqual(a["estimated_error"], 0.15)
         self.assertEqual(cells[:3], first_levels)  # refined by 1.5 from half the default grid
@@ -51,7 +56,8 @@ class AccuracyTarget(unittest.TestCase):
 
     def test_target_picks_the_grid_and_bounds_the_true_error(self):
         # The default element, hex27, from 4 cells: measured levels 4, 6, 9, 14, estimate 9.0 %,
-        # true error 0.66 %; hex8 from 8 cells: 8, 12, 18, 27, estimate 10.5 %, true error 5.2 %.
+        # true error 0.66 % / 0.65 % (h = 3 / 1.5 mm); hex8 from 8 cells: 8, 12, 18, 27, estimate
+        # 10.5 %, true error 5.2 % / 6.4 %. The larger of the two is asserted.
         r27, e27 = self.run_target(None, [4, 6, 9])
         self.assertEqual(r27["element"], "hex27")
         r8, e8 = self.run_target("hex8", [8, 12, 18])
