@@ -28,7 +28,7 @@ ap.add_argument("--out", default=".")
 args = ap.parse_args()
 os.makedirs(args.out, exist_ok=True)
 
-ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 30]}],
+ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8", "supports": [{"point": [0, 20, 30]}],
            "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
 r = math.sqrt(0.5)
 HOLES = [{"point": [44, 12, 4], "parameter": "radius"}, {"point": [44, 28, 4], "parameter": "radius"}]

@@ -32,7 +32,7 @@ ap.add_argument("--out", default=".")
 args = ap.parse_args()
 os.makedirs(args.out, exist_ok=True)
 
-ELASTIC = {"material": {"E": 210000, "nu": 0.3},
+ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8",
            "supports": [{"point": [90, 5, 3]}, {"point": [90, -5, 3]}],
            "loads": [{"point": [-10, 0, 3], "force": [0, 300, 0]}]}
 FILLET = (7.350946696428432, 7.220355269907728)  # mid-arc of the r 4 ring/handle fillets

@@ -27,7 +27,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import compliance_case  # noqa: E402
 
 HOUSING = os.path.join(compliance_case.REPO, "samples", "parts", "housing.step")
-SIM = {"material": {"E": 70000, "nu": 0.33},
+SIM = {"material": {"E": 70000, "nu": 0.33}, "element": "hex8",
        "supports": [{"face": 27}],
        "loads": [{"face": 0, "traction": [0, 0, -1.0]}]}
 # (-x face, +x face, mid-plane x) of each fin, as make_parts.py builds them (x = 8 + 8 i, 2 thick)

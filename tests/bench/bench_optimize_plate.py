@@ -29,7 +29,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import compliance_case  # noqa: E402
 
 PLATE = os.path.join(compliance_case.REPO, "samples", "parts", "plate_holes.step")
-SIM = {"material": {"E": 210000, "nu": 0.3},
+SIM = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8",
        "supports": [{"point": [0, 50, 2.5]}],
        "loads": [{"point": [160, 50, 2.5], "force": [0, -5000, 0]}]}
 

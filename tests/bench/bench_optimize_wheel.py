@@ -53,7 +53,7 @@ job = {"ties": ties, "objective": {"type": "center_of_mass", "axis": {"point": [
        "parameters": params, "max_iterations": 2 if args.quick else 40, "relative_improvement": 1e-9,
        "bound": 0.3}
 AXIS = {"point": [0, 0, 0], "direction": [0, 0, 1]}
-SIM = {"material": {"E": 70000, "nu": 0.33, "density": 2.7e-6},
+SIM = {"material": {"E": 70000, "nu": 0.33, "density": 2.7e-6}, "element": "hex8",
        "supports": [{"face": next(f["index"] for f in faces if f["type"] == "cylinder" and abs(f["parameters"]["r"] - 5) < 1e-6)}],
        "loads": [{"face": next(f["index"] for f in faces if f["type"] == "cylinder" and abs(f["parameters"]["r"] - 50) < 1e-6),
                   "force": [0, -2000, 0]}]}

@@ -332,6 +332,18 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.assertAlmostEqual(a.MaxDisplacement.Value, parafab.simulate(brep, job)["max_displacement"], delta=1e-9)
         self.assertNotAlmostEqual(a.MaxDisplacement.Value, hex27, delta=1e-6)
 
+    def test_reopened_document_from_before_the_element_choice_is_not_touched(self):
+        a = self.make(Cells=CELLS)
+        a.removeProperty("Element")  # as saved by version 2
+        path = os.path.join(self.tmp, "version2.FCStd")
+        self.doc.saveAs(path)
+        FreeCAD.closeDocument(self.doc.Name)
+        self.doc = FreeCAD.openDocument(path)
+        a = self.doc.getObject("Analysis")
+        self.assertEqual(a.Element, "hex8")
+        self.assertNotIn("Touched", a.State)  # its results stand until the user recomputes
+        self.assertGreater(a.MaxDisplacement.Value, 0)
+
     def test_save_and_reopen(self):
         a = self.make()
         path = os.path.join(self.tmp, "analysis.FCStd")

@@ -210,7 +210,7 @@ class OptimizeFeatureTest(unittest.TestCase):
         def compliance(shape, name):
             path = os.path.join(self.tmp, name + ".step")
             shape.exportStep(path)
-            job = {"material": {"E": 210000, "nu": 0.3}, "grid": {"cells": 12},
+            job = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8", "grid": {"cells": 12},
                    "supports": [{"point": [0, 20, 30]}], "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
             return -2.0 * parafab.simulate(path, job)["potential"]
         c0, c1 = compliance(bracket.Shape, "original"), compliance(new.Shape, "optimized")
@@ -431,7 +431,7 @@ class OptimizeFeatureTest(unittest.TestCase):
         def compliance(shape, label):
             path = os.path.join(self.tmp, label + ".step")
             shape.exportStep(path)
-            job = {"material": {"E": 210000, "nu": 0.3}, "grid": {"cells": 12},
+            job = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8", "grid": {"cells": 12},
                    "supports": [{"point": [0, 20, 5]}], "loads": [{"point": [60, 20, 5], "force": [0, 0, -500]}]}
             return -2.0 * parafab.simulate(path, job)["potential"]
         c0, c1 = compliance(bump.Shape, "original"), compliance(new.Shape, "optimized")

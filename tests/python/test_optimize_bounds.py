@@ -14,7 +14,7 @@ sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry")
 import parafab  # noqa: E402
 
 HOUSING = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples", "parts", "housing.step")
-SIM = {"material": {"E": 70000, "nu": 0.33},
+SIM = {"material": {"E": 70000, "nu": 0.33}, "element": "hex8",
        "supports": [{"face": 27}],
        "loads": [{"face": 0, "traction": [0, 0, -1.0]}]}
 FINS = [(10, 13, 9.0), (14, 17, 17.0), (18, 21, 25.0), (22, 25, 33.0)]

@@ -23,7 +23,7 @@ SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
 THICKNESS = 8.0  # the base plate the bolt holes go through (mm)
 
-ELASTIC = {"material": {"E": 210000, "nu": 0.3},
+ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8",
            "supports": [{"point": [0, 20, 30]}],
            "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
 JOB = dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8},

@@ -26,7 +26,7 @@ import parafab  # noqa: E402
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BOX = os.path.join(SAMPLES, "parts", "box.step")
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
-ELASTIC = {"material": {"E": 210000, "nu": 0.3},
+ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8",
            "supports": [{"point": [0, 20, 30]}],
            "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
 HOLES = [{"point": [44, 12, 4], "parameter": "radius"}, {"point": [44, 28, 4], "parameter": "radius"}]

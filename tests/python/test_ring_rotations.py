@@ -38,7 +38,7 @@ class RingRotations(unittest.TestCase):
         for k in range(8):
             deg = 45.0 * k / 8 + 3.7  # never aligned with the grid
             a = math.radians(deg)
-            job = {"material": {"E": 210000, "nu": 0.3}, "grid": {"cells": cells},
+            job = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8", "grid": {"cells": cells},
                    "supports": [{"face": bottom}], "loads": [{"face": top, "traction": [0, 0, -P]}],
                    "rotate": {"axis": [0, 0, 1], "center": [0, 0, 0], "degrees": deg},
                    "probes": [[r * math.cos(a), r * math.sin(a), 5.0] for r in radii]}
