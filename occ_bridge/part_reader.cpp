@@ -389,6 +389,20 @@ std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& b
   return make_part(read_brep_stream(in, src), src, options);
 }
 
+PartBoxArea part_box_and_area(const PartShape& part) {
+  PartBoxArea size;
+  Bnd_Box box;
+  BRepBndLib::AddOptimal(part.shape, box, false, false);
+  double x0, y0, z0, x1, y1, z1;
+  box.Get(x0, y0, z0, x1, y1, z1);
+  size.min = {x0, y0, z0};
+  size.max = {x1, y1, z1};
+  GProp_GProps props;
+  BRepGProp::SurfaceProperties(part.shape, props);
+  size.area = props.Mass();
+  return size;
+}
+
 PartInfo part_info(const PartShape& part) {
   PartInfo info;
   info.source = part.source;

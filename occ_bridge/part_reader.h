@@ -50,6 +50,15 @@ struct PartInfo {
 
 PartInfo part_info(const PartShape& part);
 
+/// What an estimate needs, cheaper than part_info (~2 ms against ~12 ms on the L-bracket): the
+/// tight bounding box (BRepBndLib::AddOptimal, as in PartInfo) and the surface area by OCCT's
+/// fixed Gauss rule (no adaptive error control: ~1e-5 relative on B-spline faces).
+struct PartBoxArea {
+  Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();
+  double area = 0;
+};
+PartBoxArea part_box_and_area(const PartShape& part);
+
 /// What BRepCheck_Analyzer finds wrong with the part, naming the first failing face, edge,
 /// vertex, wire or shell ("BRepCheck_SelfIntersectingWire on face 3"); "" when it is valid.
 std::string check_failure_description(const PartShape& part);

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "common/error.h"
@@ -95,50 +96,63 @@ PcgResult preconditioned_cg(const Eigen::SparseMatrix<double>& K, const Eigen::V
 }
 
 ReusedFactorization::ReusedFactorization(std::shared_ptr<const SparseCholesky> old, const Eigen::SparseMatrix<double>& K_old,
-                                         Eigen::SparseMatrix<double> K, std::vector<int> old_of,
+                                         std::shared_ptr<const Eigen::SparseMatrix<double>> K_new, std::vector<int> old_of,
                                          const ReusedFactorizationOptions& o)
-    : old_(std::move(old)), K_(std::move(K)), old_of_(std::move(old_of)) {
+    : old_(std::move(old)), K_(std::move(K_new)), old_of_(std::move(old_of)) {
   const auto t0 = std::chrono::steady_clock::now();
   PARAFAB_VERIFY(old_ && old_->status() == SparseCholesky::Status::Factorized,
                  "reused factorization: the old system holds no Cholesky factorization");
   PARAFAB_VERIFY(K_old.rows() == old_->rows() && K_old.cols() == old_->rows(),
                  "reused factorization: old matrix " << K_old.rows() << " × " << K_old.cols() << ", factorization of " << old_->rows());
-  PARAFAB_VERIFY(K_.rows() == K_.cols() && static_cast<size_t>(K_.rows()) == old_of_.size(),
-                 "reused factorization: matrix " << K_.rows() << " × " << K_.cols() << ", DOF map of " << old_of_.size());
+  PARAFAB_VERIFY(K_ && K_->rows() == K_->cols() && static_cast<size_t>(K_->rows()) == old_of_.size(),
+                 "reused factorization: matrix " << (K_ ? K_->rows() : 0) << " × " << (K_ ? K_->cols() : 0)
+                                                 << ", DOF map of " << old_of_.size());
   old_factorizations_ = old_->factorizations;
-  K_.makeCompressed();
-  const int n = static_cast<int>(K_.rows()), n_old = static_cast<int>(K_old.rows());
-  // Changed rows: unmapped DOFs, and mapped ones whose row differs from the old row (another
-  // pattern or other values). K and K_old are symmetric: column j is row j.
-  std::vector<char> changed(n, 0);
-  std::vector<double> old_value(n_old, 0.0);
-  std::vector<int> stamp(n_old, -1);
-  for (int i = 0; i < n; ++i) {
-    const int oi = old_of_[i];
-    PARAFAB_VERIFY(oi < n_old, "reused factorization: DOF " << i << " mapped to " << oi << " of " << n_old);
-    if (oi < 0) {
-      changed[i] = 1;
-      continue;
-    }
-    ++mapped_;
-    int old_count = 0;
-    double scale = 0;
-    for (Eigen::SparseMatrix<double>::InnerIterator it(K_old, oi); it; ++it) {
-      stamp[it.index()] = i, old_value[it.index()] = it.value(), ++old_count;
-      scale = std::max(scale, std::abs(it.value()));
-    }
-    int count = 0;
-    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, i); it; ++it) {
-      ++count;
-      const int oj = old_of_[it.index()];
-      if (oj < 0 || stamp[oj] != i || std::abs(old_value[oj] - it.value()) > o.row_tolerance * scale) {
-        changed[i] = 1;
-        break;
-      }
-    }
-    if (count != old_count) changed[i] = 1;
+  if (!K_->isCompressed()) {
+    auto compressed = std::make_shared<Eigen::SparseMatrix<double>>(*K_);
+    compressed->makeCompressed();
+    K_ = std::move(compressed);
   }
-  for (char c : changed) changed_ += c;
+  const Eigen::SparseMatrix<double>& K = *K_;
+  const int n = static_cast<int>(K.rows()), n_old = static_cast<int>(K_old.rows());
+  for (int i = 0; i < n; ++i)
+    PARAFAB_VERIFY(old_of_[i] < n_old, "reused factorization: DOF " << i << " mapped to " << old_of_[i] << " of " << n_old);
+  // Changed rows: unmapped DOFs, and mapped ones whose row differs from the old row (another
+  // pattern or other values). K and K_old are symmetric: column j is row j. Rows in parallel,
+  // each thread with its own scatter of the old row.
+  std::vector<char> changed(n, 0);
+  struct OldRow {
+    std::vector<double> value;
+    std::vector<int> stamp;
+  };
+  tbb::enumerable_thread_specific<OldRow> scratch([n_old] { return OldRow{std::vector<double>(n_old, 0.0), std::vector<int>(n_old, -1)}; });
+  tbb::parallel_for(tbb::blocked_range<int>(0, n, 256), [&](const tbb::blocked_range<int>& range) {
+    OldRow& w = scratch.local();
+    for (int i = range.begin(); i != range.end(); ++i) {
+      const int oi = old_of_[i];
+      if (oi < 0) {
+        changed[i] = 1;
+        continue;
+      }
+      int old_count = 0;
+      double scale = 0;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K_old, oi); it; ++it) {
+        w.stamp[it.index()] = i, w.value[it.index()] = it.value(), ++old_count;
+        scale = std::max(scale, std::abs(it.value()));
+      }
+      int count = 0;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, i); it; ++it) {
+        ++count;
+        const int oj = old_of_[it.index()];
+        if (oj < 0 || w.stamp[oj] != i || std::abs(w.value[oj] - it.value()) > o.row_tolerance * scale) {
+          changed[i] = 1;
+          break;
+        }
+      }
+      if (count != old_count) changed[i] = 1;
+    }
+  });
+  for (int i = 0; i < n; ++i) mapped_ += old_of_[i] >= 0, changed_ += changed[i];
   // The old factorization serves only the unchanged DOFs: on a changed row the old stiffness can
   // be far from the new one (a sliver that grew, material that went), and its inverse there
   // would spoil the preconditioner; those rows are the local solve's.
@@ -150,20 +164,32 @@ ReusedFactorization::ReusedFactorization(std::shared_ptr<const SparseCholesky> o
     std::vector<char> next = in;
     for (int j = 0; j < n; ++j)
       if (in[j])
-        for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) next[it.index()] = 1;
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, j); it; ++it) next[it.index()] = 1;
     in = std::move(next);
   }
   std::vector<int> local_of(n, -1);
   for (int i = 0; i < n; ++i)
     if (in[i]) local_of[i] = static_cast<int>(local_.size()), local_.push_back(i);
   if (!local_.empty()) {
-    std::vector<Eigen::Triplet<double>> trip;
+    // K on the local set, column by column: local numbers increase with the global ones, so
+    // every column's rows come out sorted (no triplets, no sort).
+    const int m = static_cast<int>(local_.size());
+    auto KLL = std::make_shared<Eigen::SparseMatrix<double>>(m, m);
+    Eigen::Index nnz = 0;
     for (int j : local_)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it)
-        if (local_of[it.index()] >= 0) trip.emplace_back(local_of[it.index()], local_of[j], it.value());
-    Eigen::SparseMatrix<double> KLL(static_cast<int>(local_.size()), static_cast<int>(local_.size()));
-    KLL.setFromTriplets(trip.begin(), trip.end());
-    local_factor_.factorize(KLL);
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, j); it; ++it) nnz += local_of[it.index()] >= 0;
+    KLL->resizeNonZeros(nnz);
+    int* outer = KLL->outerIndexPtr();
+    int* inner = KLL->innerIndexPtr();
+    double* value = KLL->valuePtr();
+    Eigen::Index k = 0;
+    for (int c = 0; c < m; ++c) {
+      outer[c] = static_cast<int>(k);
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, local_[c]); it; ++it)
+        if (local_of[it.index()] >= 0) inner[k] = local_of[it.index()], value[k] = it.value(), ++k;
+    }
+    outer[m] = static_cast<int>(k);
+    local_factor_.factorize(std::shared_ptr<const Eigen::SparseMatrix<double>>(std::move(KLL)));
     PARAFAB_VERIFY(local_factor_.status() == SparseCholesky::Status::Factorized,
                    "reused factorization: the changed block (" << local_.size() << " DOFs) is not positive definite");
   }
@@ -203,14 +229,14 @@ void ReusedFactorization::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) co
   apply_local(r, z);
   Eigen::VectorXd s = r;
   for (const int j : local_)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) s(it.index()) -= it.value() * z(j);
+    for (Eigen::SparseMatrix<double>::InnerIterator it(*K_, j); it; ++it) s(it.index()) -= it.value() * z(j);
   apply_old(s, z);
   // s on the local rows only (apply_local reads nothing else): r − K z there.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, local_.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
     for (size_t k = range.begin(); k != range.end(); ++k) {
       const int j = local_[k];
       double Kz = 0;
-      for (Eigen::SparseMatrix<double>::InnerIterator it(K_, j); it; ++it) Kz += it.value() * z(it.index());
+      for (Eigen::SparseMatrix<double>::InnerIterator it(*K_, j); it; ++it) Kz += it.value() * z(it.index());
       s(j) = r(j) - Kz;
     }
   });
@@ -219,14 +245,14 @@ void ReusedFactorization::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) co
 
 Eigen::VectorXd ReusedFactorization::local_correction(const Eigen::VectorXd& b, const Eigen::VectorXd& x0) const {
   Eigen::VectorXd x = x0.size() ? x0 : Eigen::VectorXd::Zero(b.size());
-  apply_local(Eigen::VectorXd(b - K_ * x), x);
+  apply_local(Eigen::VectorXd(b - *K_ * x), x);
   return x;
 }
 
 PcgResult ReusedFactorization::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& x0, const PcgOptions& o) const {
   // The start corrected on the local DOFs first: a new DOF starts at 0 next to neighbours that
   // carry the old displacement, which would leave a large residual there.
-  return preconditioned_cg(K_, b, [this](const Eigen::VectorXd& r, Eigen::VectorXd& z) { apply(r, z); },
+  return preconditioned_cg(*K_, b, [this](const Eigen::VectorXd& r, Eigen::VectorXd& z) { apply(r, z); },
                            local_correction(b, x0), o);
 }
 

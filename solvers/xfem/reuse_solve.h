@@ -54,13 +54,20 @@ struct ReusedFactorizationOptions {
 class ReusedFactorization {
  public:
   /// Throws parafab::Error when `old` holds no Cholesky factorization or the sizes disagree.
+  /// K is shared, not copied (a hex27 system of 10⁴ unknowns holds ~50 MB).
   ReusedFactorization(std::shared_ptr<const SparseCholesky> old, const Eigen::SparseMatrix<double>& K_old,
-                      Eigen::SparseMatrix<double> K, std::vector<int> old_of,
+                      std::shared_ptr<const Eigen::SparseMatrix<double>> K, std::vector<int> old_of,
                       const ReusedFactorizationOptions& options = {});
+  /// The same with a copy of K.
+  ReusedFactorization(std::shared_ptr<const SparseCholesky> old, const Eigen::SparseMatrix<double>& K_old,
+                      const Eigen::SparseMatrix<double>& K, std::vector<int> old_of,
+                      const ReusedFactorizationOptions& options = {})
+      : ReusedFactorization(std::move(old), K_old, std::make_shared<const Eigen::SparseMatrix<double>>(K),
+                            std::move(old_of), options) {}
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
   /// x with K x = b by PCG from x0 (size 0: zero).
   PcgResult solve(const Eigen::VectorXd& b, const Eigen::VectorXd& x0, const PcgOptions& options) const;
-  const Eigen::SparseMatrix<double>& matrix() const { return K_; }
+  const Eigen::SparseMatrix<double>& matrix() const { return *K_; }
   /// x0 + B_L (b − K x0): the start CG uses.
   Eigen::VectorXd local_correction(const Eigen::VectorXd& b, const Eigen::VectorXd& x0) const;
   int mapped_dofs() const { return mapped_; }
@@ -73,7 +80,7 @@ class ReusedFactorization {
   void apply_local(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;  // z += B_L r
   std::shared_ptr<const SparseCholesky> old_;
   int old_factorizations_ = 0;
-  Eigen::SparseMatrix<double> K_;
+  std::shared_ptr<const Eigen::SparseMatrix<double>> K_;  // compressed
   std::vector<int> old_of_, local_;
   SparseCholesky local_factor_;
   int mapped_ = 0, changed_ = 0;

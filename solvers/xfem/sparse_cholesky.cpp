@@ -12,7 +12,7 @@ namespace parafab::xfem {
 struct SparseCholesky::Impl {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   std::unique_ptr<Eigen::SparseLU<Eigen::SparseMatrix<double>>> lu;
-  Eigen::SparseMatrix<double> K;  // for iterative refinement
+  std::shared_ptr<const Eigen::SparseMatrix<double>> K;  // for iterative refinement (compressed)
 };
 
 SparseCholesky::SparseCholesky() : impl_(std::make_unique<Impl>()) {}
@@ -31,8 +31,9 @@ void SparseCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
   PARAFAB_VERIFY(pattern.rows() == pattern.cols(),
                  "sparse Cholesky: the matrix must be square, got " << pattern.rows() << " × " << pattern.cols());
   const auto t0 = std::chrono::steady_clock::now();
-  Eigen::SparseMatrix<double> P = pattern;
-  P.makeCompressed();
+  Eigen::SparseMatrix<double> copy;
+  if (!pattern.isCompressed()) copy = pattern, copy.makeCompressed();
+  const Eigen::SparseMatrix<double>& P = pattern.isCompressed() ? pattern : copy;
   cholmod_common& c = impl_->llt.cholmod();
   if (P.rows() >= metis_from) {
     c.nmethods = 1, c.method[0].ordering = CHOLMOD_METIS, c.postorder = 1;
@@ -51,8 +52,19 @@ void SparseCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
 }
 
 bool SparseCholesky::factorize(const Eigen::SparseMatrix<double>& K_in) {
-  Eigen::SparseMatrix<double> K = K_in;
-  K.makeCompressed();
+  auto K = std::make_shared<Eigen::SparseMatrix<double>>(K_in);
+  K->makeCompressed();
+  return factorize(std::shared_ptr<const Eigen::SparseMatrix<double>>(std::move(K)));
+}
+
+bool SparseCholesky::factorize(std::shared_ptr<const Eigen::SparseMatrix<double>> K_in) {
+  PARAFAB_VERIFY(K_in, "sparse Cholesky: factorize without a matrix");
+  if (!K_in->isCompressed()) {
+    auto compressed = std::make_shared<Eigen::SparseMatrix<double>>(*K_in);
+    compressed->makeCompressed();
+    K_in = std::move(compressed);
+  }
+  const Eigen::SparseMatrix<double>& K = *K_in;
   if (!same_pattern(K)) analyze(K);
   const auto t0 = std::chrono::steady_clock::now();
   impl_->lu.reset();
@@ -73,7 +85,7 @@ bool SparseCholesky::factorize(const Eigen::SparseMatrix<double>& K_in) {
       message_ = "matrix singular (" + std::to_string(rows_) + " unknowns): " + lu->lastErrorMessage();
     }
   }
-  impl_->K = std::move(K);
+  impl_->K = std::move(K_in);
   factorize_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return IsDone();
 }
@@ -85,7 +97,7 @@ Eigen::VectorXd SparseCholesky::solve(const Eigen::VectorXd& b, int refinements)
     return impl_->lu ? Eigen::VectorXd(impl_->lu->solve(r)) : Eigen::VectorXd(impl_->llt.solve(r));
   };
   Eigen::VectorXd x = apply(b);
-  for (int k = 0; k < refinements; ++k) x += apply(b - impl_->K * x);
+  for (int k = 0; k < refinements; ++k) x += apply(b - *impl_->K * x);
   return x;
 }
 
