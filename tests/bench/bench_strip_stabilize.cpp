@@ -106,7 +106,10 @@ int main(int argc, char** argv) {
                         {"sigma_before", num(r.sigma_before / r.length)}, {"R_before", num(r.R_before)},
                         {"R_after", num(r.R_after)}, {"max_pole_move", r.max_pole_move / r.length},
                         {"deviation", r.deviation_relative}, {"seconds", t}, {"check_seconds", tcheck},
-                        {"iterations", static_cast<int>(r.history.size()) - 1}, {"history", hist}});
+                        {"iterations", static_cast<int>(r.history.size()) - 1}, {"rejected_steps", r.rejected_steps},
+                        // Time after the last accepted step: the search that ends a `stationary` run.
+                        {"tail_seconds", r.history.empty() ? 0.0 : r.seconds - r.history.back().seconds},
+                        {"message", r.message}, {"history", hist}});
       ++index;
     }
   const double med = times.empty() ? NAN : median(times), worst = times.empty() ? NAN : *std::max_element(times.begin(), times.end());
