@@ -1,6 +1,6 @@
 // Solving a changed XFEM system (thesis §6.4, Eq. 6.22, after a re-cut of some cells) with the
 // factorization of an earlier one instead of factorizing again (issue 11 §3; the thesis
-// factorizes every system). Conjugate gradients, preconditioned by an additive Schwarz pair:
+// factorizes every system). Conjugate gradients, preconditioned by a symmetric multiplicative Schwarz pair:
 // the old factorization on the DOFs common to both systems, and an exact factorization of the
 // new matrix on the DOFs whose rows changed (plus a layer of neighbours).
 #pragma once
@@ -54,7 +54,8 @@ struct ReusedFactorizationOptions {
 class ReusedFactorization {
  public:
   /// Throws parafab::Error when `old` holds no Cholesky factorization or the sizes disagree.
-  /// K is shared, not copied (a hex27 system of 10⁴ unknowns holds ~50 MB).
+  /// K is shared, not copied (a hex27 system of 10⁴ unknowns holds ~50 MB), and must not change
+  /// afterwards. The row comparison takes 12 bytes per old unknown and thread.
   ReusedFactorization(std::shared_ptr<const SparseCholesky> old, const Eigen::SparseMatrix<double>& K_old,
                       std::shared_ptr<const Eigen::SparseMatrix<double>> K, std::vector<int> old_of,
                       const ReusedFactorizationOptions& options = {});

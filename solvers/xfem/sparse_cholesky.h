@@ -43,7 +43,8 @@ class SparseCholesky {
   /// from the analyzed one (a same-pattern matrix reuses the analysis). Falls back to sparse LU
   /// when K is not positive definite. Returns IsDone(). Keeps a copy of K for refinement.
   bool factorize(const Eigen::SparseMatrix<double>& K);
-  /// The same, keeping K itself (shared, not copied) for refinement.
+  /// The same, keeping K itself for refinement (shared, not copied, unless it is uncompressed):
+  /// K must not change afterwards.
   bool factorize(std::shared_ptr<const Eigen::SparseMatrix<double>> K);
   /// x with K x = b, plus `refinements` steps of iterative refinement (x += K⁻¹(b − K x)).
   /// Throws parafab::Error when nothing is factorized or b has the wrong size.
