@@ -389,14 +389,23 @@ std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& b
   return make_part(read_brep_stream(in, src), src, options);
 }
 
-PartBoxArea part_box_and_area(const PartShape& part) {
-  PartBoxArea size;
+namespace {
+
+// The tight bounding box (BRepBndLib::AddOptimal, no triangulation, no tolerance enlargement).
+void tight_box(const TopoDS_Shape& shape, Eigen::Vector3d& min, Eigen::Vector3d& max) {
   Bnd_Box box;
-  BRepBndLib::AddOptimal(part.shape, box, false, false);
+  BRepBndLib::AddOptimal(shape, box, false, false);
   double x0, y0, z0, x1, y1, z1;
   box.Get(x0, y0, z0, x1, y1, z1);
-  size.min = {x0, y0, z0};
-  size.max = {x1, y1, z1};
+  min = {x0, y0, z0};
+  max = {x1, y1, z1};
+}
+
+}  // namespace
+
+PartBoxArea part_box_and_area(const PartShape& part) {
+  PartBoxArea size;
+  tight_box(part.shape, size.min, size.max);
   GProp_GProps props;
   BRepGProp::SurfaceProperties(part.shape, props);
   size.area = props.Mass();
@@ -412,12 +421,7 @@ PartInfo part_info(const PartShape& part) {
   info.face_count = part.face_count();
   info.edge_count = part.edge_count();
   info.vertex_count = part.vertices.Extent();
-  Bnd_Box box;
-  BRepBndLib::AddOptimal(part.shape, box, false, false);
-  double x0, y0, z0, x1, y1, z1;
-  box.Get(x0, y0, z0, x1, y1, z1);
-  info.bbox_min = {x0, y0, z0};
-  info.bbox_max = {x1, y1, z1};
+  tight_box(part.shape, info.bbox_min, info.bbox_max);
   GProp_GProps vprops, sprops;
   BRepGProp::VolumeProperties(part.shape, vprops, 1e-9);  // adaptive: the fixed rule is off by ~1e-5 on B-spline faces
   BRepGProp::SurfaceProperties(part.shape, sprops, 1e-9);
