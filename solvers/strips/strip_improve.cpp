@@ -300,7 +300,28 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
       if (!ok) res.last_rejection = "K changes sign on the samples (the line meets the curve)";
     }
     if (ok && bounded) {  // before F: R_p is cheap, F designs the strip (and may run a stability test)
-      ok = Rp.valid && Rt.valid && Rt.value <= std::max(o.R_max * (1 + o.bound_tolerance), Rp.value * (1 + 1e-3));
+      const double R_allowed = std::max(o.R_max * (1 + o.bound_tolerance), Rp.value * (1 + 1e-3));
+      // The linearized ProjectStep overshoots where the bound curves; instead of halving the
+      // step, return onto R_p = R_max along the projected ∇R_p at the trial (Newton on the one
+      // active constraint, §4.5.4's step projection repeated at the new point).
+      for (int k = 0; k < o.bound_returns && Rp.valid && Rt.valid && Rt.value > R_allowed; ++k) {
+        Eigen::VectorXd G;
+        Eigen::MatrixXd Jt;
+        tc.evaluate(trial, G, Jt);
+        Eigen::VectorXd gR = Rt.gradient;
+        if (Jt.rows() > 0) gR -= Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(Jt).solve(Jt * gR);
+        const double g2 = gR.squaredNorm();
+        if (!(g2 > 0)) break;
+        BSplineCurve2 back = trial;
+        StripConstraints bc = tc;
+        set_poles_vector(back, poles_vector(trial) - ((Rt.value - o.R_max) / g2) * gR);
+        if (!bc.enforce(back).converged || inflection_parameters(back).size() != cons.inflections().size()) break;
+        const PNormRatio Rb = pnorm_ratio(back, bc.a(), bc.b(), su, o.p, l);
+        if (!Rb.valid || !(Rb.value < Rt.value)) break;
+        trial = std::move(back), tc = std::move(bc), Rt = Rb;
+        ++res.bound_returns;
+      }
+      ok = Rp.valid && Rt.valid && Rt.value <= R_allowed;
       if (!ok) res.last_rejection = "R_p exceeds R_max after the step";
     }
     if (ok) {
@@ -311,7 +332,9 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     if (!ok) {
       ++res.rejected_steps;
       t *= 0.5;
-      if (t * dir.norm() < o.min_step * l) {
+      // A quasi-Newton direction that still fails after quasi_halvings halvings is dropped for
+      // steepest descent (on the bound the pairs mix curvature of F with that of the bound).
+      if (t * dir.norm() < o.min_step * l || (!S.empty() && t < std::ldexp(1.0, -o.quasi_halvings))) {
         if (!S.empty()) {  // retry from steepest descent before giving up
           S.clear(), Y.clear();
           new_direction = true;

@@ -57,11 +57,16 @@ struct PoleDescentOptions {
   double initial_step = 0.01;   ///< steepest-descent trial |Δq| as a fraction of the length
   double max_step = 0.05;       ///< cap on |Δq| (fraction of the length)
   int memory = 8;               ///< L-BFGS pairs in the tangent space (0: steepest descent)
+  /// Halvings of an L-BFGS direction before it is dropped for steepest descent
+  int quasi_halvings = 5;
   double min_step = 1e-9;       ///< stop when the trial step falls below this · l
   double R_max = INFINITY;      ///< R_p ≤ R_max by ProjectStep; infinite: no bound
   /// A step is rejected if R_p > max(R_max·(1 + this), R_p before·(1 + 10⁻³)) afterwards
   /// (the linearized projection overshoots on the curved bound; §4.5.4: small, temporary).
   double bound_tolerance = 1e-3;
+  /// Newton steps back onto R_p = R_max when a trial step overshoots the bound (0: halve the
+  /// step instead, as before)
+  int bound_returns = 2;
   double p = 32;                ///< exponent of R_p (thesis: p > 20)
   int samples = 200;            ///< fixed-parameter samples (equally spaced in arc length at start)
   double max_seconds = 0;       ///< > 0: stop after this wall time
@@ -85,6 +90,8 @@ struct PoleDescentResult {
   std::vector<double> inflections;  ///< parameters
   std::vector<PoleDescentIteration> history;
   int rejected_steps = 0;
+  /// Newton steps that returned an overshooting trial onto the R_max bound (bound_returns)
+  int bound_returns = 0;
   std::string last_rejection;  ///< why the last rejected trial step was rejected
   double seconds = 0;
 };

@@ -209,8 +209,10 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
       po.initial_step = o.initial_step;
       po.max_step = o.max_step;
       po.memory = o.memory;
+      po.quasi_halvings = o.quasi_halvings;
       po.R_max = o.R_max;
       po.bound_tolerance = o.bound_tolerance;
+      po.bound_returns = o.bound_returns;
       po.p = o.p;
       po.samples = o.samples;
       po.constraints = o.constraints;
@@ -233,6 +235,7 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
       const PoleDescentResult dr = descend_poles(current, F, po);
       used += static_cast<int>(dr.history.size()) - 1;
       res.rejected_steps += dr.rejected_steps;
+      res.bound_returns += dr.bound_returns;
       current = dr.curve;
       res.status = dr.status;
       res.message = dr.message.empty() ? dr.last_rejection : dr.message;

@@ -37,7 +37,9 @@ struct StripStabilizeOptions {
   double initial_step = 0.002;  ///< trial |Δq| as a fraction of the length
   double max_step = 0.01;       ///< cap on |Δq| (fraction of the length)
   int memory = 6;               ///< L-BFGS pairs (0: steepest ascent of σ)
+  int quasi_halvings = 5;       ///< PoleDescentOptions::quasi_halvings
   double bound_tolerance = 1e-2;  ///< PoleDescentOptions::bound_tolerance
+  int bound_returns = 2;          ///< PoleDescentOptions::bound_returns
   double max_seconds = 0;       ///< > 0: wall-time limit
   int min_degree = 4;           ///< lower degrees (or more than max_poles poles) are refitted
   int max_poles = 40;
@@ -84,6 +86,7 @@ struct StripStabilizeResult {
   std::vector<StripStabilizeIteration> history;
   StripDesign design;                    ///< the design of the result
   int rejected_steps = 0;
+  int bound_returns = 0;  ///< overshooting trial steps returned onto the R_max bound
   double seconds = 0;
 };
 

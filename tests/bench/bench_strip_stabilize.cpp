@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
                         {"R_after", num(r.R_after)}, {"max_pole_move", r.max_pole_move / r.length},
                         {"deviation", r.deviation_relative}, {"seconds", t}, {"check_seconds", tcheck},
                         {"iterations", static_cast<int>(r.history.size()) - 1}, {"rejected_steps", r.rejected_steps},
+                        {"bound_returns", r.bound_returns},
                         // Time after the last accepted step (last repeat): the search that ends a `stationary`
                         // run, the final verdict and the deviation.
                         {"tail_seconds", r.history.empty() ? 0.0 : r.seconds - r.history.back().seconds},

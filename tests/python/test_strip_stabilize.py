@@ -75,7 +75,7 @@ class StripStabilizeEntry(unittest.TestCase):
         self.assertLess(before, 0)
         self.assertGreater(after, 0)
         self.assertAlmostEqual(r["design"]["R"], r["R_after"], delta=1e-9 * r["R_after"])
-        self.assertLess(r["deviation_relative"], 0.003)  # measured 0.0021
+        self.assertLess(r["deviation_relative"], 0.003)  # measured 0.0025
 
     def test_constraints_hold_by_scipy(self):
         r = self.result

@@ -89,6 +89,7 @@ json stabilize_strip_json(const json& request, double R_max) {
   out["refit"] = r.refit;
   out["refit_deviation"] = r.refit_deviation;
   out["rejected_steps"] = r.rejected_steps;
+  out["bound_returns"] = r.bound_returns;
   out["seconds"] = r.seconds;
   json hist = json::array();
   for (const auto& h : r.history)
