@@ -97,6 +97,18 @@ class OptimizeFailure(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("objective.terms[2]", err["error"]["message"])
         self.assertIn("one 'failure' term", err["error"]["message"])
+        # hex27 is refused, alone or in a sum: its cut cells' rule points outside the material see
+        # the extrapolated quadratic stress (a 12-cell run started at J = 2e10 and went negative).
+        for obj in (fail, {"type": "sum", "terms": [{"type": "compliance"}, fail]}):
+            out = os.path.join(self.dir, "z")
+            code, err = cli(["optimize", self.part, "-o", out], dict(JOB, element="hex27", objective=obj))
+            self.assertEqual(code, 2, obj)
+            self.assertIn("element", err["error"]["message"])
+            self.assertIn("'hex8' only", err["error"]["message"])
+            self.assertFalse(os.path.exists(os.path.join(out, "optimized.step")))
+            with self.assertRaises(parafab.Error) as e:
+                parafab.optimize(self.part, dict(JOB, element="hex27", objective=obj))
+            self.assertIn("'hex8' only", str(e.exception))
 
     def start_value(self, objective):
         """The objective at the start (no step), from a run of its own."""
