@@ -16,14 +16,9 @@
 namespace parafab {
 namespace {
 
-// y = 0.03 sin(x / 0.05) over 1.3 periods (three inflections on y = 0), a quintic with 16
-// poles made exactly collinear by EnforceConstraints: unstable (σ/l ≈ 0.916).
-BSplineCurve2 unstable_wave() {
-  std::vector<Vec2> pts;
-  for (int i = 0; i < 400; ++i) {
-    const double x = -0.05 + 0.415 * i / 399;
-    pts.emplace_back(x, 0.03 * std::sin(x / 0.05));
-  }
+// A quintic with 16 poles fitted to the points, its inflections made exactly collinear by
+// EnforceConstraints.
+BSplineCurve2 fitted_wave(const std::vector<Vec2>& pts) {
   FairFitOptions fo;
   fo.degree = 5;
   fo.poles = 16;
@@ -31,6 +26,16 @@ BSplineCurve2 unstable_wave() {
   BSplineCurve2 c = fit_fair_bspline(pts, fo).curve;
   project_to_equilibrium(c);
   return c;
+}
+
+// y = 0.03 sin(x / 0.05) over 1.3 periods (three inflections on y = 0): unstable (σ/l ≈ 0.916).
+BSplineCurve2 unstable_wave() {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 400; ++i) {
+    const double x = -0.05 + 0.415 * i / 399;
+    pts.emplace_back(x, 0.03 * std::sin(x / 0.05));
+  }
+  return fitted_wave(pts);
 }
 
 // Release of the designed strip (the design's K, clamped ends) from its simulated equilibrium
@@ -180,12 +185,7 @@ TEST(StripStabilize, OnTheRatioBoundTrialsReturnOntoItInsteadOfHalving) {
     const double x = 0.05 * (-1 + (phi_end + 1) * i / 399);
     pts.emplace_back(x, 0.4 * 0.05 * std::sin(x / 0.05));
   }
-  FairFitOptions fo;
-  fo.degree = 5;
-  fo.poles = 16;
-  fo.fairness = 1e-8;
-  BSplineCurve2 c = fit_fair_bspline(pts, fo).curve;
-  project_to_equilibrium(c);
+  const BSplineCurve2 c = fitted_wave(pts);
   StripStabilizeOptions plain;
   plain.bound_returns = 0;
   plain.quasi_halvings = 1000;
