@@ -160,6 +160,8 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
   const auto t0 = Clock::now();
   PARAFAB_VERIFY(o.samples >= 8, "descent: samples must be >= 8, got " << o.samples);
   PARAFAB_VERIFY(o.p >= 1, "descent: p must be >= 1, got " << o.p);
+  PARAFAB_VERIFY(o.quasi_halvings >= 0, "descent: quasi_halvings must be >= 0, got " << o.quasi_halvings);
+  PARAFAB_VERIFY(o.bound_returns >= 0, "descent: bound_returns must be >= 0, got " << o.bound_returns);
   PoleDescentResult res(input);
   BSplineCurve2 curve = input;
   const std::vector<double> su = arc_length_parameters(curve, o.samples);

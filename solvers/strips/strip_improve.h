@@ -90,7 +90,8 @@ struct PoleDescentResult {
   std::vector<double> inflections;  ///< parameters
   std::vector<PoleDescentIteration> history;
   int rejected_steps = 0;
-  /// Newton steps that returned an overshooting trial onto the R_max bound (bound_returns)
+  /// Newton steps taken to return overshooting trials onto the R_max bound (bound_returns),
+  /// including those of trials rejected afterwards
   int bound_returns = 0;
   std::string last_rejection;  ///< why the last rejected trial step was rejected
   double seconds = 0;
