@@ -309,7 +309,7 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
       for (int k = 0; k < o.bound_returns && Rp.valid && Rt.valid && Rt.value > R_allowed; ++k) {
         Eigen::VectorXd G;
         Eigen::MatrixXd Jt;
-        tc.evaluate(trial, G, Jt);
+        if (!tc.evaluate(trial, G, Jt)) break;
         Eigen::VectorXd gR = Rt.gradient;
         if (Jt.rows() > 0) gR -= Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(Jt).solve(Jt * gR);
         const double g2 = gR.squaredNorm();

@@ -86,7 +86,7 @@ struct StripStabilizeResult {
   std::vector<StripStabilizeIteration> history;
   StripDesign design;                    ///< the design of the result
   int rejected_steps = 0;
-  int bound_returns = 0;  ///< overshooting trial steps returned onto the R_max bound
+  int bound_returns = 0;  ///< Newton steps back onto the R_max bound (PoleDescentResult::bound_returns)
   double seconds = 0;
 };
 

@@ -3,7 +3,8 @@
 
 Run:  /usr/bin/python3 tests/reference/test_hyperelastic_vs_calculix.py [-v]
 Needs the built parafab python module (build/workbench/entry) and `gmsh` + `ccx`
-on PATH; skipped otherwise. About 46 s of CPU (210 s wall on the loaded shared machine, 2026-11-23).
+on PATH; skipped otherwise. About 46 s of CPU (210 s wall on the loaded shared machine, 2026-11-23),
+plus ~55 s for TurnedBlockAtTwelveCellsTest (no CalculiX; most of it a Newton run that fails).
 
 Block 20 x 20 x 20 mm, silicone-like E = 2.3 MPa, nu = 0.45. Face z = 0 fully
 fixed, face z = 20 gets the prescribed displacement (0, 0, -4) with x and y

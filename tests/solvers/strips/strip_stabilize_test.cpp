@@ -165,7 +165,7 @@ TEST(StripStabilize, WithoutTheRatioBoundKappaPrimeVanishesAtAnInflection) {
               dk0, dk_min, R_top, u.stable_after);
   EXPECT_FALSE(u.done);
   EXPECT_NE(u.status, "stable");
-  EXPECT_LT(dk_min, 0.015 * dk0);  // measured 0.0103
+  EXPECT_LT(dk_min, 0.015 * dk0);  // measured 0.0126 (0.27 / 21.5)
   EXPECT_GT(R_top, 1000.0);
   const StripStabilizeResult b = stabilize_strip(c);  // R_max = 10
   std::printf("[bound 10] %s: min |kappa'| l^2 %.3g -> %.3g\n", b.status.c_str(), dk0, b.min_inflection_dkappa);
@@ -195,7 +195,11 @@ TEST(StripStabilize, OnTheRatioBoundTrialsReturnOntoItInsteadOfHalving) {
     for (const auto& h : r.history) m = std::max(m, h.R_p);
     return m;
   };
-  auto last_margin = [](const StripStabilizeResult& r) { return r.history.back().sigma_margin / r.length; };
+  // σ/l of the margin state at the end; a run that ends stable (NaN there) ranks above any.
+  auto last_margin = [](const StripStabilizeResult& r) {
+    const double m = r.history.back().sigma_margin / r.length;
+    return std::isnan(m) ? INFINITY : m;
+  };
   std::printf("[bound] plain: %s, sigma/l of the margin state %.4f, %zu steps, %d rejected trials, R_p <= %.3f\n",
               a.status.c_str(), last_margin(a), a.history.size() - 1, a.rejected_steps, R_top(a));
   std::printf("[bound] return: %s, sigma/l of the margin state %.4f, %zu steps, %d rejected trials, %d returns, "
@@ -205,7 +209,7 @@ TEST(StripStabilize, OnTheRatioBoundTrialsReturnOntoItInsteadOfHalving) {
   EXPECT_GT(b.bound_returns, 0);
   EXPECT_LT(b.rejected_steps, 0.5 * a.rejected_steps);  // measured 124 against 290
   EXPECT_LE(R_top(b), 10 * (1 + plain.bound_tolerance));
-  EXPECT_GE(last_margin(b), last_margin(a) - 1e-3);
+  EXPECT_GE(last_margin(b), last_margin(a));  // measured 0.9844 against 0.9840
 }
 
 TEST(StripStabilize, AlreadyStableCurvesAndBadInputAreReported) {
