@@ -74,9 +74,17 @@ void shape_dynamic(const Box3& box, int nodes, const Vec3& X, Eigen::VectorXd& N
   }
 }
 
-Eigen::Matrix<double, 6, 6> elasticity(const ElasticMaterial& m) {
+// Lamé constants of an isotropic material.
+struct Lame {
+  double lambda, mu;
+};
+Lame lame(const ElasticMaterial& m) {
   const double E = m.youngs_modulus, nu = m.poisson_ratio;
-  const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+  return {E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))};
+}
+
+Eigen::Matrix<double, 6, 6> elasticity(const ElasticMaterial& m) {
+  const auto [lambda, mu] = lame(m);
   Eigen::Matrix<double, 6, 6> D = Eigen::Matrix<double, 6, 6>::Zero();
   D.topLeftCorner<3, 3>().setConstant(lambda);
   D.topLeftCorner<3, 3>().diagonal().array() += 2 * mu;
@@ -176,15 +184,148 @@ bool same_uncut_shape(const GridElement& a, const GridElement& b) {
   return true;
 }
 
+// Isotropic bulk stiffness of the rule (points, weights) in `box`, by node pairs:
+// K(3a+i, 3b+j) = λ C_ij + μ C_ji + μ δ_ij Σ_k C_kk at (a, b), C_ij(a, b) = Σ_q w_q ∂_i N_a ∂_j N_b
+// (9 products NN × nq × NN instead of B_qᵀ D B_q).
+template <int NN>
+Eigen::MatrixXd bulk_stiffness(const Box3& box, const std::vector<Vec3>& points, const std::vector<double>& weights,
+                               const Lame& lm) {
+  const auto [lambda, mu] = lm;
+  const int nq = static_cast<int>(points.size());
+  Eigen::Matrix<double, NN, 1> N;
+  Eigen::Matrix<double, NN, 3> G;
+  std::array<Eigen::Matrix<double, NN, Eigen::Dynamic>, 3> P;  // P[i](a, q) = ∂N_a/∂x_i at point q
+  for (auto& p : P) p.resize(NN, nq);
+  for (int q = 0; q < nq; ++q) {
+    shape<NN>(box, points[q], N, G);
+    for (int i = 0; i < 3; ++i) P[i].col(q) = G.col(i);
+  }
+  const Eigen::Map<const Eigen::VectorXd> w(weights.data(), nq);
+  std::array<std::array<Eigen::Matrix<double, NN, NN>, 3>, 3> C;
+  for (int i = 0; i < 3; ++i) {  // C_ji = C_ijᵀ: six products
+    const Eigen::Matrix<double, NN, Eigen::Dynamic> Pw = P[i] * w.asDiagonal();
+    for (int j = i; j < 3; ++j) C[i][j].noalias() = Pw * P[j].transpose();
+    for (int j = 0; j < i; ++j) C[i][j] = C[j][i].transpose();
+  }
+  const Eigen::Matrix<double, NN, NN> trace = C[0][0] + C[1][1] + C[2][2];
+  Eigen::MatrixXd K(3 * NN, 3 * NN);
+  for (int a = 0; a < NN; ++a)
+    for (int b = 0; b < NN; ++b)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          K(3 * a + i, 3 * b + j) = lambda * C[i][j](a, b) + mu * C[j][i](a, b) + (i == j ? mu * trace(a, b) : 0.0);
+  return K;
+}
+
+// The element's bulk stiffness: its rule, hex8 with incompatible modes condensed.
+template <int NN>
+Eigen::MatrixXd element_bulk_stiffness(const GridElement& el, const ElasticMaterial& material,
+                                       const LinearXfemOptions& options) {
+  Eigen::MatrixXd K = bulk_stiffness<NN>(el.box, el.rule.points, el.rule.weights, lame(material));
+  if constexpr (NN == 8)
+    if (options.incompatible_modes) add_incompatible_modes(el, elasticity(material), options.incompatible_min_fraction, K);
+  return K;
+}
+
+// The uncut cell's stiffness (3-point Gauss rule per axis: exact for hex8 and hex27).
+template <int NN>
+Eigen::MatrixXd full_cell_stiffness(const Box3& box, const Lame& lm) {
+  static const double x[3] = {0.5 - 0.5 * std::sqrt(0.6), 0.5, 0.5 + 0.5 * std::sqrt(0.6)};
+  static const double wt[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+  std::vector<Vec3> points;
+  std::vector<double> weights;
+  const Vec3 h = box.size();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) {
+        points.push_back(box.min + Vec3(x[i], x[j], x[k]).cwiseProduct(h));
+        weights.push_back(wt[i] * wt[j] * wt[k] * box.volume());
+      }
+  return bulk_stiffness<NN>(box, points, weights, lm);
+}
+
+// Λ of the local Nitsche penalty (LinearXfemOptions::nitsche_penalty): the largest λ with
+// B v = λ A v off the rigid modes, A the element's bulk stiffness plus nitsche_local_floor × the
+// uncut cell's (null space: the rigid modes R), B the Nitsche flux matrix Σ_q w_q Tᵀ M T over
+// its Dirichlet patches (zero on R too). A + s·R Rᵀ (R orthonormal) is positive definite with
+// the same eigenpairs off R, so one Cholesky-based generalized eigensolve gives Λ; if A has
+// further non-positive directions (a rule with negative weights), the pencil is restricted
+// to A's positive eigenvectors instead.
+template <int NN>
+double largest_flux_eigenvalue(const Box3& box, const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
+  constexpr int n = 3 * NN;
+  Eigen::Matrix<double, n, 6> R;
+  const Vec3 centre = 0.5 * (box.min + box.max);
+  for (int a = 0; a < NN; ++a) {
+    const Vec3 x = (node_position(box, NN, a) - centre) / box.size().maxCoeff();
+    R.template block<3, 3>(3 * a, 0).setIdentity();
+    for (int k = 0; k < 3; ++k) R.template block<3, 1>(3 * a, 3 + k) = Vec3::Unit(k).cross(x);
+  }
+  const Eigen::HouseholderQR<Eigen::Matrix<double, n, 6>> qr(R);
+  const Eigen::Matrix<double, n, 6> Q = qr.householderQ() * Eigen::Matrix<double, n, 6>::Identity();
+  const Eigen::MatrixXd shifted = A + (A.trace() / n) * Q * Q.transpose();
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ge(B, shifted, Eigen::EigenvaluesOnly);
+  if (ge.info() == Eigen::Success) return std::max(0.0, ge.eigenvalues().maxCoeff());
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ea(A);
+  PARAFAB_VERIFY(ea.info() == Eigen::Success, "local Nitsche penalty: eigen decomposition of the bulk stiffness failed");
+  const Eigen::VectorXd& d = ea.eigenvalues();
+  const double cut = 1e-10 * d.cwiseAbs().maxCoeff();
+  int first = 0;
+  while (first < d.size() && d(first) <= cut) ++first;
+  if (first == d.size()) return 0;
+  const int r = static_cast<int>(d.size()) - first;
+  const Eigen::MatrixXd W = ea.eigenvectors().rightCols(r) * d.tail(r).cwiseSqrt().cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ec(W.transpose() * B * W, Eigen::EigenvaluesOnly);
+  PARAFAB_VERIFY(ec.info() == Eigen::Success, "local Nitsche penalty: eigenvalues of the flux matrix failed");
+  return std::max(0.0, ec.eigenvalues().maxCoeff());
+}
+
+// The Dirichlet condition on `face`, or null.
+const DirichletCondition* dirichlet_on(const std::vector<DirichletCondition>& dirichlet, int face) {
+  const DirichletCondition* dc = nullptr;
+  for (const auto& d : dirichlet) if (d.face == face) dc = &d;
+  return dc;
+}
+
+template <int NN>
+double nitsche_penalty_n(const GridElement& el, const ElasticMaterial& material,
+                         const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options,
+                         const Eigen::MatrixXd* bulk) {
+  const double h = el.box.size().minCoeff();
+  if (options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed || !el.subvolume)
+    return (options.nitsche_beta > 0 ? options.nitsche_beta : 100.0) * material.youngs_modulus / h;
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  constexpr int n = 3 * NN;
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(n, n);
+  SurfaceRuleOptions so;
+  so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
+  Eigen::Matrix<double, NN, 1> N;
+  Eigen::Matrix<double, NN, 3> G;
+  bool any = false;
+  for (const CutPatch& patch : el.subvolume->patches) {
+    const DirichletCondition* dc = patch.source_face < 0 ? nullptr : dirichlet_on(dirichlet, patch.source_face);
+    if (!dc) continue;
+    any = true;
+    const SurfaceRule sr = surface_rule(patch, so);
+    const Eigen::Matrix3d M = dc->components.asDiagonal();
+    for (size_t q = 0; q < sr.points.size(); ++q) {
+      shape<NN>(el.box, sr.points[q], N, G);
+      const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
+      B.noalias() += sr.weights[q] * T.transpose() * M * T;
+    }
+  }
+  if (!any) return 0;
+  Eigen::MatrixXd A = bulk ? *bulk : element_bulk_stiffness<NN>(el, material, options);
+  if (options.nitsche_local_floor > 0) A += options.nitsche_local_floor * full_cell_stiffness<NN>(el.box, lame(material));
+  return options.nitsche_local_factor * largest_flux_eigenvalue<NN>(el.box, A, B);
+}
+
 template <int NN>
 ElementSystem element_system_n(const GridElement& el, const ElasticMaterial& material,
                                const std::vector<DirichletCondition>& dirichlet,
                                const std::vector<TractionCondition>& tractions, const LinearXfemOptions& options,
                                bool include_bulk) {
   const Eigen::Matrix<double, 6, 6> D = elasticity(material);
-  const double E = material.youngs_modulus, nu = material.poisson_ratio;
-  const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
-  const double beta = options.nitsche_beta > 0 ? options.nitsche_beta : 100.0;
   constexpr int n = 3 * NN;
   ElementSystem s;
   s.K = Eigen::MatrixXd::Zero(n, n);
@@ -192,42 +333,24 @@ ElementSystem element_system_n(const GridElement& el, const ElasticMaterial& mat
   Eigen::Matrix<double, NN, 1> N;
   Eigen::Matrix<double, NN, 3> G;
   const int nq = static_cast<int>(el.rule.points.size());
-  const bool gravity = material.density != 0 && options.gravity.squaredNorm() > 0;
-  std::array<Eigen::Matrix<double, NN, Eigen::Dynamic>, 3> P;  // P[i](a, q) = ∂N_a/∂x_i at point q
-  for (auto& p : P) p.resize(NN, nq);
-  for (int q = 0; q < nq; ++q) {
-    shape<NN>(el.box, el.rule.points[q], N, G);
-    for (int i = 0; i < 3; ++i) P[i].col(q) = G.col(i);
-    if (gravity)
+  if (material.density != 0 && options.gravity.squaredNorm() > 0)
+    for (int q = 0; q < nq; ++q) {
+      shape<NN>(el.box, el.rule.points[q], N, G);
       for (int a = 0; a < NN; ++a) s.f.template segment<3>(3 * a) += el.rule.weights[q] * material.density * N(a) * options.gravity;
-  }
-  if (include_bulk && nq > 0) {
-    // Isotropic stiffness by node pairs: K(3a+i, 3b+j) = λ C_ij + μ C_ji + μ δ_ij Σ_k C_kk at
-    // (a, b), C_ij(a, b) = Σ_q w_q ∂_i N_a ∂_j N_b (9 products NN × nq × NN instead of B_qᵀ D B_q).
-    const Eigen::Map<const Eigen::VectorXd> w(el.rule.weights.data(), nq);
-    std::array<std::array<Eigen::Matrix<double, NN, NN>, 3>, 3> C;
-    for (int i = 0; i < 3; ++i) {  // C_ji = C_ijᵀ: six products
-      const Eigen::Matrix<double, NN, Eigen::Dynamic> Pw = P[i] * w.asDiagonal();
-      for (int j = i; j < 3; ++j) C[i][j].noalias() = Pw * P[j].transpose();
-      for (int j = 0; j < i; ++j) C[i][j] = C[j][i].transpose();
     }
-    const Eigen::Matrix<double, NN, NN> trace = C[0][0] + C[1][1] + C[2][2];
-    for (int a = 0; a < NN; ++a)
-      for (int b = 0; b < NN; ++b)
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            s.K(3 * a + i, 3 * b + j) = lambda * C[i][j](a, b) + mu * C[j][i](a, b) + (i == j ? mu * trace(a, b) : 0.0);
-    if constexpr (NN == 8)
-      if (options.incompatible_modes) add_incompatible_modes(el, D, options.incompatible_min_fraction, s.K);
-  }
+  if (include_bulk && nq > 0) s.K = element_bulk_stiffness<NN>(el, material, options);
   if (el.subvolume) {
-    const double h = el.box.size().minCoeff();
+    bool clamped = false;  // the penalty is needed (and, when local, costs two eigensolves) only here
+    for (const CutPatch& patch : el.subvolume->patches)
+      if (patch.source_face >= 0 && dirichlet_on(dirichlet, patch.source_face)) clamped = true;
+    const double penalty = clamped ? nitsche_penalty_n<NN>(el, material, dirichlet, options,
+                                                           include_bulk && nq > 0 ? &s.K : nullptr)
+                                   : 0.0;
     SurfaceRuleOptions so;
     so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
     for (const CutPatch& patch : el.subvolume->patches) {
       if (patch.source_face < 0) continue;
-      const DirichletCondition* dc = nullptr;
-      for (const auto& d : dirichlet) if (d.face == patch.source_face) dc = &d;
+      const DirichletCondition* dc = dirichlet_on(dirichlet, patch.source_face);
       const TractionCondition* tc = nullptr;
       for (const auto& t : tractions) if (t.face == patch.source_face) tc = &t;
       if (!dc && !tc) continue;
@@ -240,7 +363,6 @@ ElementSystem element_system_n(const GridElement& el, const ElasticMaterial& mat
         if (dc) {
           const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
           const Vec3 g = dc->field ? dc->field(sr.points[q]) : Vec3(dc->offset + dc->gradient * sr.points[q]);
-          const double penalty = beta * material.youngs_modulus / h;
           const Eigen::Matrix3d M = dc->components.asDiagonal();  // prescribed components
           const Eigen::Matrix<double, 3, n> MNm = M * Nm, MT = M * T;
           s.K.noalias() += wq * (penalty * Nm.transpose() * MNm - Nm.transpose() * MT - T.transpose() * MNm);
@@ -385,6 +507,12 @@ ElementSystem element_system(const GridElement& element, const ElasticMaterial& 
              : element_system_n<8>(element, material, dirichlet, tractions, options, include_bulk);
 }
 
+double nitsche_penalty(const GridElement& element, const ElasticMaterial& material,
+                       const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options) {
+  return options.element == ElementType::Hex27 ? nitsche_penalty_n<27>(element, material, dirichlet, options, nullptr)
+                                               : nitsche_penalty_n<8>(element, material, dirichlet, options, nullptr);
+}
+
 namespace {
 
 template <int NN>
@@ -401,8 +529,9 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
   if (dc) {
     // The terms of element_system_n: K ∋ penalty NᵀMN − NᵀMT − TᵀMN, f ∋ penalty NᵀMg − TᵀMg.
     const Vec3 sigma_n = traction_operator(n) * elasticity(material) * (strain_matrix<NN>(G) * ue);
-    const double beta = options.nitsche_beta > 0 ? options.nitsche_beta : 100.0;
-    const double penalty = beta * material.youngs_modulus / el.box.size().minCoeff();
+    PARAFAB_VERIFY(options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed,
+                   "boundary_term_density: the local Nitsche penalty has no shape derivative (use the fixed one)");
+    const double penalty = nitsche_penalty_n<NN>(el, material, {}, options, nullptr);
     const Eigen::Matrix3d M = dc->components.asDiagonal();
     const Vec3 g = dc->field ? dc->field(X) : Vec3(dc->offset + dc->gradient * X);
     d.stiffness += penalty * u.dot(M * u) - 2 * u.dot(M * sigma_n);
@@ -659,7 +788,9 @@ ElementKey element_key(const GridElement& el, const std::vector<DirichletConditi
 bool same_element_inputs(const ElasticMaterial& a, const LinearXfemOptions& x, const ElasticMaterial& b,
                          const LinearXfemOptions& y) {
   return a.youngs_modulus == b.youngs_modulus && a.poisson_ratio == b.poisson_ratio && a.density == b.density &&
-         x.element == y.element && x.nitsche_beta == y.nitsche_beta && x.gravity == y.gravity &&
+         x.element == y.element && x.nitsche_beta == y.nitsche_beta && x.nitsche_penalty == y.nitsche_penalty &&
+         x.nitsche_local_factor == y.nitsche_local_factor && x.nitsche_local_floor == y.nitsche_local_floor &&
+         x.gravity == y.gravity &&
          x.surface_degree == y.surface_degree && x.incompatible_modes == y.incompatible_modes &&
          x.incompatible_min_fraction == y.incompatible_min_fraction;
 }

@@ -68,8 +68,21 @@ int nodes_per_element(ElementType type);
 
 struct LinearXfemOptions {
   ElementType element = ElementType::Hex8;  ///< the basis (rules must match: occ::rules_for_element)
-  /// Nitsche stabilization β: the penalty is β·E/h. 0 picks the default 100.
+  /// Nitsche stabilization β: the fixed penalty is β·E/h. 0 picks the default 100.
   double nitsche_beta = 0;
+  /// The Nitsche penalty p of a cut element with a Dirichlet patch (thesis Eq. 6.22 leaves it
+  /// between "unstable" and "locking", Fig. 6.11). Fixed: p = β·E/h on every element. Local:
+  /// p = κ·Λₑ with Λₑ the smallest constant of ‖M σ(v)n‖²_Γₑ ≤ Λₑ âₑ(v, v) (a generalized
+  /// eigenvalue; âₑ = aₑ + floor × the uncut cell's energy), so that the element's terms satisfy
+  /// vᵀKₑv = aₑ + p‖Mv‖² − 2(Mv, Mσ(v)n) ≥ aₑ − âₑ/κ: coercive for κ > 1 up to the floor (cf.
+  /// Griebel & Schweitzer 2003; Embar, Dolbow & Harari 2010). Two dense eigensolves per clamped
+  /// cut element; no shape derivative, so the optimizer uses Fixed.
+  enum class NitschePenalty { Fixed, Local };
+  NitschePenalty nitsche_penalty = NitschePenalty::Fixed;
+  double nitsche_local_factor = 4;  ///< κ
+  /// The floor of âₑ: a sliver (volume fraction ≪ floor, its nodes aggregated) gets about the
+  /// penalty of a piece of that fraction instead of one growing as 1/fraction.
+  double nitsche_local_floor = 5e-3;
   Vec3 gravity{0, 0, 0};  ///< acceleration; body force ρ·g
   /// Patch rules for Nitsche and traction integrals; hex27 uses at least 8 (the consistency
   /// term v·σ(u)n of a quadratic field is of degree 7).
@@ -210,6 +223,12 @@ ElementSystem element_system(const GridElement& element, const ElasticMaterial& 
                              const std::vector<DirichletCondition>& dirichlet,
                              const std::vector<TractionCondition>& tractions,
                              const LinearXfemOptions& options, bool include_bulk = true);
+
+/// The Nitsche penalty element_system uses on `element`'s Dirichlet patches (per unit area):
+/// β·E/h (Fixed), or κ·Λₑ (Local; 0 when the element has no Dirichlet patch), see
+/// LinearXfemOptions::nitsche_penalty.
+double nitsche_penalty(const GridElement& element, const ElasticMaterial& material,
+                       const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options);
 
 /// Shape-derivative density of an element's bulk bilinear form vₑᵀKₑuₑ (thesis §6.5.3,
 /// Eq. 6.30–6.31 with the rule's points frozen): when the element's domain moves with normal

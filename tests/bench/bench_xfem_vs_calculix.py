@@ -14,10 +14,13 @@ other end (Euler–Bernoulli 5.48 mm), turned by 12° the same way; probe in the
 wall at the free end.
 
 XFEM runs with both elements in the same run: "hex8" (trilinear + incompatible modes) and
-"hex27" (triquadratic), each on its own grid sequence (--elements picks them).
+"hex27" (triquadratic), each on its own grid sequence (--elements picks them), and with both
+Nitsche penalties (--nitsche): "fixed" (beta E / h, beta = 100, the default) and "local"
+(from each clamped cut cell's eigenvalue; routes xfem_<element>_local).
 
 Usage: /usr/bin/python3 tests/bench/bench_xfem_vs_calculix.py
-           [--case l_bracket|cantilever|cantilever_turned|tube_turned] [--elements hex8,hex27] [--quick] [--out DIR]
+           [--case l_bracket|cantilever|cantilever_turned|tube_turned] [--elements hex8,hex27] [--nitsche fixed,local]
+           [--quick] [--out DIR]
 """
 import argparse
 import json
@@ -91,10 +94,11 @@ def turn(p):
     return [center[i] + sum(R[i][j] * d[j] for j in range(3)) for i in range(3)]
 
 
-def xfem(cells, element="hex8"):
+def xfem(cells, element="hex8", nitsche="fixed"):
     job = json.load(open(JOB))
     job["grid"] = {"cells": cells}
     job["element"] = element
+    job["nitsche_penalty"] = nitsche
     if TURN:
         axis, center, degrees = TURN
         job["rotate"] = {"axis": axis, "center": center, "degrees": degrees}
@@ -115,7 +119,7 @@ def xfem(cells, element="hex8"):
     if TURN:  # back to the unturned frame: u_z = (R e_z) · u
         R = rotation(TURN[0], TURN[2])
         u = [sum(R[j][i] * u[j] for j in range(3)) for i in range(3)]
-    return {"route": "xfem_" + element, "resolution": cells, "unknowns": d["dofs"], "seconds": wall,
+    return {"route": "xfem_" + element + ("_local" if nitsche == "local" else ""), "resolution": cells, "unknowns": d["dofs"], "seconds": wall,
             "u_probe": u[2], "parts": d["seconds"]}
 
 
@@ -135,11 +139,13 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--case", choices=["l_bracket", "cantilever", "cantilever_turned", "tube_turned"], default="l_bracket")
     ap.add_argument("--elements", default="hex8,hex27", help="XFEM elements to run, comma-separated")
+    ap.add_argument("--nitsche", default="fixed,local", help="Nitsche penalties to run (fixed, local), comma-separated")
     ap.add_argument("--out", default=os.path.join(REPO, "out", "bench"))
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     global TURN
     elements = [e for e in a.elements.split(",") if e]
+    penalties = [p for p in a.nitsche.split(",") if p]
     if a.case.startswith("cantilever"):
         use_cantilever(tempfile.mkdtemp(prefix="parafab_cantilever_"))
         if a.case == "cantilever_turned":
@@ -159,7 +165,7 @@ def main():
         sizes = [6, 4] if a.quick else [8, 6, 4, 3, 2]
     reference = calculix(ref_size)
     rows = []
-    for run in [lambda c=c, e=e: xfem(c, e) for e in elements for c in grids[e]] + [lambda s=s: calculix(s) for s in sizes]:
+    for run in [lambda c=c, e=e, p=p: xfem(c, e, p) for p in penalties for e in elements for c in grids[e]] + [lambda s=s: calculix(s) for s in sizes]:
         rows.append(run())
         r = rows[-1]
         print("  ran %s %s: %.2f s, u_z %.5f" % (r["route"], r["resolution"], r["seconds"], r["u_probe"]), flush=True)
@@ -175,8 +181,10 @@ def main():
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     labels = {"xfem_hex8": "XFEM hex8 (cut + rules + solve)", "xfem_hex27": "XFEM hex27 (cut + rules + solve)",
+              "xfem_hex8_local": "XFEM hex8, local Nitsche penalty", "xfem_hex27_local": "XFEM hex27, local Nitsche penalty",
               "calculix_tet10": "Gmsh + CalculiX tet10 (mesh + solve)"}
-    for route, style in [("xfem_hex8", "o-"), ("xfem_hex27", "^-"), ("calculix_tet10", "s--")]:
+    for route, style in [("xfem_hex8", "o-"), ("xfem_hex27", "^-"), ("xfem_hex8_local", "o:"), ("xfem_hex27_local", "^:"),
+                         ("calculix_tet10", "s--")]:
         rr = [r for r in rows if r["route"] == route]
         if not rr:
             continue

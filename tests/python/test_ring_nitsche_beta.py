@@ -9,6 +9,9 @@ the same STEP, tests/reference/calculix_reference.py), the independent reference
 - β in the valid range (10): the closest to the reference.
 - β too large (10⁴–10⁶): stable (no blow-up, the solution tends to the penalty limit), but the
   elements cut by the clamped faces stiffen (locking): the error grows and then stays.
+- "nitsche_penalty": "local" (each clamped cut cell's penalty from its flux eigenvalue): stable
+  by construction, between the two.
+The element is hex27 (the default since 2026-11-27).
 
 Needs `gmsh` and `ccx` (Debian gmsh, calculix-ccx)."""
 import math
@@ -40,7 +43,7 @@ def faces():
 
 def job(cells=None):
     bottom, top = faces()
-    j = {"material": {"E": 210000, "nu": 0.3},
+    j = {"material": {"E": 210000, "nu": 0.3}, "element": "hex27",
          "supports": [{"face": bottom}, {"face": top, "displacement": [0, 0, -0.005]}],
          "probes": [[r, 0.0, 5.0] for r in RADII]}
     if cells:
@@ -53,7 +56,9 @@ def job(cells=None):
 
 def profile(cells, beta=None):
     j = job(cells)
-    if beta is not None:
+    if beta == "local":  # the penalty from each clamped cut cell's flux eigenvalue
+        j["nitsche_penalty"] = "local"
+    elif beta is not None:
         j["nitsche_beta"] = beta
     r = parafab.simulate(RING, j)
     return [p["stress"][2] for p in r["probes"]], r["message"], r["grid"]["cut_cells"]
@@ -92,22 +97,28 @@ class RingNitscheBeta(unittest.TestCase):
         scale = abs(sum(ref) / len(ref))
         print("CalculiX tet10 h = %g: sigma_zz at r = 21..29: %s" % (CCX_SIZE, " ".join("%.3f" % s for s in ref)))
         err, msg = {}, {}
-        for beta in (0.1, 1, 10, 100, 1e4, 1e6):
+        for beta in (0.1, 1, 10, 100, 1e4, 1e6, "local"):
             s, msg[beta], cut = profile(12, beta)
             self.assertGreater(cut, 0)
             err[beta] = max(abs(x - y) for x, y in zip(s, ref)) / scale
-            print("beta %8g: largest stress error against CalculiX %.3f of the mean %s" % (beta, err[beta], msg[beta][:40]))
+            print("beta %8s: largest stress error against CalculiX %.3f of the mean %s" % (beta, err[beta], msg[beta][:40]))
         for beta in (0.1, 1):
             self.assertIn("not positive definite", msg[beta])
             self.assertGreater(err[beta], 0.3)
         for beta in (10, 100, 1e4, 1e6):
             self.assertEqual(msg[beta], "")
-        # Measured against CalculiX (12 cells): 0.356 / 2.85 (β = 0.1 / 1), 0.135 (10), 0.179 (100),
-        # 0.184 (1e4 and 1e6).
-        self.assertLess(err[10], 0.145)
-        self.assertLess(err[100], 0.19)
+        # Measured against CalculiX (hex27, 12 cells, 2026-11-27): 1.518 / 0.451 (β = 0.1 / 1),
+        # 0.044 (10), 0.099 (100), 0.104 (1e4 and 1e6), 0.083 (local penalty). (hex8, the default
+        # element until 2026-11-27: 0.356 / 2.85, 0.135, 0.179, 0.184, local 0.139.)
+        self.assertLess(err[10], 0.05)
+        self.assertLess(err[100], 0.11)
         self.assertGreater(err[1e4], 1.25 * err[10])            # locking
         self.assertAlmostEqual(err[1e6], err[1e4], delta=0.005)  # the penalty limit: stable, not blowing up
+        # The local penalty (coercive on every clamped cut cell by construction): stable, between
+        # the valid-range beta and the default, below the locking limit.
+        self.assertEqual(msg["local"], "")
+        self.assertLess(err["local"], 0.09)
+        self.assertLess(err["local"], err[1e4] - 0.01)
 
 
 if __name__ == "__main__":

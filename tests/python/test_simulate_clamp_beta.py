@@ -12,6 +12,9 @@ clamped face x = 0 lies on a grid plane and the effect is not a cut artefact):
   hex27 8 cells, default centred grid (the clamped face cuts cells): 5.2 % / 16.2 %
   hex27 16 cells, default centred grid: 1.6 % / 6.8 %, i.e. a
   large penalty on a cut face locks (stiffer than the aligned grid's 3.2 %)
+With the penalty from each clamped cut cell's eigenvalue ("nitsche_penalty": "local"):
+  hex27  8 / 16 cells, aligned: 14.06 % / 3.17 % (the strong clamp's figures: not soft)
+  hex27  8 / 16 cells, centred: 3.76 % / 0.64 % (no locking on the cut clamp)
 The soft clamp of β = 100 cancels part of the stiffness of the coarse grids, so the errors of
 the benchmark against CalculiX (README, "hex8 and hex27") at the 5 % level are partly that
 cancellation; the gap closes under refinement (the penalty is β E / h), and the strongly
@@ -31,15 +34,21 @@ CCX_TIP = -0.11056  # CalculiX tet10, h = 1.5 mm, probe (60, 20, 4) (see test_si
 
 
 def stiff_error(element, cells, beta, aligned=True):
+    """beta: the fixed penalty's beta, or "local" (the penalty from each clamped cut cell's
+    eigenvalue, LinearXfemOptions::NitschePenalty::Local)."""
     with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
         job = json.load(f)
     job["element"] = element
     job["grid"] = {"cells": cells, "origin": [0, 0, 0]} if aligned else {"cells": cells}
-    job["nitsche_beta"] = beta
+    if beta == "local":
+        job["nitsche_penalty"] = "local"
+    else:
+        job["nitsche_beta"] = beta
     r = parafab.simulate(BRACKET, job)
+    assert r["nitsche_penalty"] == ("local" if beta == "local" else "fixed")
     tip = r["probes"][0]["displacement"][2]
     error = 1 - tip / CCX_TIP
-    print("%s %2d cells%s, beta %g: tip u_z %.6f mm, %.2f %% stiff"
+    print("%s %2d cells%s, beta %s: tip u_z %.6f mm, %.2f %% stiff"
           % (element, cells, "" if aligned else " (centred grid)", beta, tip, 100 * error))
     return error
 
@@ -67,6 +76,25 @@ class ClampBeta(unittest.TestCase):
         # and on 8 cells, the default grid of the table: 5.22 % against 16.20 %.
         self.assertAlmostEqual(stiff_error("hex27", 8, 100, False), 0.0522, delta=0.003)
         self.assertAlmostEqual(stiff_error("hex27", 8, 1e5, False), 0.1620, delta=0.005)
+
+    def test_local_penalty_is_neither_soft_nor_locking(self):
+        # The penalty from each clamped cut cell's eigenvalue (nitsche_penalty "local"). Aligned
+        # grid (the clamp on a grid plane): about the strong clamp, not soft (measured 14.06 %
+        # against beta = 1e5's 15.47 % on 8 cells, 3.17 % against 3.20 % on 16).
+        aligned8, aligned16 = stiff_error("hex27", 8, "local"), stiff_error("hex27", 16, "local")
+        self.assertAlmostEqual(aligned8, 0.1406, delta=0.005)
+        self.assertAlmostEqual(aligned16, 0.0317, delta=0.003)
+        self.assertGreater(aligned16, 0.0320 - 0.002)
+        # Default centred grid (the clamp cuts cells): no locking (beta = 1e5 gives 16.2 % and
+        # 6.8 %); measured 3.76 % on 8 cells and 0.64 % on 16, below the fixed default's 5.2 % and
+        # 1.6 %, and converging (0.05 % on 24 cells, README).
+        cut8, cut16 = stiff_error("hex27", 8, "local", False), stiff_error("hex27", 16, "local", False)
+        self.assertAlmostEqual(cut8, 0.0376, delta=0.003)
+        self.assertAlmostEqual(cut16, 0.0064, delta=0.002)
+        self.assertGreater(cut16, 0)
+        # Not locking: the cut clamp is not stiffer than the aligned strong clamp (15.47 %, 3.20 %).
+        self.assertLess(cut8, 0.1547)
+        self.assertLess(cut16, 0.0320)
 
     def test_hex8_benchmark_grid_is_also_softened(self):
         # hex8 on 24 cells, the benchmark's 5.9 % point, is 10.1 % with a near-strong clamp.
