@@ -291,9 +291,9 @@ template <int NN>
 double nitsche_penalty_n(const GridElement& el, const ElasticMaterial& material,
                          const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options,
                          const Eigen::MatrixXd* bulk) {
-  const double h = el.box.size().minCoeff();
-  if (options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed || !el.subvolume)
-    return (options.nitsche_beta > 0 ? options.nitsche_beta : 100.0) * material.youngs_modulus / h;
+  if (options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed)
+    return (options.nitsche_beta > 0 ? options.nitsche_beta : 100.0) * material.youngs_modulus / el.box.size().minCoeff();
+  if (!el.subvolume) return 0;  // no patches
   const Eigen::Matrix<double, 6, 6> D = elasticity(material);
   constexpr int n = 3 * NN;
   Eigen::MatrixXd B = Eigen::MatrixXd::Zero(n, n);
@@ -1002,7 +1002,10 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
       r.u = chol.solve(f, chol.status() == SparseCholesky::Status::Factorized ? 2 : 0);
       r.solved = r.u.allFinite();
       if (chol.status() == SparseCholesky::Status::FactorizedByLU)
-        r.message = "stiffness matrix not positive definite (Nitsche β too small, or too few supports); solved by LU";
+        r.message = options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed
+                        ? "stiffness matrix not positive definite (Nitsche β too small for some cut cell: try "
+                          "\"nitsche_penalty\": \"local\"; or too few supports); solved by LU"
+                        : "stiffness matrix not positive definite (too few supports?); solved by LU";
     }
     if (!r.solved) r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
     if (r.solved) {

@@ -75,8 +75,9 @@ struct LinearXfemOptions {
   /// p = κ·Λₑ with Λₑ the smallest constant of ‖M σ(v)n‖²_Γₑ ≤ Λₑ âₑ(v, v) (a generalized
   /// eigenvalue; âₑ = aₑ + floor × the uncut cell's energy), so that the element's terms satisfy
   /// vᵀKₑv = aₑ + p‖Mv‖² − 2(Mv, Mσ(v)n) ≥ aₑ − âₑ/κ: coercive for κ > 1 up to the floor (cf.
-  /// Griebel & Schweitzer 2003; Embar, Dolbow & Harari 2010). Two dense eigensolves per clamped
-  /// cut element; no shape derivative, so the optimizer uses Fixed.
+  /// Griebel & Schweitzer 2003; Embar, Dolbow & Harari 2010). One dense generalized eigensolve
+  /// per clamped cut element; no shape derivative, so the optimizer (and, to agree with it, the
+  /// default) uses Fixed.
   enum class NitschePenalty { Fixed, Local };
   NitschePenalty nitsche_penalty = NitschePenalty::Fixed;
   double nitsche_local_factor = 4;  ///< κ

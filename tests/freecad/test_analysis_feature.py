@@ -332,6 +332,31 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.assertAlmostEqual(a.MaxDisplacement.Value, parafab.simulate(brep, job)["max_displacement"], delta=1e-9)
         self.assertNotAlmostEqual(a.MaxDisplacement.Value, hex27, delta=1e-6)
 
+    def test_local_clamp_penalty_reaches_the_solver(self):
+        # NitschePenalty (version 4): "fixed" for a new analysis and for documents of version 3
+        # (what they ran); "local" goes into the job and changes the answer (another penalty on
+        # the clamped end).
+        a = self.make(Cells=CELLS)
+        self.assertEqual(a.NitschePenalty, "fixed")
+        fixed = a.MaxDisplacement.Value
+        a.NitschePenalty = "local"
+        self.doc.recompute()
+        self.assertNotIn("Invalid", a.State, a.Status)
+        job = analysis_feature.build_job(a)
+        self.assertEqual(job["nitsche_penalty"], "local")
+        brep = os.path.join(self.tmp, "beam.brep")
+        self.beam.Shape.exportBrep(brep)
+        r = parafab.simulate(brep, job)
+        self.assertEqual(r["nitsche_penalty"], "local")
+        self.assertAlmostEqual(a.MaxDisplacement.Value, r["max_displacement"], delta=1e-9)
+        self.assertGreater(abs(a.MaxDisplacement.Value / fixed - 1), 1e-4)
+        print("\n[analysis] beam tip, fixed penalty %.6f mm, local %.6f mm" % (fixed, a.MaxDisplacement.Value))
+        # A document saved by version 3 (no NitschePenalty) gets "fixed", what it ran.
+        a.removeProperty("NitschePenalty")
+        a.Proxy.Version = 3
+        a.Proxy.onDocumentRestored(a)
+        self.assertEqual(a.NitschePenalty, "fixed")
+
     def test_reopened_document_from_before_the_element_choice_is_not_touched(self):
         a = self.make(Cells=CELLS)
         a.removeProperty("Element")  # as saved by version 2

@@ -147,6 +147,8 @@ def run_analysis(check):
     panel.force[2].setValue(-500.0)
     panel.preset.setCurrentIndex(panel.preset.findText("Steel"))
     panel.cells.setValue(10)
+    check("panel_penalty_default", panel.penalty.currentText() == "fixed", panel.penalty.currentText())
+    panel.penalty.setCurrentIndex(panel.penalty.findText("local"))
     panel.output_dir.setText(ANALYSIS_OUT)
     check("panel_estimate", "unknowns" in panel.estimate_label.text(), panel.estimate_label.text())
 
@@ -166,7 +168,7 @@ def run_analysis(check):
           and mesh.ViewObject.Coloring)
     check("result_mesh_child", mesh in analysis.ViewObject.Proxy.claimChildren())
     check("inputs_stored", list(analysis.LoadedFaces) == [loaded] and analysis.Cells == 10
-          and abs(analysis.Force.z + 500) < 1e-9)
+          and abs(analysis.Force.z + 500) < 1e-9 and analysis.NitschePenalty == "local")
     solved = (analysis.Dofs, analysis.MaxDisplacement.Value, mesh.Mesh.CountPoints, analysis.Cells)
     FreeCADGui.updateGui()
     FreeCADGui.getMainWindow().grab().save(PANEL_SCREENSHOT)

@@ -327,6 +327,7 @@ class TurnedBlockAtTwelveCellsTest(unittest.TestCase):
     def test_default_beta_is_not_coercive_there_and_neo_hooke_says_it_did_not_converge(self):
         lin = self.run_job("linear", 100)
         self.assertIn("not positive definite", lin["message"])
+        self.assertIn('"nitsche_penalty": "local"', lin["message"])  # the message names the cure
         bulge = local(lin["probes"][0]["displacement"], True)[0]
         self.assertAlmostEqual(bulge, 1.1212, delta=0.002)  # the aligned 12-cell grid's (docstring)
         # Two load steps: the line search fails in the first (19 s; with four, 50 Newton
@@ -334,6 +335,7 @@ class TurnedBlockAtTwelveCellsTest(unittest.TestCase):
         with self.assertRaises(parafab.Error) as e:
             self.run_job("neo_hooke_isochoric", 100, load_steps=2)
         self.assertIn("did not converge", str(e.exception))
+        self.assertIn('"nitsche_penalty": "local"', str(e.exception))
 
     def test_beta_1000_converges_but_locks_the_clamp(self):
         lin = self.run_job("linear", 1000)

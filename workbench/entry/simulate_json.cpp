@@ -643,7 +643,13 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     no.load_steps = S.load_steps;
     const xfem::NonlinearXfemResult nr =
         xfem::solve_nonlinear(grid.elements, grid.adjacent, *S.law, mat, S.dirichlet, S.tractions, no);
-    if (!nr.converged) PARAFAB_INPUT_ERROR("the hyperelastic simulation did not converge: " << nr.message);
+    if (!nr.converged)
+      PARAFAB_INPUT_ERROR("the hyperelastic simulation did not converge: "
+                          << nr.message
+                          << (S.fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Fixed
+                                  ? " (a fixed Nitsche penalty that is not coercive on some cut cell makes the energy "
+                                    "non-convex there: try \"nitsche_penalty\": \"local\")"
+                                  : ""));
     r = nr.as_linear();
     r.solve_seconds = nr.seconds;
     r.energy = nr.energy;

@@ -36,7 +36,7 @@ from . import feature_proxy
 from . import result_display
 
 TYPE = "ParaFab::Analysis"
-VERSION = 3
+VERSION = 4
 _READ_ONLY, _OUTPUT = feature_proxy.READ_ONLY, feature_proxy.OUTPUT
 
 _PROPERTIES = (
@@ -71,9 +71,15 @@ _PROPERTIES = (
     # Version 3: the element (documents of versions 1-2 ran hex8 and keep it, see onDocumentRestored).
     ("App::PropertyEnumeration", "Element", "Grid",
      "hex27: triquadratic (the default, more accurate per unknown); hex8: trilinear", None, 0),
+    # Version 4: how the fixed faces are held (documents of versions 1-3 ran "fixed", the default).
+    ("App::PropertyEnumeration", "NitschePenalty", "Grid",
+     "How the fixed faces are held on cut cells. fixed: penalty 100 E/h (the default, as Optimize "
+     "shape uses); local: from each cut cell's eigenvalue, never unstable and without locking "
+     "(more accurate on coarse grids; converges where 'fixed' fails with rubber)", None, 0),
 )
 MODELS = ["linear", "neo_hooke", "neo_hooke_isochoric", "mooney_rivlin"]
 ELEMENTS = ["hex27", "hex8"]
+PENALTIES = ["fixed", "local"]
 
 #: Material presets of the task panel: E [MPa], nu, density [kg/m^3], model.
 MATERIALS = (
@@ -105,7 +111,8 @@ def inputs_of(obj):
     return {"fixed": list(obj.FixedFaces), "loaded": list(obj.LoadedFaces), "force": (f.x, f.y, f.z),
             "gravity": bool(obj.Gravity), "E": float(obj.YoungsModulus.getValueAs("MPa")),
             "nu": float(obj.PoissonRatio), "density": float(obj.Density), "model": obj.Model,
-            "cells": int(obj.Cells), "element": obj.Element, "output_dir": obj.OutputDir}
+            "cells": int(obj.Cells), "element": obj.Element, "nitsche_penalty": obj.NitschePenalty,
+            "output_dir": obj.OutputDir}
 
 
 def apply_inputs(obj, inputs):
@@ -120,6 +127,7 @@ def apply_inputs(obj, inputs):
     obj.Model = inputs["model"]
     obj.Cells = int(inputs["cells"])
     obj.Element = inputs.get("element", ELEMENTS[0])
+    obj.NitschePenalty = inputs.get("nitsche_penalty", PENALTIES[0])
     obj.OutputDir = inputs.get("output_dir") or ""
 
 
@@ -137,6 +145,7 @@ def job_from_inputs(part_obj, inputs):
         "material": {"E": float(inputs["E"]), "nu": float(inputs["nu"]),
                      "density": float(inputs["density"]) * 1e-12, "model": inputs["model"]},
         "element": inputs.get("element", ELEMENTS[0]),
+        "nitsche_penalty": inputs.get("nitsche_penalty", PENALTIES[0]),
         "grid": {"cells": int(inputs["cells"])},
         "supports": [{"face": i} for i in fixed],
         # The total force is spread over all loaded faces by area.
@@ -190,7 +199,7 @@ class AnalysisFeature(feature_proxy.FeatureProxy):
     TYPE = TYPE
     VERSION = VERSION
     PROPERTIES = _PROPERTIES
-    ENUMERATIONS = {"Model": MODELS, "Element": ELEMENTS}
+    ENUMERATIONS = {"Model": MODELS, "Element": ELEMENTS, "NitschePenalty": PENALTIES}
 
     #: Transient (not saved): ``progress(phase, fraction)`` during an in-process run;
     #: returning False cancels it.

@@ -196,6 +196,12 @@ class AnalysisTaskPanel(object):
         self.element.currentTextChanged.connect(self.update_estimate)
         self.element.setToolTip("hex27: triquadratic, more accurate per unknown (default); hex8: trilinear")
         form_out.addRow("Element", self.element)
+        self.penalty = _narrow(QtGui.QComboBox())
+        self.penalty.addItems(analysis_feature.PENALTIES)
+        self.penalty.setCurrentIndex(max(0, self.penalty.findText(inputs.get("nitsche_penalty", "fixed"))))
+        self.penalty.setToolTip("How the fixed faces are held on cut cells. fixed: penalty 100 E/h (as Optimize "
+                                "shape uses); local: from each cut cell's eigenvalue, never unstable, no locking")
+        form_out.addRow("Clamp penalty", self.penalty)
         folder_row = QtGui.QHBoxLayout()
         self.output_dir = _narrow(QtGui.QLineEdit(inputs["output_dir"]))
         self.output_dir.setPlaceholderText(analysis_feature.output_dir(self.obj, {"output_dir": ""}))
@@ -265,6 +271,7 @@ class AnalysisTaskPanel(object):
                 "E": self.E.value(), "nu": self.nu.value(), "density": self.density.value(),
                 "model": self.model.currentText(), "cells": self.cells.value(),
                 "element": self.element.currentText(),
+                "nitsche_penalty": self.penalty.currentText(),
                 "output_dir": self.output_dir.text().strip()}
 
     def update_estimate(self, *args):
