@@ -306,10 +306,11 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
       // The linearized ProjectStep overshoots where the bound curves; instead of halving the
       // step, return onto R_p = R_max along the projected ∇R_p at the trial (Newton on the one
       // active constraint, §4.5.4's step projection repeated at the new point).
+      std::string return_blocked;  // why a return left the manifold (then the trial is blocked, not too high)
       for (int k = 0; k < o.bound_returns && Rp.valid && Rt.valid && Rt.value > R_allowed; ++k) {
         Eigen::VectorXd G;
         Eigen::MatrixXd Jt;
-        if (!tc.evaluate(trial, G, Jt)) break;
+        if (!tc.evaluate(trial, G, Jt)) { return_blocked = "the constraints cannot be evaluated"; break; }
         Eigen::VectorXd gR = Rt.gradient;
         if (Jt.rows() > 0) gR -= Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(Jt).solve(Jt * gR);
         const double g2 = gR.squaredNorm();
@@ -317,14 +318,22 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
         BSplineCurve2 back = trial;
         StripConstraints bc = tc;
         set_poles_vector(back, poles_vector(trial) - ((Rt.value - o.R_max) / g2) * gR);
-        if (!bc.enforce(back).converged || inflection_parameters(back).size() != cons.inflections().size()) break;
+        const EnforceResult eb = bc.enforce(back);
+        if (!eb.converged) { return_blocked = "EnforceConstraints: " + eb.message; break; }
+        if (inflection_parameters(back).size() != cons.inflections().size()) {
+          return_blocked = "it changes the number of inflections";
+          break;
+        }
         const PNormRatio Rb = pnorm_ratio(back, bc.a(), bc.b(), su, o.p, l);
         if (!Rb.valid || !(Rb.value < Rt.value)) break;
         trial = std::move(back), tc = std::move(bc), Rt = Rb;
         ++res.bound_returns;
       }
       ok = Rp.valid && Rt.valid && Rt.value <= R_allowed;
-      if (!ok) res.last_rejection = "R_p exceeds R_max after the step";
+      // A return that left the manifold blocks the step (stalled if nothing else is left); one
+      // that could not lower R_p enough leaves it above the bound (stationary: a KKT point).
+      if (!ok) res.last_rejection = return_blocked.empty() ? "R_p exceeds R_max after the step"
+                                                           : "returning onto R_max: " + return_blocked;
     }
     if (ok) {
       ft = F(trial, tc, &gt);
@@ -360,7 +369,7 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
     f = ft;
     gF = gt;
     Rp = Rt;
-    PoleDescentIteration* rec = record(accepted, dq.norm());
+    PoleDescentIteration* rec = record(accepted, (poles_vector(curve) - q_old).norm());  // after enforce and returns
     const double a_before = cons.a();
     const Vec2 b_before = cons.b();
     const bool stop = o.on_accept && o.on_accept(curve, cons, *rec);

@@ -46,7 +46,7 @@ struct PoleDescentIteration {
   double F = NAN;            ///< objective
   double R = NAN;            ///< max K / min K of the current line on the samples
   double R_p = NAN;          ///< p-norm ratio
-  double step = 0;           ///< accepted |Δq| [length units]
+  double step = 0;           ///< accepted |Δq|, after EnforceConstraints and returns onto R_max [length units]
   double max_pole_move = 0;  ///< max over poles of |P − P_original| [length units]
   double min_inflection_dkappa = NAN;  ///< min |κ'(s₀)|·l² over inflections (NaN: none)
   double seconds = 0;        ///< since the start

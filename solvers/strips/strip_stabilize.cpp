@@ -158,6 +158,9 @@ StripStabilizeResult stabilize_strip(const BSplineCurve2& input, const StripStab
   PARAFAB_VERIFY(o.edges >= 16 && o.verify_edges >= 16,
                  "stabilize.edges / verify_edges must be >= 16, got " << o.edges << " / " << o.verify_edges);
   PARAFAB_VERIFY(o.rounds >= 1, "stabilize.rounds must be >= 1, got " << o.rounds);
+  // Checked here too (descend_poles checks them), so that an already stable curve does not hide them.
+  PARAFAB_VERIFY(o.quasi_halvings >= 0, "stabilize.quasi_halvings must be >= 0, got " << o.quasi_halvings);
+  PARAFAB_VERIFY(o.bound_returns >= 0, "stabilize.bound_returns must be >= 0, got " << o.bound_returns);
   StripStabilizeResult res(input);
   BSplineCurve2 curve = input;
   if (curve.degree() < o.min_degree || curve.pole_count() > o.max_poles) {  // degree ≥ 4 (§4.5.4)

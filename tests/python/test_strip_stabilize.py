@@ -76,6 +76,11 @@ class StripStabilizeEntry(unittest.TestCase):
         self.assertGreater(after, 0)
         self.assertAlmostEqual(r["design"]["R"], r["R_after"], delta=1e-9 * r["R_after"])
         self.assertLess(r["deviation_relative"], 0.003)  # measured 0.0025
+        # The sample runs on the R_max bound: trials that overshoot it return onto it (measured
+        # 17 returns, 13 rejected trials); at most two returns per trial (bound_returns = 2).
+        self.assertIsInstance(r["bound_returns"], int)
+        self.assertGreater(r["bound_returns"], 0)
+        self.assertLessEqual(r["bound_returns"], 2 * (len(r["history"]) - 1 + r["rejected_steps"]))
 
     def test_constraints_hold_by_scipy(self):
         r = self.result

@@ -326,6 +326,36 @@ TEST(StabilityRecoveryLoop, WithoutRmaxKappaPrimeVanishesWithItTheRunConverges) 
   EXPECT_LT(d.R, 1.3 * o.R_max);
 }
 
+// The history's `step` is the accepted move of the poles: after EnforceConstraints and the
+// returns onto R_max, not the trial step along the descent direction (found in review: it was).
+TEST(StabilityRecoveryLoop, HistoryStepIsThePoleMoveAfterEnforceAndReturns) {
+  const BSplineCurve2 c =
+      quartic_graph([](double x) { const double u = x / 0.15; return 0.06 * (u * u * u - u); }, -0.135, 0.135, 13);
+  const double l = PlaneCurve(c).length();
+  PoleDescentOptions o0;
+  o0.max_iterations = 0;
+  const double R0 = descend_poles(c, flatten_inflection(l), o0).history.front().R;
+  PoleDescentOptions o;
+  o.max_iterations = 300;
+  o.R_max = 1.5 * R0;
+  Eigen::VectorXd q = poles_vector(c);
+  double worst = 0;
+  int accepted = 0;
+  o.on_accept = [&](BSplineCurve2& curve, StripConstraints&, PoleDescentIteration& rec) {
+    const Eigen::VectorXd moved = poles_vector(curve);
+    worst = std::max(worst, std::abs(rec.step - (moved - q).norm()) / (moved - q).norm());
+    q = moved;
+    ++accepted;
+    return false;
+  };
+  const PoleDescentResult r = descend_poles(c, flatten_inflection(l), o);
+  std::cout << accepted << " accepted steps, " << r.bound_returns << " returns onto R_max; largest |step − |Δq|| / |Δq| "
+            << worst << "\n";
+  EXPECT_GT(accepted, 3);
+  EXPECT_GT(r.bound_returns, 0);
+  EXPECT_LT(worst, 1e-12);
+}
+
 TEST(Fabricability, LowersRToTheTargetWithSmallShapeChange) {
   for (const BSplineCurve2& c : {arch(), tanh_curve(), s_curve()}) {
     const StripDesign d0 = design_strip(c);

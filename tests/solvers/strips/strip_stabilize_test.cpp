@@ -236,6 +236,18 @@ TEST(StripStabilize, AlreadyStableCurvesAndBadInputAreReported) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("R_max"), std::string::npos) << e.what();
   }
+  // The descent's own options are checked before the curve is found stable (found in review:
+  // an already stable curve returned "already" with bound_returns = −1).
+  for (const char* field : {"bound_returns", "quasi_halvings"}) {
+    StripStabilizeOptions neg;
+    (std::string(field) == "bound_returns" ? neg.bound_returns : neg.quasi_halvings) = -1;
+    try {
+      stabilize_strip(c, neg);
+      ADD_FAILURE() << field << " = -1 accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
