@@ -287,34 +287,59 @@ const DirichletCondition* dirichlet_on(const std::vector<DirichletCondition>& di
   return dc;
 }
 
+// The element's boundary patches with a Dirichlet or traction condition, and their rules
+// (computed once: the local penalty and the boundary terms both integrate over them).
+struct ConditionedPatch {
+  const DirichletCondition* dirichlet = nullptr;
+  const TractionCondition* traction = nullptr;
+  SurfaceRule rule;
+};
+
+template <int NN>
+std::vector<ConditionedPatch> conditioned_patches(const GridElement& el, const std::vector<DirichletCondition>& dirichlet,
+                                                  const std::vector<TractionCondition>& tractions,
+                                                  const LinearXfemOptions& options) {
+  std::vector<ConditionedPatch> out;
+  if (!el.subvolume) return out;
+  SurfaceRuleOptions so;
+  so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
+  for (const CutPatch& patch : el.subvolume->patches) {
+    if (patch.source_face < 0) continue;
+    ConditionedPatch cp;
+    cp.dirichlet = dirichlet_on(dirichlet, patch.source_face);
+    for (const auto& t : tractions) if (t.face == patch.source_face) cp.traction = &t;
+    if (!cp.dirichlet && !cp.traction) continue;
+    cp.rule = surface_rule(patch, so);
+    out.push_back(std::move(cp));
+  }
+  return out;
+}
+
+// The penalty on the element's Dirichlet patches (`patches` from conditioned_patches).
 template <int NN>
 double nitsche_penalty_n(const GridElement& el, const ElasticMaterial& material,
-                         const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options,
+                         const std::vector<ConditionedPatch>& patches, const LinearXfemOptions& options,
                          const Eigen::MatrixXd* bulk) {
   if (options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed)
     return (options.nitsche_beta > 0 ? options.nitsche_beta : 100.0) * material.youngs_modulus / el.box.size().minCoeff();
-  if (!el.subvolume) return 0;  // no patches
   const Eigen::Matrix<double, 6, 6> D = elasticity(material);
   constexpr int n = 3 * NN;
   Eigen::MatrixXd B = Eigen::MatrixXd::Zero(n, n);
-  SurfaceRuleOptions so;
-  so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
   Eigen::Matrix<double, NN, 1> N;
   Eigen::Matrix<double, NN, 3> G;
   bool any = false;
-  for (const CutPatch& patch : el.subvolume->patches) {
-    const DirichletCondition* dc = patch.source_face < 0 ? nullptr : dirichlet_on(dirichlet, patch.source_face);
-    if (!dc) continue;
+  for (const ConditionedPatch& cp : patches) {
+    if (!cp.dirichlet) continue;
     any = true;
-    const SurfaceRule sr = surface_rule(patch, so);
-    const Eigen::Matrix3d M = dc->components.asDiagonal();
+    const SurfaceRule& sr = cp.rule;
+    const Eigen::Matrix3d M = cp.dirichlet->components.asDiagonal();
     for (size_t q = 0; q < sr.points.size(); ++q) {
       shape<NN>(el.box, sr.points[q], N, G);
       const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
       B.noalias() += sr.weights[q] * T.transpose() * M * T;
     }
   }
-  if (!any) return 0;
+  if (!any) return 0;  // no Dirichlet patch
   Eigen::MatrixXd A = bulk ? *bulk : element_bulk_stiffness<NN>(el, material, options);
   if (options.nitsche_local_floor > 0) A += options.nitsche_local_floor * full_cell_stiffness<NN>(el.box, lame(material));
   return options.nitsche_local_factor * largest_flux_eigenvalue<NN>(el.box, A, B);
@@ -339,35 +364,27 @@ ElementSystem element_system_n(const GridElement& el, const ElasticMaterial& mat
       for (int a = 0; a < NN; ++a) s.f.template segment<3>(3 * a) += el.rule.weights[q] * material.density * N(a) * options.gravity;
     }
   if (include_bulk && nq > 0) s.K = element_bulk_stiffness<NN>(el, material, options);
-  if (el.subvolume) {
-    bool clamped = false;  // the penalty is needed (and, when local, costs two eigensolves) only here
-    for (const CutPatch& patch : el.subvolume->patches)
-      if (patch.source_face >= 0 && dirichlet_on(dirichlet, patch.source_face)) clamped = true;
-    const double penalty = clamped ? nitsche_penalty_n<NN>(el, material, dirichlet, options,
-                                                           include_bulk && nq > 0 ? &s.K : nullptr)
-                                   : 0.0;
-    SurfaceRuleOptions so;
-    so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
-    for (const CutPatch& patch : el.subvolume->patches) {
-      if (patch.source_face < 0) continue;
-      const DirichletCondition* dc = dirichlet_on(dirichlet, patch.source_face);
-      const TractionCondition* tc = nullptr;
-      for (const auto& t : tractions) if (t.face == patch.source_face) tc = &t;
-      if (!dc && !tc) continue;
-      const SurfaceRule sr = surface_rule(patch, so);
-      for (size_t q = 0; q < sr.points.size(); ++q) {
-        shape<NN>(el.box, sr.points[q], N, G);
-        const Eigen::Matrix<double, 3, n> Nm = value_matrix<NN>(N);
-        const double wq = sr.weights[q];
-        if (tc) s.f.noalias() += wq * Nm.transpose() * tc->traction;
-        if (dc) {
-          const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
-          const Vec3 g = dc->field ? dc->field(sr.points[q]) : Vec3(dc->offset + dc->gradient * sr.points[q]);
-          const Eigen::Matrix3d M = dc->components.asDiagonal();  // prescribed components
-          const Eigen::Matrix<double, 3, n> MNm = M * Nm, MT = M * T;
-          s.K.noalias() += wq * (penalty * Nm.transpose() * MNm - Nm.transpose() * MT - T.transpose() * MNm);
-          s.f.noalias() += wq * (penalty * Nm.transpose() * (M * g) - T.transpose() * (M * g));
-        }
+  const std::vector<ConditionedPatch> patches = conditioned_patches<NN>(el, dirichlet, tractions, options);
+  bool clamped = false;  // the penalty is needed (and, when local, costs an eigensolve) only here
+  for (const ConditionedPatch& cp : patches) clamped = clamped || cp.dirichlet;
+  const double penalty =
+      clamped ? nitsche_penalty_n<NN>(el, material, patches, options, include_bulk && nq > 0 ? &s.K : nullptr) : 0.0;
+  for (const ConditionedPatch& cp : patches) {
+    const DirichletCondition* dc = cp.dirichlet;
+    const TractionCondition* tc = cp.traction;
+    const SurfaceRule& sr = cp.rule;
+    for (size_t q = 0; q < sr.points.size(); ++q) {
+      shape<NN>(el.box, sr.points[q], N, G);
+      const Eigen::Matrix<double, 3, n> Nm = value_matrix<NN>(N);
+      const double wq = sr.weights[q];
+      if (tc) s.f.noalias() += wq * Nm.transpose() * tc->traction;
+      if (dc) {
+        const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
+        const Vec3 g = dc->field ? dc->field(sr.points[q]) : Vec3(dc->offset + dc->gradient * sr.points[q]);
+        const Eigen::Matrix3d M = dc->components.asDiagonal();  // prescribed components
+        const Eigen::Matrix<double, 3, n> MNm = M * Nm, MT = M * T;
+        s.K.noalias() += wq * (penalty * Nm.transpose() * MNm - Nm.transpose() * MT - T.transpose() * MNm);
+        s.f.noalias() += wq * (penalty * Nm.transpose() * (M * g) - T.transpose() * (M * g));
       }
     }
   }
@@ -509,8 +526,11 @@ ElementSystem element_system(const GridElement& element, const ElasticMaterial& 
 
 double nitsche_penalty(const GridElement& element, const ElasticMaterial& material,
                        const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options) {
-  return options.element == ElementType::Hex27 ? nitsche_penalty_n<27>(element, material, dirichlet, options, nullptr)
-                                               : nitsche_penalty_n<8>(element, material, dirichlet, options, nullptr);
+  if (options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed)  // no patches needed
+    return nitsche_penalty_n<8>(element, material, {}, options, nullptr);
+  return options.element == ElementType::Hex27
+             ? nitsche_penalty_n<27>(element, material, conditioned_patches<27>(element, dirichlet, {}, options), options, nullptr)
+             : nitsche_penalty_n<8>(element, material, conditioned_patches<8>(element, dirichlet, {}, options), options, nullptr);
 }
 
 namespace {
@@ -531,7 +551,7 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
     const Vec3 sigma_n = traction_operator(n) * elasticity(material) * (strain_matrix<NN>(G) * ue);
     PARAFAB_VERIFY(options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed,
                    "boundary_term_density: the local Nitsche penalty has no shape derivative (use the fixed one)");
-    const double penalty = nitsche_penalty_n<NN>(el, material, {}, options, nullptr);
+    const double penalty = nitsche_penalty_n<NN>(el, material, {}, options, nullptr);  // Fixed: no patches needed
     const Eigen::Matrix3d M = dc->components.asDiagonal();
     const Vec3 g = dc->field ? dc->field(X) : Vec3(dc->offset + dc->gradient * X);
     d.stiffness += penalty * u.dot(M * u) - 2 * u.dot(M * sigma_n);

@@ -287,10 +287,13 @@ PoleObjective flatten_inflection(double l) {
   };
 }
 
+// Point-symmetric about its inflection, so no second zero of κ can enter from the sides.
+BSplineCurve2 cubic_with_one_inflection() {
+  return quartic_graph([](double x) { const double u = x / 0.15; return 0.06 * (u * u * u - u); }, -0.135, 0.135, 13);
+}
+
 TEST(StabilityRecoveryLoop, WithoutRmaxKappaPrimeVanishesWithItTheRunConverges) {
-  // Point-symmetric about its inflection, so no second zero of κ can enter from the sides.
-  const BSplineCurve2 c =
-      quartic_graph([](double x) { const double u = x / 0.15; return 0.06 * (u * u * u - u); }, -0.135, 0.135, 13);
+  const BSplineCurve2 c = cubic_with_one_inflection();
   const double l = PlaneCurve(c).length();
   PoleDescentOptions o;
   o.max_iterations = 300;
@@ -329,8 +332,7 @@ TEST(StabilityRecoveryLoop, WithoutRmaxKappaPrimeVanishesWithItTheRunConverges) 
 // The history's `step` is the accepted move of the poles: after EnforceConstraints and the
 // returns onto R_max, not the trial step along the descent direction (found in review: it was).
 TEST(StabilityRecoveryLoop, HistoryStepIsThePoleMoveAfterEnforceAndReturns) {
-  const BSplineCurve2 c =
-      quartic_graph([](double x) { const double u = x / 0.15; return 0.06 * (u * u * u - u); }, -0.135, 0.135, 13);
+  const BSplineCurve2 c = cubic_with_one_inflection();
   const double l = PlaneCurve(c).length();
   PoleDescentOptions o0;
   o0.max_iterations = 0;
