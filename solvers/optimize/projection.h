@@ -15,6 +15,11 @@ struct ProjectionOptions {
   int max_iterations = 200;             ///< Ipopt max_iter
   double feasible_violation = 1e-9;     ///< max |c_i| below which the result counts as a valid model
   bool print = false;                   ///< Ipopt's own output (print_level 5) on stdout
+  /// Ipopt's "search direction too small" counts as solved only where p is stationary: the
+  /// projected gradient residual ≤ stationarity × ‖w∘(p − p̃)‖∞ (or ≤ feasible_violation);
+  /// otherwise the projection is solved again from p̃ (cold), and if that stops the same way it
+  /// is not done.
+  double stationarity = 1e-6;
   /// w_i of the distance ½ Σ w_i (p_i − p̃_i)² (empty: all 1). Small weights on entries that are
   /// not design variables let them follow the design (fillets following a moved plane).
   Eigen::VectorXd weights;
@@ -29,6 +34,7 @@ struct ProjectionResult {
   double constraint_violation = 0;       ///< max |c_i(p)|
   double distance = 0;                   ///< ‖p − p̃‖
   int iterations = 0;
+  int restarts = 0;                      ///< cold restarts after a stop away from the nearest point
   double seconds = 0;
 };
 
