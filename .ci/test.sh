@@ -7,4 +7,4 @@ repo=$(cd "$(dirname "$0")/.." && pwd)
 build=${PARAFAB_BUILD_DIR:-$repo/build}
 bash "$repo/.ci/setup.sh"
 cd "$build"
-ctest --output-on-failure --timeout 900 -j1
+ctest --output-on-failure --timeout 900 -j2
