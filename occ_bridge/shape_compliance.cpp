@@ -339,6 +339,15 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   for (const auto& d : setup.dirichlet) conditioned.insert(d.face);
   for (const auto& t : at.tractions) conditioned.insert(t.face);
   for (int f : conditioned) flag(f);
+  // The local Nitsche penalty (xfem::LinearXfemOptions::NitschePenalty::Local) of a clamped cut
+  // cell is an eigenvalue of that cell's flux matrix against its bulk stiffness, so it changes
+  // with every face that cuts the cell. Its derivative is not computed here: every moving face
+  // with a patch in a cut cell that holds a support's patch is flagged (on a B-spline face, the
+  // poles whose basis functions reach that patch); the optimizer takes the semi-analytic route
+  // there, which re-evaluates whole element systems, penalty included.
+  const bool local_penalty = setup.solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local;
+  std::set<int> supports;
+  for (const auto& d : setup.dirichlet) supports.insert(d.face);
   std::map<int, std::vector<int>> neighbours;  // support/load face → moving faces sharing an edge with it
   std::vector<double> sign(part.face_count(), 0.0);
   {
@@ -410,6 +419,8 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     std::vector<std::pair<int, double>> area;       // (load index · size(p) + entry, dA contribution)
     std::vector<std::pair<int, double>> work;       // (load index, ∫ u_h·t dA)
     std::vector<int> tangent;                       // faces met at a tangent edge of a support/load
+    std::vector<int> penalised;                     // moving faces in a cut cell with a local penalty
+    std::set<int> penalised_poles;                  // entries of p: poles moving such a cell's patch
     int points = 0, edge_points = 0;
     bool used = false;
   };
@@ -421,7 +432,12 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     Terms& out = terms[w];
     const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[e]);
     const double h = el.box.size().minCoeff();
+    const bool penalised =
+        local_penalty && std::any_of(el.subvolume->patches.begin(), el.subvolume->patches.end(),
+                                     [&](const xfem::CutPatch& patch) { return supports.count(patch.source_face) > 0; });
     for (const xfem::CutPatch& patch : el.subvolume->patches) {
+      if (penalised && !conditioned.count(patch.source_face) && sp.block(patch.source_face))
+        out.penalised.push_back(patch.source_face);
       // Bulk: Reynolds over the patches of moving faces (a support's or load's own motion is
       // flagged above, so its patches are not integrated here).
       const optimize::ParameterBlock* block = conditioned.count(patch.source_face) ? nullptr : sp.block(patch.source_face);
@@ -462,8 +478,11 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           double density = -psi[q];
           if (gravity)
             density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
-          for (const PoleInfluence& w : pole_influence(poles->surface, sr.uv[q].x(), sr.uv[q].y()))
+          for (const PoleInfluence& w : pole_influence(poles->surface, sr.uv[q].x(), sr.uv[q].y())) {
             for (int c = 0; c < 3; ++c) sum[poles->offset + 3 * w.index + c] += sr.weights[q] * density * w.value * sr.normals[q][c];
+            if (penalised && std::abs(w.value) > 1e-12)  // this pole moves the penalised cell's patch
+              for (int c = 0; c < 3; ++c) out.penalised_poles.insert(poles->offset + 3 * w.index + c);
+          }
         }
         for (const auto& [i, v] : sum)
           if (v != 0) out.gradient.emplace_back(i, v);
@@ -488,7 +507,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         out.work.emplace_back(load, sum);
       }
       const auto it = neighbours.find(g);
-      if (it == neighbours.end()) continue;
+      // With the local penalty the strips along a support's edges are not integrated: the
+      // neighbours' patches in this (clamped, cut) cell are flagged above.
+      if (it == neighbours.end() || (penalised && dc)) continue;
       // Loop segments of the patch that lie on a moving neighbour F (all three sample points on
       // F's surface): that edge moves inside the face with conormal speed a = Vₙ,F / (n_F·ν).
       for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
@@ -571,6 +592,8 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     for (const auto& [i, v] : t.area) area_change[i] += v;
     for (const auto& [i, v] : t.work) load_work[i] += v;
     for (int f : t.tangent) flag(f);
+    for (int f : t.penalised) flag(f);
+    for (int i : t.penalised_poles) r.incomplete[i] = 1;
     r.points += t.points + t.edge_points;
     r.edge_points += t.edge_points;
     if (t.used) ++r.elements;

@@ -90,7 +90,10 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// completion of Fig. 6.12, case 2). Not included, flagged `incomplete`: a support's or load's own
 /// motion, other tangent contacts with a support or load (a torus or sphere, a cone), and the
 /// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
-/// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)).
+/// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)), and, with the local Nitsche
+/// penalty, every face with a patch in a cut cell that holds a support's patch (of a B-spline
+/// face, the poles whose basis functions reach that patch): the cell's penalty is an eigenvalue
+/// of its own geometry, and the semi-analytic route includes its change.
 struct ComplianceGradient {
   bool done = false;
   std::string message;

@@ -1025,7 +1025,8 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
         r.message = options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed
                         ? "stiffness matrix not positive definite (Nitsche β too small for some cut cell: try "
                           "\"nitsche_penalty\": \"local\"; or too few supports); solved by LU"
-                        : "stiffness matrix not positive definite (too few supports?); solved by LU";
+                        : "stiffness matrix not positive definite (the local Nitsche penalty's floor on a sliver "
+                          "cut cell, or too few supports); solved by LU";
     }
     if (!r.solved) r.message = "stiffness matrix singular: is the part supported (Dirichlet faces)?";
     if (r.solved) {

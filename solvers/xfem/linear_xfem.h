@@ -75,14 +75,19 @@ struct LinearXfemOptions {
   /// p = κ·Λₑ with Λₑ the smallest constant of ‖M σ(v)n‖²_Γₑ ≤ Λₑ âₑ(v, v) (a generalized
   /// eigenvalue; âₑ = aₑ + floor × the uncut cell's energy), so that the element's terms satisfy
   /// vᵀKₑv = aₑ + p‖Mv‖² − 2(Mv, Mσ(v)n) ≥ aₑ − âₑ/κ: coercive for κ > 1 up to the floor (cf.
-  /// Griebel & Schweitzer 2003; Embar, Dolbow & Harari 2010). One dense generalized eigensolve
-  /// per clamped cut element; no shape derivative, so the optimizer (and, to agree with it, the
-  /// default) uses Fixed.
+  /// Griebel & Schweitzer 2003; Embar, Dolbow & Harari 2010); a sliver under the floor can leave
+  /// the matrix indefinite (the solve then says so and uses LU). One dense generalized eigensolve
+  /// per clamped cut element. No shape derivative: occ::compliance_gradient flags the faces in
+  /// such elements (the optimizer differences them). Not the default (the README's figures and
+  /// the optimizer's are measured with Fixed).
   enum class NitschePenalty { Fixed, Local };
   NitschePenalty nitsche_penalty = NitschePenalty::Fixed;
   double nitsche_local_factor = 4;  ///< κ
   /// The floor of âₑ: a sliver (volume fraction ≪ floor, its nodes aggregated) gets about the
-  /// penalty of a piece of that fraction instead of one growing as 1/fraction.
+  /// penalty of a piece of that fraction instead of one growing as 1/fraction. The price: such a
+  /// cell's terms are only ≥ aₑ − âₑ/κ, and the turned L-bracket on the optimizer's 10-cell hex8
+  /// grid is then indefinite (positive definite with floor 1e-4 or 0, which in turn moved the
+  /// turned rubber block's bulge from 1.0 % to 1.2–1.6 % off CalculiX).
   double nitsche_local_floor = 5e-3;
   Vec3 gravity{0, 0, 0};  ///< acceleration; body force ρ·g
   /// Patch rules for Nitsche and traction integrals; hex27 uses at least 8 (the consistency

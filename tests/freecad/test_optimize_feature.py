@@ -245,6 +245,14 @@ class OptimizeFeatureTest(unittest.TestCase):
         print("\n[optimize] wheel balance + 0.5 compliance, normalized start value %.15g" % h["initial_objective"],
               file=sys.stderr)
         self.assertAlmostEqual(h["initial_objective"], 1.5, delta=1e-12)
+        self.assertEqual(h["nitsche_penalty"], "fixed")
+        # The panel's "Clamp penalty": "local" reaches the engine (its history says so), anything
+        # else is refused before the document or the engine sees it.
+        local_job = optimize_feature.build_job(shape, dict(opts, nitsche_penalty="local"), self.wheel.Placement)
+        self.assertEqual(local_job["nitsche_penalty"], "local")
+        self.assertEqual(parafab.optimize(WHEEL, local_job)["nitsche_penalty"], "local")
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "clamp penalty must be"):
+            optimize_feature.build_job(shape, dict(opts, nitsche_penalty="strong"), self.wheel.Placement)
 
     def test_compliance_and_failure_is_a_normalized_sum(self):
         """The panel's "Stiffness + stress" objective sends compliance and the failure metric as a

@@ -99,6 +99,45 @@ class OptimizePoles(unittest.TestCase):
         for x in ratios:
             self.assertLess(x, 0.78)  # measured 0.7521, 0.7604
 
+    def test_with_the_local_penalty_the_clamp_side_poles_are_differenced_and_a_fresh_simulation_agrees(self):
+        # "nitsche_penalty": "local": the clamped cut cells' penalty changes with the poles whose
+        # basis functions reach them (the clamp-side row i = 2), which the exact route does not
+        # differentiate; those entries take the semi-analytic route (whole element systems,
+        # penalty included), the load-side row stays exact. Judged by fresh simulations with the
+        # same penalty on other grids. (On 2026-11-27 the fixed-penalty optimizer's design was
+        # judged 0.81 of the start by fresh local simulations, 0.75 by fixed ones: the clamp
+        # model, not the optimizer, sets how much of the gain a simulation sees.)
+        out = os.path.join(self.dir, "local")
+        local = dict(ELASTIC, nitsche_penalty="local")
+        code, h = cli(["optimize", BUMP, "-o", out], dict(job(self.top), nitsche_penalty="local"))
+        self.assertEqual(code, 0, h)
+        self.assertEqual(h["gradient"], "exact + semi-analytic")
+        self.assertEqual(h["exact_derivatives"], 3 * h["evaluations"])
+        self.assertEqual(h["semi_analytic_derivatives"], 3 * h["evaluations"])
+        self.assertEqual(h["invalid_models"], 0)
+        step = os.path.join(out, "optimized.step")
+        ratios = []
+        for cells in (10, 14):
+            c = []
+            for p in (BUMP, step):
+                code, r = cli(["simulate", p], dict(local, grid={"cells": cells}))
+                self.assertEqual(code, 0, r)
+                self.assertEqual(r["nitsche_penalty"], "local")
+                c.append(-2 * r["potential"])
+            ratios.append(c[1] / c[0])
+        print("\n[optimize poles, local penalty] %.6g -> %.6g (%.4f); fresh ratios %s" % (
+            h["initial_objective"], h["final_objective"], h["final_objective"] / h["initial_objective"],
+            ", ".join("%.4f" % x for x in ratios)), file=sys.stderr)
+        # Measured 9.3734 -> 7.3545 (0.7846) on the optimizer's 8 cells; fresh 0.8111 / 0.8055 on
+        # 10 / 14 cells (the fixed penalty's run: 0.782 and 0.752 / 0.760 by fixed-penalty
+        # simulations).
+        for x in ratios:
+            self.assertLess(x, 0.82)
+        code, err = cli(["optimize", BUMP, "-o", os.path.join(self.dir, "bad")],
+                        dict(job(self.top), nitsche_penalty="local", nitsche_beta=100))
+        self.assertEqual(code, 2)
+        self.assertIn("nitsche_beta sets the fixed penalty", err["error"]["message"])
+
     def test_exact_and_semi_analytic_pole_gradients_agree(self):
         # Measured on the start (8 cells): -0.139937971 / -0.139937795 (clamp side) and
         # -0.00904316169 / -0.00904311609 (load side): 1.3e-6 and 5.0e-6 apart (the bump block

@@ -148,6 +148,7 @@ class Simulate(unittest.TestCase):
             (dict(base, grid={"cells": 100000}), "memory"),
             (dict(base, material={"E": 1, "nu": 0.3, "model": "ogden"}), "ogden"),
             (dict(base, nitsche_penalty="strong"), "nitsche_penalty must be"),
+            (dict(base, nitsche_beta=0), "nitsche_beta must be positive"),
             (dict(base, nitsche_penalty="local", nitsche_beta=1000), "nitsche_beta sets the fixed penalty"),
             (dict(base, nitsche_penalty="local", nitsche_local_factor=0.5), "nitsche_local_factor must be > 1"),
             (dict(base, nitsche_penalty="fixed", nitsche_local_factor=4), "nitsche_local_factor applies to"),

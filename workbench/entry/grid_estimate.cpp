@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "json_fields.h"
 
 namespace parafab::entry {
 
@@ -23,6 +24,31 @@ xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType de
   if (!job.contains("element")) return default_element;
   if (!job["element"].is_string()) PARAFAB_INPUT_ERROR("element must be \"hex8\" or \"hex27\", got " << job["element"].dump());
   return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
+}
+
+void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options) {
+  using Penalty = xfem::LinearXfemOptions::NitschePenalty;
+  if (job.contains("nitsche_penalty")) {
+    const nlohmann::json& np = job["nitsche_penalty"];
+    if (np == "fixed") options.nitsche_penalty = Penalty::Fixed;
+    else if (np == "local") options.nitsche_penalty = Penalty::Local;
+    else PARAFAB_INPUT_ERROR("nitsche_penalty must be \"fixed\" (beta E/h) or \"local\" (from each clamped cut cell's eigenvalue), got " << np.dump());
+  }
+  const bool local = options.nitsche_penalty == Penalty::Local;
+  if (job.contains("nitsche_beta")) {
+    if (local)
+      PARAFAB_INPUT_ERROR("nitsche_beta sets the fixed penalty beta E/h; with \"nitsche_penalty\": \"local\" it would not be used (give nitsche_local_factor instead)");
+    options.nitsche_beta = fields::number(job["nitsche_beta"], "nitsche_beta");
+    if (!(options.nitsche_beta > 0))  // the solver would read 0 as "default 100"
+      PARAFAB_INPUT_ERROR("nitsche_beta must be positive, got " << options.nitsche_beta);
+  }
+  if (job.contains("nitsche_local_factor")) {
+    if (!local)
+      PARAFAB_INPUT_ERROR("nitsche_local_factor applies to \"nitsche_penalty\": \"local\" only (the fixed penalty is set by nitsche_beta)");
+    options.nitsche_local_factor = fields::number(job["nitsche_local_factor"], "nitsche_local_factor");
+    if (!(options.nitsche_local_factor > 1))
+      PARAFAB_INPUT_ERROR("nitsche_local_factor must be > 1 (below, the clamped cut cells' terms may be indefinite), got " << options.nitsche_local_factor);
+  }
 }
 
 int default_cells(xfem::ElementType element) { return element == xfem::ElementType::Hex27 ? 8 : 16; }

@@ -1,6 +1,7 @@
 // Size of a grid before it is built (thesis §6.3 cutting, §6.4 simulation): every entry that
 // builds a grid (`parafab integrate`, `parafab simulate`) estimates first and refuses a job
-// that would not fit in memory, with the estimate in the error and how to override it.
+// that would not fit in memory, with the estimate in the error and how to override it. Also the
+// solver choices every grid job reads alike (element, Nitsche penalty).
 #pragma once
 
 #include <array>
@@ -29,6 +30,11 @@ nlohmann::json to_json(const GridEstimate& e);
 
 /// The job's "element" ("hex8" | "hex27"), or `default_element` when it names none.
 xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType default_element);
+
+/// The job's Nitsche penalty into `options`: "nitsche_penalty" ("fixed" | "local"), with
+/// "nitsche_beta" (fixed only, > 0) or "nitsche_local_factor" (local only, > 1); a key that the
+/// chosen penalty would not use is refused. Absent keys leave `options` as they are.
+void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options);
 
 /// The default grid.cells for an element: the same node lattice for both (16 hex8 cells or
 /// 8 hex27 cells along the part's longest side, nodes every half cell for hex27).

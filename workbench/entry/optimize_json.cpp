@@ -58,8 +58,8 @@ occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, co
 // The elasticity job of the compliance objective, in the fields of the simulation job
 // (README "Simulation"): material {E, nu, density}, grid {cells, cell_size, block_cells,
 // method}, supports, loads (a traction per area stays fixed; a total force stays fixed and is
-// spread over the load face of every model, as `parafab simulate` does), gravity, nitsche_beta,
-// element. Linear material only.
+// spread over the load face of every model, as `parafab simulate` does), gravity, the Nitsche
+// penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. Linear material only.
 std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShape& part, const json& job) {
   auto s = std::make_shared<occ::ComplianceSetup>();
   const json& m = fields::require(job, "material", "job (objective compliance)");
@@ -117,7 +117,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   }
   if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
   if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
-  if (job.contains("nitsche_beta")) s->solver.nitsche_beta = number(job["nitsche_beta"], "nitsche_beta");
+  nitsche_of_job(job, s->solver);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
   return s;
 }
 
@@ -380,6 +380,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["exact_derivatives"] = r.exact_derivatives;
     h["semi_analytic_derivatives"] = r.semi_analytic_derivatives;
   }
+  if (o.compliance)  // the clamp of the objectives that solve (entries near it differenced when local)
+    h["nitsche_penalty"] =
+        o.compliance->solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed";
   if (r.semi_analytic_derivatives > 0) {
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;

@@ -413,23 +413,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
     S->tractions.push_back(t);
   }
   if (job.contains("gravity")) S->fo.gravity = vec3(job["gravity"], "gravity");
-  if (job.contains("nitsche_beta")) S->fo.nitsche_beta = number(job["nitsche_beta"], "nitsche_beta");
-  if (job.contains("nitsche_penalty")) {  // xfem::LinearXfemOptions::NitschePenalty
-    const json& np = job["nitsche_penalty"];
-    if (np == "fixed") S->fo.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Fixed;
-    else if (np == "local") S->fo.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Local;
-    else PARAFAB_INPUT_ERROR("nitsche_penalty must be \"fixed\" (beta E/h) or \"local\" (from each clamped cut cell's eigenvalue), got " << np.dump());
-  }
-  const bool local_penalty = S->fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local;
-  if (local_penalty && job.contains("nitsche_beta"))
-    PARAFAB_INPUT_ERROR("nitsche_beta sets the fixed penalty beta E/h; with \"nitsche_penalty\": \"local\" it would not be used (give nitsche_local_factor instead)");
-  if (job.contains("nitsche_local_factor")) {
-    if (!local_penalty)
-      PARAFAB_INPUT_ERROR("nitsche_local_factor applies to \"nitsche_penalty\": \"local\" only (the fixed penalty is set by nitsche_beta)");
-    S->fo.nitsche_local_factor = number(job["nitsche_local_factor"], "nitsche_local_factor");
-    if (!(S->fo.nitsche_local_factor > 1))
-      PARAFAB_INPUT_ERROR("nitsche_local_factor must be > 1 (below, the clamped cut cells' terms may be indefinite), got " << S->fo.nitsche_local_factor);
-  }
+  nitsche_of_job(job, S->fo);
   if (job.contains("incompatible_modes")) {  // linear model only; Newton uses plain hexahedra
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();

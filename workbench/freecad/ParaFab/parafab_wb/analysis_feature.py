@@ -73,8 +73,8 @@ _PROPERTIES = (
      "hex27: triquadratic (the default, more accurate per unknown); hex8: trilinear", None, 0),
     # Version 4: how the fixed faces are held (documents of versions 1-3 ran "fixed", the default).
     ("App::PropertyEnumeration", "NitschePenalty", "Grid",
-     "How the fixed faces are held on cut cells. fixed: penalty 100 E/h (the default, as Optimize "
-     "shape uses); local: from each cut cell's eigenvalue, never unstable and without locking "
+     "How the fixed faces are held on cut cells. fixed: penalty 100 E/h (the default); local: from "
+     "each cut cell's eigenvalue, stable on cut cells but the thinnest slivers, and without locking "
      "(more accurate on coarse grids; converges where 'fixed' fails with rubber)", None, 0),
 )
 MODELS = ["linear", "neo_hooke", "neo_hooke_isochoric", "mooney_rivlin"]

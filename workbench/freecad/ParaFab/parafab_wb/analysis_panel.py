@@ -199,8 +199,9 @@ class AnalysisTaskPanel(object):
         self.penalty = _narrow(QtGui.QComboBox())
         self.penalty.addItems(analysis_feature.PENALTIES)
         self.penalty.setCurrentIndex(max(0, self.penalty.findText(inputs.get("nitsche_penalty", "fixed"))))
-        self.penalty.setToolTip("How the fixed faces are held on cut cells. fixed: penalty 100 E/h (as Optimize "
-                                "shape uses); local: from each cut cell's eigenvalue, never unstable, no locking")
+        self.penalty.setToolTip("How the fixed faces are held on cut cells. fixed: penalty 100 E/h (the default); "
+                                "local: from each cut cell's eigenvalue, stable but on the thinnest slivers, no "
+                                "locking")
         form_out.addRow("Clamp penalty", self.penalty)
         folder_row = QtGui.QHBoxLayout()
         self.output_dir = _narrow(QtGui.QLineEdit(inputs["output_dir"]))

@@ -225,6 +225,7 @@ def default_options():
         "max_iterations": 20,
         "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
         "cells": None,                        # grid cells along the longest side (compliance; None: engine default)
+        "nitsche_penalty": "fixed",           # clamp on cut cells: "fixed" (100 E/h) or "local" (per cell)
         "bound": 0.3,
         "relative_improvement": 1e-9,
     }
@@ -424,6 +425,11 @@ def build_job(shape, options, placement=None):
             raise OptimizeError("objective '%s' needs loads: pick loaded faces and a force" % objective.type)
         if opts.get("cells"):
             job["grid"] = {"cells": int(opts["cells"])}
+        penalty = opts.get("nitsche_penalty", "fixed")
+        if penalty not in ("fixed", "local"):
+            raise OptimizeError("clamp penalty must be 'fixed' or 'local', got %r" % (penalty,))
+        if penalty != "fixed":
+            job["nitsche_penalty"] = penalty
     if opts.get("max_volume_ratio"):
         job["constraints"] = [{"type": "volume", "max_ratio": float(opts["max_volume_ratio"])}]
     return job

@@ -164,6 +164,13 @@ class OptimizeTaskPanel(object):
         self.volume_ratio.setSpecialValueText("no bound")
         self.volume_ratio.setToolTip("Volume at most this times the original's (0: no bound)")
         grid.addRow("Max volume ratio", self.volume_ratio)
+        self.penalty = analysis_panel._narrow(QtGui.QComboBox())
+        self.penalty.addItems(["fixed", "local"])
+        self.penalty.setCurrentIndex(max(0, self.penalty.findText(defaults.get("nitsche_penalty", "fixed"))))
+        self.penalty.setToolTip("How the supports are held on cut cells (objectives with a material). fixed: "
+                                "penalty 100 E/h; local: from each cut cell's eigenvalue, stable but on the thinnest slivers, no "
+                                "locking (the entries near a support are then differenced, slower)")
+        grid.addRow("Clamp penalty", self.penalty)
         self.objective.currentIndexChanged.connect(self._objective_changed)
         layout.addWidget(objective)
 
@@ -343,6 +350,7 @@ class OptimizeTaskPanel(object):
                 "mirror_plane_normal": tuple(b.value() for b in self.mirror_normal),
                 "force": tuple(b.value() for b in self.force),
                 "max_iterations": self.iterations.value(),
+                "nitsche_penalty": self.penalty.currentText(),
                 "max_volume_ratio": ratio if ratio > 0 else None}
 
     # -- running -----------------------------------------------------------------------------
