@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include "common/error.h"
 #include "face_lookup.h"
@@ -33,6 +34,23 @@ double compliance_on(std::shared_ptr<const PartShape> part, const ComplianceStat
   EXPECT_TRUE(s.done) << s.message;
   return s.done ? s.compliance : std::nan("");
 }
+
+// Design entry `index` as the optimizer moves it: the start projected with a one-entry design's
+// weights (p0), the line through p0 along the entry, and the entry's column of dp⊥/dp̃ at p0.
+struct ProjectedEntry {
+  optimize::ProjectionResult p0;
+  std::optional<DesignLine> line;
+  Eigen::VectorXd column;
+  ProjectedEntry(const PartShape& part, const FaceModel& model, const ShapeParameters& sp, const Eigen::VectorXd& start,
+                 int index, double L) {
+    optimize::ProjectionOptions popt;
+    popt.weights = projection_weights(sp, {index}, 1e-4, L);
+    p0 = optimize::project(sp.constraints, start, start, sp.lower, sp.upper, {}, popt);
+    EXPECT_TRUE(p0.done) << p0.message;
+    line.emplace(part, model, sp, index, p0.p, L);
+    column = optimize::projection_derivative(sp.constraints, p0, sp.lower, sp.upper, popt.weights).jacobian.col(index);
+  }
+};
 
 TEST(ShapeCompliance, SemiAnalyticGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   BracketCase c;
@@ -122,19 +140,14 @@ TEST(ShapeCompliance, ExactGradientMatchesFiniteDifferencesOfTheFullPipeline) {
          dead_weight ? 3e-8 : 1e-8},
     };
     for (const Case& k : cases) {
-      optimize::ProjectionOptions popt;
-      popt.weights = projection_weights(sp, {k.index}, 1e-4, L);
-      const optimize::ProjectionResult p0 = optimize::project(sp.constraints, start.p, start.p, sp.lower, sp.upper, {}, popt);
-      ASSERT_TRUE(p0.done);
-      const DesignLine line(*c.part, model, sp, k.index, p0.p, L);
-      auto part_at = [&](double s) { return line.at(s); };
+      const ProjectedEntry entry(*c.part, model, sp, start.p, k.index, L);
+      ASSERT_TRUE(entry.p0.done);
+      auto part_at = [&](double s) { return entry.line->at(s); };
       const ComplianceState at = compliance_start(part_at(0), c.setup);
       ASSERT_TRUE(at.done) << at.message;
-      const ComplianceGradient g = compliance_gradient(at, c.setup, sp, p0.p);
+      const ComplianceGradient g = compliance_gradient(at, c.setup, sp, entry.p0.p);
       ASSERT_TRUE(g.done) << g.message;
-      const optimize::ProjectionDerivative D =
-          optimize::projection_derivative(sp.constraints, p0, sp.lower, sp.upper, popt.weights);
-      const Eigen::VectorXd column = D.jacobian.col(k.index);
+      const Eigen::VectorXd& column = entry.column;
       const double exact = g.gradient.dot(column);
       const bool flagged = !exact_along(g, column);
       EXPECT_EQ(!flagged, k.exact) << k.what;
@@ -176,12 +189,9 @@ TEST(ShapeCompliance, LocalPenaltyGradientIsExactAwayFromTheClampAndSemiAnalytic
       {"outer fillet radius (tangent to the support)", parameter_index(sp, c.outer, "radius"), true, 3e-6},
   };
   for (const Case& k : cases) {
-    optimize::ProjectionOptions popt;
-    popt.weights = projection_weights(sp, {k.index}, 1e-4, L);
-    const optimize::ProjectionResult p0 = optimize::project(sp.constraints, start.p, start.p, sp.lower, sp.upper, {}, popt);
-    ASSERT_TRUE(p0.done);
-    const DesignLine line(*c.part, model, sp, k.index, p0.p, L);
-    auto part_at = [&](double s) { return line.at(s); };
+    const ProjectedEntry entry(*c.part, model, sp, start.p, k.index, L);
+    ASSERT_TRUE(entry.p0.done);
+    auto part_at = [&](double s) { return entry.line->at(s); };
     const ComplianceState at = compliance_start(part_at(0), c.setup);
     ASSERT_TRUE(at.done) << at.message;
     // Where the local penalty is not coercive: its floor (â = aₑ + 0.005 × the uncut cell's
@@ -189,11 +199,9 @@ TEST(ShapeCompliance, LocalPenaltyGradientIsExactAwayFromTheClampAndSemiAnalytic
     // the matrix is then indefinite (measured: floor 1e-4 or 0 gives a positive definite one);
     // the solve says so, naming the floor, and LU solves it; the derivatives below still agree.
     EXPECT_NE(at.solution.message.find("local Nitsche penalty's floor"), std::string::npos) << at.solution.message;
-    const ComplianceGradient g = compliance_gradient(at, c.setup, sp, p0.p);
+    const ComplianceGradient g = compliance_gradient(at, c.setup, sp, entry.p0.p);
     ASSERT_TRUE(g.done) << g.message;
-    const optimize::ProjectionDerivative D =
-        optimize::projection_derivative(sp.constraints, p0, sp.lower, sp.upper, popt.weights);
-    const Eigen::VectorXd column = D.jacobian.col(k.index);
+    const Eigen::VectorXd& column = entry.column;
     const bool flagged = !exact_along(g, column);
     EXPECT_EQ(flagged, k.flagged) << k.what;
     const double exact = g.gradient.dot(column);
