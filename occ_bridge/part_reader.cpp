@@ -409,6 +409,9 @@ PartBoxArea part_box_and_area(const PartShape& part) {
   GProp_GProps props;
   BRepGProp::SurfaceProperties(part.shape, props);
   size.area = props.Mass();
+  GProp_GProps vprops;
+  BRepGProp::VolumeProperties(part.shape, vprops);
+  size.volume = std::abs(vprops.Mass());
   return size;
 }
 
