@@ -7,7 +7,11 @@ of the reference script (CalculiX, meshing included). Writes DIR/recut.json and 
 The figure of merit is the speed-up at equal accuracy: for every XFEM update, the CalculiX
 time interpolated (log–log) at the XFEM error, divided by the update time (goal ≥ 5).
 
-Usage: /usr/bin/python3 tests/bench/bench_recut.py [--quick] [--out DIR]
+Both Nitsche penalties on the clamp (--nitsche): "fixed" (beta E / h, beta = 100, the default of
+`parafab simulate`) and "local" (from each clamped cut cell's eigenvalue), each with its own
+error against the same reference.
+
+Usage: /usr/bin/python3 tests/bench/bench_recut.py [--quick] [--nitsche fixed,local] [--out DIR]
 """
 import argparse
 import json
@@ -28,10 +32,11 @@ BEFORE = os.path.join(REPO, "samples", "parts", "l_bracket.step")
 AFTER = os.path.join(REPO, "samples", "parts", "l_bracket_holes5.step")
 
 
-def xfem_update(cells, repeats, element="hex8"):
+def xfem_update(cells, repeats, element="hex8", penalty="fixed"):
     job = json.load(open(base.JOB))
     job["grid"] = {"cells": cells}
     job["element"] = element
+    job["nitsche_penalty"] = penalty
     first, update, fresh = [], [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -45,7 +50,7 @@ def xfem_update(cells, repeats, element="hex8"):
         fr = parafab.simulate(AFTER, job)
         fresh.append(time.perf_counter() - t0)
     med = lambda v: sorted(v)[len(v) // 2]
-    return {"cells": cells, "element": element, "solver": up.get("solver"), "unknowns": up["dofs"], "first_seconds": med(first), "update_seconds": med(update),
+    return {"cells": cells, "element": element, "nitsche_penalty": penalty, "solver": up.get("solver"), "unknowns": up["dofs"], "first_seconds": med(first), "update_seconds": med(update),
             "fresh_seconds": med(fresh), "u_probe": up["probes"][0]["displacement"][2],
             "u_probe_fresh": fr["probes"][0]["displacement"][2], "recut": up["recut"], "parts": up["seconds"],
             "fresh_parts": fr["seconds"]}
@@ -64,14 +69,18 @@ def loglog_interp(x, xs, ys):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--nitsche", default="fixed,local", help="Nitsche penalties to run (fixed, local), comma-separated")
     ap.add_argument("--out", default=os.path.join(REPO, "out", "bench"))
     a = ap.parse_args()
+    penalties = [p for p in a.nitsche.split(",") if p]
+    if not penalties or any(p not in ("fixed", "local") for p in penalties):
+        ap.error("--nitsche takes fixed and/or local, got %r" % a.nitsche)
     os.makedirs(a.out, exist_ok=True)
     base.PART = AFTER  # the CalculiX route meshes the changed part
     reference = base.calculix(2.0 if a.quick else 1.5)
     runs = [("hex8", 12), ("hex8", 16)] if a.quick else [("hex8", 16), ("hex8", 24), ("hex8", 32), ("hex27", 6),
-                                                         ("hex27", 8), ("hex27", 12)]
-    xf = [xfem_update(c, 1 if a.quick else 3, e) for e, c in runs]
+                                                         ("hex27", 8), ("hex27", 12), ("hex27", 16)]
+    xf = [xfem_update(c, 1 if a.quick else 3, e, p) for p in penalties for e, c in runs]
     cx = [base.calculix(s) for s in ([6, 4] if a.quick else [8, 6, 4, 3, 2])]
     uref = reference["u_probe"]
     for r in xf:
@@ -92,9 +101,9 @@ def main():
         sv = r["solver"] or {}
         what += "; solve %s (%s CG iterations)" % (sv.get("method"), sv.get("iterations"))
         print("%-26s %8d %9d %9.2f %9.2e  %s" % (
-            "XFEM %s update (re-cut)" % r["element"], r["cells"], r["unknowns"], r["update_seconds"], r["error"], what))
+            "XFEM %s %s update" % (r["element"], r["nitsche_penalty"]), r["cells"], r["unknowns"], r["update_seconds"], r["error"], what))
         print("%-26s %8d %9d %9.2f %9.2e  (first run on the old part %.2f s)" % (
-            "XFEM %s fresh" % r["element"], r["cells"], r["unknowns"], r["fresh_seconds"], r["fresh_error"], r["first_seconds"]))
+            "XFEM %s %s fresh" % (r["element"], r["nitsche_penalty"]), r["cells"], r["unknowns"], r["fresh_seconds"], r["fresh_error"], r["first_seconds"]))
     for r in cx:
         print("%-26s %8s %9d %9.2f %9.2e" % ("Gmsh + CalculiX tet10", "h=%g" % r["resolution"], r["unknowns"],
                                              r["seconds"], r["error"]))
@@ -103,8 +112,8 @@ def main():
         r["calculix_seconds_at_equal_error"] = t
         r["speedup_vs_remesh"] = t / r["update_seconds"] if t else None
         r["speedup_vs_fresh_xfem"] = r["fresh_seconds"] / r["update_seconds"]
-        print("%s grid %d: update %.2f s; fresh XFEM %.1f× slower; Gmsh + CalculiX at equal error %s" % (
-            r["element"], r["cells"], r["update_seconds"], r["speedup_vs_fresh_xfem"],
+        print("%s %s grid %d: update %.2f s; fresh XFEM %.1f× slower; Gmsh + CalculiX at equal error %s" % (
+            r["element"], r["nitsche_penalty"], r["cells"], r["update_seconds"], r["speedup_vs_fresh_xfem"],
             "%.2f s → speed-up %.2f× (goal ≥ 5)" % (t, r["speedup_vs_remesh"]) if t else "outside the measured range"))
     data = {"part": "l_bracket → l_bracket_holes5", "probe": [60, 20, 4], "reference": reference, "xfem": xf,
             "calculix": cx}
@@ -113,24 +122,25 @@ def main():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for e, mk in (("hex8", "o"), ("hex27", "D")):
-        sel = [r for r in xf if r["element"] == e]
+    for (e, mk), pen in [(em, p) for em in (("hex8", "o"), ("hex27", "D")) for p in penalties]:
+        sel = [r for r in xf if r["element"] == e and r["nitsche_penalty"] == pen]
         if not sel:
             continue
-        ax.loglog([r["update_seconds"] for r in sel], [r["error"] for r in sel], mk + "-",
-                  label="XFEM %s update (re-cut changed cells, re-solve with reuse)" % e)
-        ax.loglog([r["fresh_seconds"] for r in sel], [r["fresh_error"] for r in sel], mk + ":", mfc="none",
-                  label="XFEM %s fresh (cut + rules + solve)" % e)
-    ax.loglog([r["seconds"] for r in cx], [r["error"] for r in cx], "s--", label="Gmsh + CalculiX tet10 (remesh + solve)")
+        colour = "C0" if pen == "fixed" else "C2"
+        ax.loglog([r["update_seconds"] for r in sel], [r["error"] for r in sel], mk + "-", color=colour,
+                  label="XFEM %s %s update (re-cut changed cells, re-solve with reuse)" % (e, pen))
+        ax.loglog([r["fresh_seconds"] for r in sel], [r["fresh_error"] for r in sel], mk + ":", mfc="none", color=colour,
+                  label="XFEM %s %s fresh (cut + rules + solve)" % (e, pen))
+    ax.loglog([r["seconds"] for r in cx], [r["error"] for r in cx], "s--", color="C3", label="Gmsh + CalculiX tet10 (remesh + solve)")
     for r in xf:
-        ax.annotate("%s %d" % (r["element"], r["cells"]), (r["update_seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.annotate("%s %d%s" % (r["element"], r["cells"], " L" if r["nitsche_penalty"] == "local" else ""), (r["update_seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     for r in cx:
         ax.annotate("h=%g" % r["resolution"], (r["seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     ax.set_xlabel("wall time after the change [s]")
     ax.set_ylabel("relative error of the probe displacement")
     ax.set_title("L-bracket, holes r 4 → 5 mm (reference: tet10, h = %g mm)" % reference["resolution"], fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=6)
     fig.tight_layout()
     fig.savefig(os.path.join(a.out, "recut.png"), dpi=110)
     print("wrote", os.path.join(a.out, "recut.png"))
