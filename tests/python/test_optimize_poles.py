@@ -50,6 +50,23 @@ class OptimizePoles(unittest.TestCase):
     def tearDown(self):
         shutil.rmtree(self.dir)
 
+    def fresh_ratios(self, step, elastic):
+        """Compliance C = -2 potential of the written STEP over the original's, by fresh
+        simulations of both on 10 and 14 cells (grids of their own) with the job `elastic`."""
+        ratios = []
+        for cells in (10, 14):
+            c = []
+            for p in (BUMP, step):
+                code, r = cli(["simulate", p], dict(elastic, grid={"cells": cells}))
+                self.assertEqual(code, 0, r)
+                # The face route holds: its rules match OCCT's adaptive volume of a B-spline face
+                # (the fixed-rule volume, 1e-5 off, sent this part to the splitter).
+                self.assertEqual(r["grid"]["method"], "face", r["grid"].get("fallback_reason"))
+                self.assertEqual(r["nitsche_penalty"], elastic.get("nitsche_penalty", "fixed"))
+                c.append(-2 * r["potential"])
+            ratios.append(c[1] / c[0])
+        return ratios
+
     def test_compliance_falls_on_the_poles_and_the_written_step_carries_them(self):
         out = os.path.join(self.dir, "out")
         code, h = cli(["optimize", BUMP, "-o", out], job(self.top))
@@ -83,17 +100,7 @@ class OptimizePoles(unittest.TestCase):
         self.assertLessEqual(v, v0 * (1 + 1e-6))
         self.assertAlmostEqual(v, h["final_volume"], delta=1e-6 * v0)
         # Independent: fresh simulations of both parts on their own grids.
-        ratios = []
-        for cells in (10, 14):
-            c = []
-            for p in (BUMP, step):
-                code, r = cli(["simulate", p], dict(ELASTIC, grid={"cells": cells}))
-                self.assertEqual(code, 0, r)
-                # The face route holds: its rules match OCCT's adaptive volume of a B-spline face
-                # (the fixed-rule volume, 1e-5 off, sent this part to the splitter).
-                self.assertEqual(r["grid"]["method"], "face", r["grid"].get("fallback_reason"))
-                c.append(-2 * r["potential"])
-            ratios.append(c[1] / c[0])
+        ratios = self.fresh_ratios(step, ELASTIC)
         print("\n[optimize poles] %.6g -> %.6g; fresh ratios %s" % (h["initial_objective"], h["final_objective"],
                                                                    ", ".join("%.4f" % x for x in ratios)), file=sys.stderr)
         for x in ratios:
@@ -116,15 +123,7 @@ class OptimizePoles(unittest.TestCase):
         self.assertEqual(h["semi_analytic_derivatives"], 3 * h["evaluations"])
         self.assertEqual(h["invalid_models"], 0)
         step = os.path.join(out, "optimized.step")
-        ratios = []
-        for cells in (10, 14):
-            c = []
-            for p in (BUMP, step):
-                code, r = cli(["simulate", p], dict(local, grid={"cells": cells}))
-                self.assertEqual(code, 0, r)
-                self.assertEqual(r["nitsche_penalty"], "local")
-                c.append(-2 * r["potential"])
-            ratios.append(c[1] / c[0])
+        ratios = self.fresh_ratios(step, local)
         print("\n[optimize poles, local penalty] %.6g -> %.6g (%.4f); fresh ratios %s" % (
             h["initial_objective"], h["final_objective"], h["final_objective"] / h["initial_objective"],
             ", ".join("%.4f" % x for x in ratios)), file=sys.stderr)
