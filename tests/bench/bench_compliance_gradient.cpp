@@ -12,7 +12,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -24,6 +23,7 @@
 #include "shape_compliance.h"
 #include "shape_modify.h"
 #include "shape_parameters.h"
+#include "bench_output.h"
 
 using namespace parafab;
 using namespace parafab::occ;
@@ -131,6 +131,6 @@ int main(int argc, char** argv) {
                 complete ? "" : " (incomplete)", exact_seconds, semi.derivative, semi_seconds);
     rows.push_back(row);
   }
-  std::ofstream(out + "/compliance_gradient.json") << rows.dump(2);
+  write_bench_file(out, "compliance_gradient.json", rows.dump(2));
   return 0;
 }

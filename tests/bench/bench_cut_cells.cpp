@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -21,6 +20,7 @@
 #include "occt_mass_properties.h"
 #include "part_integration.h"
 #include "part_reader.h"
+#include "bench_output.h"
 
 using namespace parafab;
 using nlohmann::json;
@@ -227,7 +227,6 @@ int main(int argc, char** argv) {
   }
   json out{{"benchmark", "cut_cells"}, {"cells_longest", cells}, {"repeats", repeats},
            {"parts", per_part},           {"all", all},           {"sweep", sweep}};
-  std::ofstream(out_dir + "/cut_cells.json") << out.dump(2) << "\n";
-  std::printf("wrote %s/cut_cells.json\n", out_dir.c_str());
+  std::printf("wrote %s\n", write_bench_file(out_dir, "cut_cells.json", out.dump(2) + "\n").c_str());
   return 0;
 }

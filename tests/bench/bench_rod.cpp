@@ -12,7 +12,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -20,6 +19,7 @@
 
 #include "rods/rod_design.h"
 #include "../solvers/rods/rod_test_curves.h"
+#include "bench_output.h"
 
 using namespace parafab;
 
@@ -120,8 +120,7 @@ int main(int argc, char** argv) {
                      {"max_radius", o.max_radius},
                      {"goal_seconds_at_400", 0.010},
                      {"curves", curves}};
-  const std::string path = out_dir + "/rod.json";
-  std::ofstream(path) << out.dump(2) << "\n";
+  const std::string path = write_bench_file(out_dir, "rod.json", out.dump(2) + "\n");
   std::printf("wrote %s\n", path.c_str());
   return status;
 }

@@ -4,7 +4,6 @@
 // Usage: bench_shape_gradient [--quick] --out DIR SAMPLES_DIR  -> DIR/shape_gradient.json
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -15,6 +14,7 @@
 #include "shape_derivatives.h"
 #include "shape_modify.h"
 #include "shape_parameters.h"
+#include "bench_output.h"
 
 using namespace parafab;
 using namespace parafab::occ;
@@ -80,6 +80,6 @@ int main(int argc, char** argv) {
     }
     result.push_back(row);
   }
-  std::ofstream(out + "/shape_gradient.json") << result.dump(2) << "\n";
+  write_bench_file(out, "shape_gradient.json", result.dump(2) + "\n");
   return 0;
 }

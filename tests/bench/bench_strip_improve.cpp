@@ -17,7 +17,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
@@ -28,6 +27,7 @@
 #include "strips/curve_fairing.h"
 #include "strips/strip_design.h"
 #include "strips/strip_improve.h"
+#include "bench_output.h"
 
 using namespace parafab;
 using Clock = std::chrono::steady_clock;
@@ -176,6 +176,6 @@ int main(int argc, char** argv) {
                               {"total_repair_seconds", total_repair},
                               {"max_R", worst_R},
                               {"curves", curves}};
-  std::ofstream(out_dir + "/strip_improve.json") << out.dump(1) << "\n";
+  std::printf("wrote %s\n", write_bench_file(out_dir, "strip_improve.json", out.dump(1) + "\n").c_str());
   return worst_R <= target * (1 + 1e-6) ? 0 : 1;
 }

@@ -9,7 +9,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <functional>
 #include <string>
 #include <vector>
@@ -18,6 +17,7 @@
 
 #include "strips/stiffness_lp.h"
 #include "strips/strip_design.h"
+#include "bench_output.h"
 
 using namespace parafab;
 
@@ -178,8 +178,7 @@ int main(int argc, char** argv) {
                      {"reference_R", R_ref},
                      {"rows", rows},
                      {"adaptive", adaptive}};
-  const std::string path = out_dir + "/strip_lp.json";
-  std::ofstream(path) << out.dump(2) << "\n";
+  const std::string path = write_bench_file(out_dir, "strip_lp.json", out.dump(2) + "\n");
   std::printf("wrote %s\n", path.c_str());
   return 0;
 }

@@ -13,7 +13,6 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -21,6 +20,7 @@
 
 #include "strips/strip_design.h"
 #include "strips/strip_validation.h"
+#include "bench_output.h"
 
 using namespace parafab;
 
@@ -196,8 +196,7 @@ int main(int argc, char** argv) {
                      {"feasible", feasible},
                      {"worst_deviation", worst_dev},
                      {"per_strip", strips}};
-  const std::string path = out_dir + "/strip_scene.json";
-  std::ofstream(path) << out.dump(2) << "\n";
+  const std::string path = write_bench_file(out_dir, "strip_scene.json", out.dump(2) + "\n");
   std::printf("strip scene: %d/%d feasible, median %.1f ms wall (min %.1f) / %.1f ms CPU for the scene (%d repeats), worst "
               "simulated deviation %.2g; from interpolated quintics %.1f ms (R within %.1g) -> %s\n",
               feasible, n, 1e3 * median(scene), 1e3 * *std::min_element(scene.begin(), scene.end()), 1e3 * median(scene_cpu), repeats, worst_dev, 1e3 * median(scene_interp),

@@ -11,7 +11,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -21,6 +20,7 @@
 #include "strips/strip_validation.h"
 #include "../solvers/strips/strip_test_curves.h"
 #include "../solvers/strips/strip_stability_curves.h"
+#include "bench_output.h"
 
 using namespace parafab;
 using Clock = std::chrono::steady_clock;
@@ -80,8 +80,8 @@ int main(int argc, char** argv) {
                     {"sigma", std::isfinite(st.sigma) ? nlohmann::json(st.sigma) : nlohmann::json(nullptr)},
                     {"jacobi_edges", jacobi_edges}, {"jacobi_ms", 1e3 * median(tj)}, {"eigen", eig}});
   }
-  const std::string path = out_dir + "/strip_stability.json";
-  std::ofstream(path) << nlohmann::json{{"repeats", repeats}, {"strips", rows}}.dump(2) << "\n";
+  const std::string path =
+      write_bench_file(out_dir, "strip_stability.json", nlohmann::json{{"repeats", repeats}, {"strips", rows}}.dump(2) + "\n");
   std::printf("wrote %s\n", path.c_str());
   return 0;
 }

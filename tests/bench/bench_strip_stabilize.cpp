@@ -13,7 +13,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -22,6 +21,7 @@
 #include "strips/curve_fairing.h"
 #include "strips/jacobi_stability.h"
 #include "strips/strip_stabilize.h"
+#include "bench_output.h"
 
 using namespace parafab;
 using Clock = std::chrono::steady_clock;
@@ -120,6 +120,6 @@ int main(int argc, char** argv) {
               stabilized, unstable, med, worst, ratios.empty() ? NAN : median(ratios));
   nlohmann::json out = {{"curves", curves}, {"repeats", repeats}, {"unstable", unstable}, {"stabilized", stabilized},
                         {"median_seconds", num(med)}, {"max_seconds", num(worst)}, {"goal_seconds", 0.25}};
-  std::ofstream(out_dir + "/strip_stabilize.json") << out.dump(1) << "\n";
+  std::printf("wrote %s\n", write_bench_file(out_dir, "strip_stabilize.json", out.dump(1) + "\n").c_str());
   return 0;  // a measurement: curves that stall are reported, not failed
 }
