@@ -340,11 +340,13 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   for (const auto& t : at.tractions) conditioned.insert(t.face);
   for (int f : conditioned) flag(f);
   // The local Nitsche penalty (xfem::LinearXfemOptions::NitschePenalty::Local) of a clamped cut
-  // cell is an eigenvalue of that cell's flux matrix against its bulk stiffness, so it changes
-  // with every face that cuts the cell. Its derivative is not computed here: every moving face
-  // with a patch in a cut cell that holds a support's patch is flagged (on a B-spline face, the
-  // poles whose basis functions reach that patch); the optimizer takes the semi-analytic route
-  // there, which re-evaluates whole element systems, penalty included.
+  // cell is κΛ, Λ the top eigenvalue of that cell's flux matrix B against its bulk stiffness Â,
+  // so it changes with every face that cuts the cell: dΛ = vᵀdBv − Λ vᵀdÂv (xfem::LocalPenaltyParts),
+  // vᵀdÂv by Reynolds over the moving patches as the bulk term below, vᵀdBv along the clamped
+  // patch's moving edges as the strip terms; then C changes by κ dΛ (2uᵀg − uᵀPu). Where Λ is
+  // not a simple eigenvalue (gap ≤ 1e-6) the cell's moving faces are flagged instead (on a
+  // B-spline face, the poles whose basis functions reach its patches): the optimizer then takes
+  // the semi-analytic route, which re-evaluates whole element systems, penalty included.
   const bool local_penalty = setup.solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local;
   std::set<int> supports;
   for (const auto& d : setup.dirichlet) supports.insert(d.face);
@@ -435,8 +437,14 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     const bool penalised =
         local_penalty && std::any_of(el.subvolume->patches.begin(), el.subvolume->patches.end(),
                                      [&](const xfem::CutPatch& patch) { return supports.count(patch.source_face) > 0; });
+    // The local penalty's parts on this cell: dΛ per entry of p is gathered in `d_lambda`.
+    xfem::LocalPenaltyParts parts;
+    if (penalised) parts = xfem::local_penalty_parts(el, setup.material, setup.dirichlet, setup.solver);
+    const bool simple = penalised && parts.clamped && parts.gap > 1e-6 && parts.mode.size() == ue.size();
+    const double lambda = parts.flux_eigenvalue;
+    std::map<int, double> d_lambda;
     for (const xfem::CutPatch& patch : el.subvolume->patches) {
-      if (penalised && !conditioned.count(patch.source_face) && sp.block(patch.source_face))
+      if (penalised && !simple && !conditioned.count(patch.source_face) && sp.block(patch.source_face))
         out.penalised.push_back(patch.source_face);
       // Bulk: Reynolds over the patches of moving faces (a support's or load's own motion is
       // flagged above, so its patches are not integrated here).
@@ -447,6 +455,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           out.used = true;
           out.points += static_cast<int>(sr.points.size());
           const std::vector<double> psi = xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+          const std::vector<double> psi_mode =
+              simple ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
+                     : std::vector<double>{};
           const int nb = block->size();
           std::vector<double> sum(nb, 0.0);
           for (size_t q = 0; q < sr.points.size(); ++q) {
@@ -459,6 +470,8 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
             if (!(gn > 0)) continue;
             const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
             for (int k = 0; k < nb; ++k) sum[k] += sr.weights[q] * density * (-s * phi.g[k] / gn);  // Vₙ = ∂X/∂p_k·n
+            if (simple)  // −Λ vᵀdÂv
+              for (int k = 0; k < nb; ++k) d_lambda[block->offset + k] -= lambda * sr.weights[q] * psi_mode[q] * (-s * phi.g[k] / gn);
           }
           for (int k = 0; k < nb; ++k)
             if (sum[k] != 0) out.gradient.emplace_back(block->offset + k, sum[k]);
@@ -473,6 +486,10 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         out.points += static_cast<int>(sr.points.size());
         const std::vector<double> psi = sr.points.empty() ? std::vector<double>{}
                                                           : xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+        const std::vector<double> psi_mode =
+            simple && !sr.points.empty()
+                ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
+                : std::vector<double>{};
         std::map<int, double> sum;  // entry of p → contribution
         for (size_t q = 0; q < sr.points.size(); ++q) {
           double density = -psi[q];
@@ -480,7 +497,10 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
             density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
           for (const PoleInfluence& w : pole_influence(poles->surface, sr.uv[q].x(), sr.uv[q].y())) {
             for (int c = 0; c < 3; ++c) sum[poles->offset + 3 * w.index + c] += sr.weights[q] * density * w.value * sr.normals[q][c];
-            if (penalised && std::abs(w.value) > 1e-12)  // this pole moves the penalised cell's patch
+            if (simple)  // −Λ vᵀdÂv
+              for (int c = 0; c < 3; ++c)
+                d_lambda[poles->offset + 3 * w.index + c] -= lambda * sr.weights[q] * psi_mode[q] * w.value * sr.normals[q][c];
+            else if (penalised && std::abs(w.value) > 1e-12)  // this pole moves the penalised cell's patch
               for (int c = 0; c < 3; ++c) out.penalised_poles.insert(poles->offset + 3 * w.index + c);
           }
         }
@@ -507,9 +527,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         out.work.emplace_back(load, sum);
       }
       const auto it = neighbours.find(g);
-      // With the local penalty the strips along a support's edges are not integrated: the
-      // neighbours' patches in this (clamped, cut) cell are flagged above.
-      if (it == neighbours.end() || (penalised && dc)) continue;
+      // With the local penalty and Λ not simple the strips along a support's edges are not
+      // integrated: the neighbours' patches in this (clamped, cut) cell are flagged above.
+      if (it == neighbours.end() || (penalised && dc && !simple)) continue;
       // Loop segments of the patch that lie on a moving neighbour F (all three sample points on
       // F's surface): that edge moves inside the face with conormal speed a = Vₙ,F / (n_F·ν).
       for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
@@ -531,7 +551,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           if (on < 0) continue;
           const optimize::ParameterBlock& b = *sp.block(on);
           const int nb = b.size();
-          std::vector<double> sum(nb, 0.0), dA(nb, 0.0);
+          std::vector<double> sum(nb, 0.0), dA(nb, 0.0), dB(nb, 0.0);
           bool tangent = false;
           for (size_t q = 0; q < gauss.points.size() && !tangent; ++q) {
             const double t = gauss.points[q];
@@ -565,11 +585,18 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
               break;
             }
             const double ds = gauss.weights[q] * speed;
+            const double penalty = simple ? parts.penalty : -1;
             const xfem::BoundaryTermDensity d =
-                xfem::boundary_term_density(el, ue, setup.material, setup.solver, dc, tc, X, patch.orientation * n_uv);
+                xfem::boundary_term_density(el, ue, setup.material, setup.solver, dc, tc, X, patch.orientation * n_uv, penalty);
+            const double flux_mode =  // vᵀdBv density
+                simple && dc ? xfem::boundary_term_density(el, parts.mode, setup.material, setup.solver, dc, nullptr, X,
+                                                           patch.orientation * n_uv, penalty)
+                                   .flux
+                             : 0.0;
             for (int k = 0; k < nb; ++k) {
               sum[k] += (2 * d.load - d.stiffness) * speed_k[k] * ds;
               dA[k] += speed_k[k] * ds;
+              dB[k] += flux_mode * speed_k[k] * ds;
             }
             ++out.edge_points;
           }
@@ -580,8 +607,15 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           for (int k = 0; k < nb; ++k) {
             if (sum[k] != 0) out.gradient.emplace_back(b.offset + k, sum[k]);
             if (spread_load && dA[k] != 0) out.area.emplace_back(load * np + b.offset + k, dA[k]);
+            if (dB[k] != 0) d_lambda[b.offset + k] += dB[k];
           }
         }
+    }
+    // The penalty's change: dC = κ dΛ (2uᵀg − uᵀPu).
+    if (simple) {
+      const double weight = 2 * ue.dot(parts.load) - ue.dot(parts.mass * ue);
+      for (const auto& [i, dl] : d_lambda)
+        if (dl != 0) out.gradient.emplace_back(i, setup.solver.nitsche_local_factor * dl * weight);
     }
   });
   std::vector<double> load_work(at.tractions.size(), 0.0);

@@ -90,10 +90,12 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// completion of Fig. 6.12, case 2). Not included, flagged `incomplete`: a support's or load's own
 /// motion, other tangent contacts with a support or load (a torus or sphere, a cone), and the
 /// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
-/// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)), and, with the local Nitsche
-/// penalty, every face with a patch in a cut cell that holds a support's patch (of a B-spline
-/// face, the poles whose basis functions reach that patch): the cell's penalty is an eigenvalue
-/// of its own geometry, and the semi-analytic route includes its change.
+/// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)). With the local Nitsche penalty a
+/// clamped cut cell's penalty κΛ changes with every face that cuts it: C changes by
+/// κ dΛ (2uᵀg − uᵀPu), dΛ = vᵀdBv − Λ vᵀdÂv (xfem::LocalPenaltyParts; vᵀdÂv by the bulk density
+/// of (v, v) on the moving patches, vᵀdBv by the flux density of v on the clamped patch's moving
+/// edges); where Λ is not a simple eigenvalue (gap ≤ 1e-6) the cell's moving faces are flagged
+/// (of a B-spline face, the poles whose basis functions reach its patches).
 struct ComplianceGradient {
   bool done = false;
   std::string message;

@@ -250,9 +250,16 @@ Eigen::MatrixXd full_cell_stiffness(const Box3& box, const Lame& lm) {
 // its Dirichlet patches (zero on R too). A + s·R Rᵀ (R orthonormal) is positive definite with
 // the same eigenpairs off R, so one Cholesky-based generalized eigensolve gives Λ; if A has
 // further non-positive directions (a rule with negative weights), the pencil is restricted
-// to A's positive eigenvectors instead.
+// to A's positive eigenvectors instead. With `mode`: also the eigenvector v (vᵀAv = 1, v ⟂ R)
+// and in `gap` (Λ − λ₂)/Λ, λ₂ the next eigenvalue.
+struct FluxEigen {
+  double value = 0;
+  Eigen::VectorXd mode;
+  double gap = 1;
+};
 template <int NN>
-double largest_flux_eigenvalue(const Box3& box, const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) {
+FluxEigen largest_flux_eigenvalue(const Box3& box, const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
+                                  bool mode = false) {
   constexpr int n = 3 * NN;
   Eigen::Matrix<double, n, 6> R;
   const Vec3 centre = 0.5 * (box.min + box.max);
@@ -264,20 +271,39 @@ double largest_flux_eigenvalue(const Box3& box, const Eigen::MatrixXd& A, const 
   const Eigen::HouseholderQR<Eigen::Matrix<double, n, 6>> qr(R);
   const Eigen::Matrix<double, n, 6> Q = qr.householderQ() * Eigen::Matrix<double, n, 6>::Identity();
   const Eigen::MatrixXd shifted = A + (A.trace() / n) * Q * Q.transpose();
-  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ge(B, shifted, Eigen::EigenvaluesOnly);
-  if (ge.info() == Eigen::Success) return std::max(0.0, ge.eigenvalues().maxCoeff());
+  FluxEigen out;
+  auto finish = [&](const Eigen::VectorXd& values, const Eigen::MatrixXd* vectors) {
+    const int top = static_cast<int>(values.size()) - 1;  // ascending
+    out.value = std::max(0.0, values(top));
+    if (top > 0 && out.value > 0) out.gap = (values(top) - values(top - 1)) / values(top);
+    if (vectors) out.mode = vectors->col(top);
+  };
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ge(B, shifted,
+                                                                     mode ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
+  if (ge.info() == Eigen::Success) {
+    finish(ge.eigenvalues(), mode ? &ge.eigenvectors() : nullptr);
+    if (mode) out.mode /= std::sqrt(out.mode.dot(shifted * out.mode));
+    return out;
+  }
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ea(A);
   PARAFAB_VERIFY(ea.info() == Eigen::Success, "local Nitsche penalty: eigen decomposition of the bulk stiffness failed");
   const Eigen::VectorXd& d = ea.eigenvalues();
   const double cut = 1e-10 * d.cwiseAbs().maxCoeff();
   int first = 0;
   while (first < d.size() && d(first) <= cut) ++first;
-  if (first == d.size()) return 0;
+  if (first == d.size()) return out;
   const int r = static_cast<int>(d.size()) - first;
   const Eigen::MatrixXd W = ea.eigenvectors().rightCols(r) * d.tail(r).cwiseSqrt().cwiseInverse().asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ec(W.transpose() * B * W, Eigen::EigenvaluesOnly);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ec(W.transpose() * B * W,
+                                                          mode ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
   PARAFAB_VERIFY(ec.info() == Eigen::Success, "local Nitsche penalty: eigenvalues of the flux matrix failed");
-  return std::max(0.0, ec.eigenvalues().maxCoeff());
+  if (!mode) {
+    finish(ec.eigenvalues(), nullptr);
+    return out;
+  }
+  const Eigen::MatrixXd V = W * ec.eigenvectors();  // vᵀAv = 1
+  finish(ec.eigenvalues(), &V);
+  return out;
 }
 
 // The Dirichlet condition on `face`, or null.
@@ -315,6 +341,47 @@ std::vector<ConditionedPatch> conditioned_patches(const GridElement& el, const s
   return out;
 }
 
+// The local penalty's parts on an element (`patches` from conditioned_patches); with `mode`
+// also Λ's eigenvector, the penalty mass P and load g (LocalPenaltyParts).
+template <int NN>
+LocalPenaltyParts local_penalty_parts_n(const GridElement& el, const ElasticMaterial& material,
+                                        const std::vector<ConditionedPatch>& patches, const LinearXfemOptions& options,
+                                        const Eigen::MatrixXd* bulk, bool mode) {
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  constexpr int n = 3 * NN;
+  LocalPenaltyParts parts;
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(n, n);
+  if (mode) parts.mass = Eigen::MatrixXd::Zero(n, n), parts.load = Eigen::VectorXd::Zero(n);
+  Eigen::Matrix<double, NN, 1> N;
+  Eigen::Matrix<double, NN, 3> G;
+  for (const ConditionedPatch& cp : patches) {
+    if (!cp.dirichlet) continue;
+    parts.clamped = true;
+    const SurfaceRule& sr = cp.rule;
+    const Eigen::Matrix3d M = cp.dirichlet->components.asDiagonal();
+    for (size_t q = 0; q < sr.points.size(); ++q) {
+      shape<NN>(el.box, sr.points[q], N, G);
+      const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
+      B.noalias() += sr.weights[q] * T.transpose() * M * T;
+      if (!mode) continue;
+      const Eigen::Matrix<double, 3, n> Nm = value_matrix<NN>(N);
+      const Vec3 g = cp.dirichlet->field ? cp.dirichlet->field(sr.points[q])
+                                         : Vec3(cp.dirichlet->offset + cp.dirichlet->gradient * sr.points[q]);
+      parts.mass.noalias() += sr.weights[q] * Nm.transpose() * M * Nm;
+      parts.load.noalias() += sr.weights[q] * Nm.transpose() * (M * g);
+    }
+  }
+  if (!parts.clamped) return parts;  // no Dirichlet patch
+  Eigen::MatrixXd A = bulk ? *bulk : element_bulk_stiffness<NN>(el, material, options);
+  if (options.nitsche_local_floor > 0) A += options.nitsche_local_floor * full_cell_stiffness<NN>(el.box, lame(material));
+  const FluxEigen fe = largest_flux_eigenvalue<NN>(el.box, A, B, mode);
+  parts.flux_eigenvalue = fe.value;
+  parts.penalty = options.nitsche_local_factor * fe.value;
+  parts.mode = fe.mode;
+  parts.gap = fe.gap;
+  return parts;
+}
+
 // The penalty on the element's Dirichlet patches (`patches` from conditioned_patches).
 template <int NN>
 double nitsche_penalty_n(const GridElement& el, const ElasticMaterial& material,
@@ -322,27 +389,7 @@ double nitsche_penalty_n(const GridElement& el, const ElasticMaterial& material,
                          const Eigen::MatrixXd* bulk) {
   if (options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed)
     return (options.nitsche_beta > 0 ? options.nitsche_beta : 100.0) * material.youngs_modulus / el.box.size().minCoeff();
-  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
-  constexpr int n = 3 * NN;
-  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(n, n);
-  Eigen::Matrix<double, NN, 1> N;
-  Eigen::Matrix<double, NN, 3> G;
-  bool any = false;
-  for (const ConditionedPatch& cp : patches) {
-    if (!cp.dirichlet) continue;
-    any = true;
-    const SurfaceRule& sr = cp.rule;
-    const Eigen::Matrix3d M = cp.dirichlet->components.asDiagonal();
-    for (size_t q = 0; q < sr.points.size(); ++q) {
-      shape<NN>(el.box, sr.points[q], N, G);
-      const Eigen::Matrix<double, 3, n> T = traction_operator(sr.normals[q]) * D * strain_matrix<NN>(G);
-      B.noalias() += sr.weights[q] * T.transpose() * M * T;
-    }
-  }
-  if (!any) return 0;  // no Dirichlet patch
-  Eigen::MatrixXd A = bulk ? *bulk : element_bulk_stiffness<NN>(el, material, options);
-  if (options.nitsche_local_floor > 0) A += options.nitsche_local_floor * full_cell_stiffness<NN>(el.box, lame(material));
-  return options.nitsche_local_factor * largest_flux_eigenvalue<NN>(el.box, A, B);
+  return local_penalty_parts_n<NN>(el, material, patches, options, bulk, false).penalty;
 }
 
 template <int NN>
@@ -533,13 +580,24 @@ double nitsche_penalty(const GridElement& element, const ElasticMaterial& materi
              : nitsche_penalty_n<8>(element, material, conditioned_patches<8>(element, dirichlet, {}, options), options, nullptr);
 }
 
+LocalPenaltyParts local_penalty_parts(const GridElement& element, const ElasticMaterial& material,
+                                      const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options) {
+  PARAFAB_VERIFY(options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Local,
+                 "local_penalty_parts: the options name the fixed Nitsche penalty");
+  return options.element == ElementType::Hex27
+             ? local_penalty_parts_n<27>(element, material, conditioned_patches<27>(element, dirichlet, {}, options), options,
+                                         nullptr, true)
+             : local_penalty_parts_n<8>(element, material, conditioned_patches<8>(element, dirichlet, {}, options), options,
+                                        nullptr, true);
+}
+
 namespace {
 
 template <int NN>
 BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::VectorXd& ue,
                                             const ElasticMaterial& material, const LinearXfemOptions& options,
                                             const DirichletCondition* dc, const TractionCondition* tc, const Vec3& X,
-                                            const Vec3& n) {
+                                            const Vec3& n, double local_penalty) {
   BoundaryTermDensity d;
   Eigen::Matrix<double, NN, 1> N;
   Eigen::Matrix<double, NN, 3> G;
@@ -549,10 +607,13 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
   if (dc) {
     // The terms of element_system_n: K ∋ penalty NᵀMN − NᵀMT − TᵀMN, f ∋ penalty NᵀMg − TᵀMg.
     const Vec3 sigma_n = traction_operator(n) * elasticity(material) * (strain_matrix<NN>(G) * ue);
-    PARAFAB_VERIFY(options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed,
-                   "boundary_term_density: the local Nitsche penalty has no shape derivative (use the fixed one)");
-    const double penalty = nitsche_penalty_n<NN>(el, material, {}, options, nullptr);  // Fixed: no patches needed
+    PARAFAB_VERIFY(options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed || local_penalty >= 0,
+                   "boundary_term_density: the local Nitsche penalty needs the element's penalty (local_penalty_parts)");
+    const double penalty = options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed
+                               ? nitsche_penalty_n<NN>(el, material, {}, options, nullptr)  // Fixed: no patches needed
+                               : local_penalty;
     const Eigen::Matrix3d M = dc->components.asDiagonal();
+    d.flux = sigma_n.dot(M * sigma_n);
     const Vec3 g = dc->field ? dc->field(X) : Vec3(dc->offset + dc->gradient * X);
     d.stiffness += penalty * u.dot(M * u) - 2 * u.dot(M * sigma_n);
     d.load += penalty * u.dot(M * g) - sigma_n.dot(M * g);
@@ -565,13 +626,13 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
 BoundaryTermDensity boundary_term_density(const GridElement& element, const Eigen::VectorXd& ue,
                                           const ElasticMaterial& material, const LinearXfemOptions& options,
                                           const DirichletCondition* dirichlet, const TractionCondition* traction,
-                                          const Vec3& X, const Vec3& normal) {
+                                          const Vec3& X, const Vec3& normal, double local_penalty) {
   const int nodes = nodes_per_element(options.element);
   PARAFAB_VERIFY(ue.size() == 3 * nodes, "boundary_term_density: " << ue.size() << " nodal values for a "
                                                                     << element_type_name(options.element) << " element");
   return options.element == ElementType::Hex27
-             ? boundary_term_density_n<27>(element, ue, material, options, dirichlet, traction, X, normal)
-             : boundary_term_density_n<8>(element, ue, material, options, dirichlet, traction, X, normal);
+             ? boundary_term_density_n<27>(element, ue, material, options, dirichlet, traction, X, normal, local_penalty)
+             : boundary_term_density_n<8>(element, ue, material, options, dirichlet, traction, X, normal, local_penalty);
 }
 
 std::vector<double> bulk_shape_density(const GridElement& el, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,

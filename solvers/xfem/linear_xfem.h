@@ -77,8 +77,8 @@ struct LinearXfemOptions {
   /// vᵀKₑv = aₑ + p‖Mv‖² − 2(Mv, Mσ(v)n) ≥ aₑ − âₑ/κ: coercive for κ > 1 up to the floor (cf.
   /// Griebel & Schweitzer 2003; Embar, Dolbow & Harari 2010); a sliver under the floor can leave
   /// the matrix indefinite (the solve then says so and uses LU). One dense generalized eigensolve
-  /// per clamped cut element. No shape derivative: occ::compliance_gradient flags the faces in
-  /// such elements (the optimizer differences them). Not the default (the README's figures and
+  /// per clamped cut element. Its shape derivative: local_penalty_parts (used by
+  /// occ::compliance_gradient). Not the default (the README's figures and
   /// the optimizer's are measured with Fixed).
   enum class NitschePenalty { Fixed, Local };
   NitschePenalty nitsche_penalty = NitschePenalty::Fixed;
@@ -254,14 +254,35 @@ std::vector<double> bulk_shape_density(const GridElement& element, const Eigen::
 /// uₑᵀfₑ = ∫ load dA over the condition's patches (bulk and gravity not included). When a
 /// support's or load's patch grows by a strip of width a ds along its edge, uᵀKu and uᵀf change
 /// by these densities times a ds. `dirichlet` and `traction` may be null.
+/// With the local penalty the element's penalty must be given (`local_penalty`, from
+/// local_penalty_parts). `flux` = |M σ(u)n|², the density of uᵀBu (B of the local penalty).
 struct BoundaryTermDensity {
   double stiffness = 0;
   double load = 0;
+  double flux = 0;
 };
 BoundaryTermDensity boundary_term_density(const GridElement& element, const Eigen::VectorXd& ue,
                                           const ElasticMaterial& material, const LinearXfemOptions& options,
                                           const DirichletCondition* dirichlet, const TractionCondition* traction,
-                                          const Vec3& X, const Vec3& normal);
+                                          const Vec3& X, const Vec3& normal, double local_penalty = -1);
+
+/// The local Nitsche penalty of an element (LinearXfemOptions::NitschePenalty::Local) and what its
+/// shape derivative needs: with B v = Λ Â v (vᵀÂv = 1, v off the rigid modes), a change of the
+/// element's domain changes Λ by dΛ = vᵀ dB v − Λ vᵀ dÂ v (a simple eigenvalue: `gap` > 0), where
+/// vᵀdÂv is the bulk density of (v, v) at the moving boundary (bulk_shape_density; the floor's
+/// uncut cell does not move) and vᵀdBv the `flux` density of v along a moving edge of the
+/// clamped patch; then uᵀKu and uᵀf change by κ dΛ (uᵀ mass u) and κ dΛ (uᵀ load).
+struct LocalPenaltyParts {
+  bool clamped = false;         ///< the element has a Dirichlet patch (else the rest is empty)
+  double penalty = 0;           ///< κ Λ
+  double flux_eigenvalue = 0;   ///< Λ
+  Eigen::VectorXd mode;         ///< v
+  double gap = 1;               ///< (Λ − λ₂)/Λ
+  Eigen::MatrixXd mass;         ///< Σ w NᵀMN over the Dirichlet patches
+  Eigen::VectorXd load;         ///< Σ w NᵀM g
+};
+LocalPenaltyParts local_penalty_parts(const GridElement& element, const ElasticMaterial& material,
+                                      const std::vector<DirichletCondition>& dirichlet, const LinearXfemOptions& options);
 
 /// Assembled stiffness and load (no Dirichlet conditions folded in unless given). The element
 /// type is options.element; `node` must have its node count per element. Element matrices are

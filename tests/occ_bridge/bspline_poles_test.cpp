@@ -242,5 +242,47 @@ TEST(BsplinePoles, ComplianceDerivativeOfAPoleMatchesTheFullPipeline) {
   }
 }
 
+// The same with the local Nitsche penalty, for a pole of the row next to the support: its basis
+// function reaches the top patches of the clamped cut cells, whose penalty κΛ changes with it
+// (dΛ = vᵀdBv − Λ vᵀdÂv, see compliance_gradient). Until 2026-11-28 such poles were flagged and
+// differenced.
+TEST(BsplinePoles, LocalPenaltyComplianceDerivativeOfAClampSidePoleIsExact) {
+  const Vec3 center(30, 20, 8), axis = Vec3(1, 2, 3).normalized();
+  const double degrees = 11;
+  auto turned = [&](const Vec3& X) -> Vec3 { return center + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - center); };
+  const auto part = rotated_part(*read_part(sample_part("bump_block")), center, axis, degrees);
+  ComplianceSetup setup = testing::steel_cantilever(*part, face_at_point(*part, turned({0, 20, 5}), 1e-6),
+                                                    face_at_point(*part, turned({60, 20, 5}), 1e-6),
+                                                    turned(Vec3(0, 0, -500)) - turned(Vec3::Zero()));
+  setup.solver.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Local;
+  setup.solver.nitsche_beta = 0;
+  const testing::DesignSpace space(*part, {setup.dirichlet[0].face, setup.tractions[0].face});
+  ASSERT_TRUE(space.start.done);
+  const auto& [model, sp, start, L] = space;
+  const int top = bspline_face(model);
+  const int index = parameter_index(sp, top, "pole 2 3 z");
+  const DesignLine line(*part, model, sp, index, start.p, L);
+  const ComplianceState at = compliance_start(line.at(0), setup);
+  ASSERT_TRUE(at.done) << at.message;
+  const ComplianceGradient g = compliance_gradient(at, setup, sp, start.p);
+  ASSERT_TRUE(g.done) << g.message;
+  EXPECT_FALSE(g.incomplete[index]);
+  const double fd = richardson(
+      [&](double H) {
+        const ComplianceState s = compliance_at(line.at(H), at, setup);
+        EXPECT_TRUE(s.done) << s.message;
+        return s.compliance;
+      },
+      2e-4 * L);
+  const double h = 1e-4 * L;
+  const ComplianceDerivative dc = compliance_derivative(at, line.at(h), line.at(-h), h, setup);
+  ASSERT_TRUE(dc.done) << dc.message;
+  std::printf("local penalty, pole 2 3 z: C = %.10g, exact %.10g, semi-analytic %.10g, FD %.10g, relative differences "
+              "%.2e / %.2e\n",
+              at.compliance, g.gradient[index], dc.derivative, fd, std::abs(g.gradient[index] - fd) / std::abs(fd),
+              std::abs(dc.derivative - fd) / std::abs(fd));
+  EXPECT_LE(std::abs(g.gradient[index] - fd), 1e-8 * std::abs(fd));  // measured 3.7e-9
+}
+
 }  // namespace
 }  // namespace parafab::occ
