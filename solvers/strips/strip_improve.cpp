@@ -442,6 +442,20 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
                  "target_R must be a ratio >= 1, got " << o.target_R);
   PARAFAB_VERIFY(!input.rational(), "curve.bspline.weights: fabricability optimization moves the poles of a "
                                     "non-rational B-spline; give the curve without weights");
+  // The descent lowers R_p of LP Eq. 4.4 (clamped ends, κ₀ = 0, linear law, §4.3.2); a design
+  // with other ends, a natural curvature or a nonlinear law has another LP (§4.3.3, App. A.5),
+  // whose R the descent does not lower: refused rather than reported as done on Eq. 4.4.
+  // Gravity is accounted for afterwards (Eq. 4.6, §4.6.2) and `done` tests that design.
+  if (!o.design.boundary.kinematic())
+    PARAFAB_INPUT_ERROR("boundary: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 with "
+                        "clamped ends; free ends are not supported, remove \"boundary\" (or its free_x / free_y / "
+                        "free_angle) from the request");
+  if (o.design.natural_curvature != 0)
+    PARAFAB_INPUT_ERROR("natural_curvature: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 "
+                        "without natural curvature, got " << o.design.natural_curvature << " 1/m; remove it");
+  if (!o.design.law.linear())
+    PARAFAB_INPUT_ERROR("material.law: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 with "
+                        "the linear moment law; remove material.law");
   StripImproveResult res(input);
   BSplineCurve2 curve = input;
   if (curve.degree() < o.min_degree) {  // control points of degree ≥ 4 (thesis §4.5.4)
@@ -538,7 +552,21 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
   if (!res.done && res.status == "target") res.status = "target_on_samples";
   const bool same = !o.design.gravity.enabled;  // plain == o.design then
   res.design = same ? d1 : design_strip(res.curve, o.design);
-  if (o.design.gravity.enabled && res.design.feasible) res.R_gravity = res.design.R;
+  if (o.design.gravity.enabled) {
+    // done is the requested design's: R under gravity (a sampled optimum on nested grids,
+    // §4.4) must meet the target too, not only R of Eq. 4.4 that the descent lowered.
+    res.R_gravity = res.design.feasible ? res.design.R : NAN;
+    if (res.done && !(res.R_gravity <= o.target_R)) {
+      res.done = false;
+      res.status = "target_without_gravity";
+      std::ostringstream m;
+      m << "R without gravity " << res.R_upper << " <= target " << o.target_R << ", but the requested design "
+        << "under gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
+      if (res.design.feasible) m << "R_gravity " << res.R_gravity << " > target";
+      else m << "no feasible design (" << res.design.reason << ")";
+      res.message = m.str();
+    }
+  }
   res.inflections = static_cast<int>(inflection_parameters(res.curve).size());
   {
     const Eigen::VectorXd d = poles_vector(res.curve) - poles_vector(curve);

@@ -401,6 +401,44 @@ TEST(Fabricability, GravityAfterwardsWithEq46) {
   EXPECT_NEAR(g.R, r.R_gravity, 1e-12 * g.R);
 }
 
+// `done` is the requested design's (found in review: a request with gravity, a free end, a
+// natural curvature or a nonlinear law reported done on the clamped Eq. 4.4 R the descent
+// lowers). Other LPs than Eq. 4.4 are refused naming the field; under gravity done requires
+// R_gravity ≤ target. Before the fix this curve (gravity_one_inflection's shape) at target 1.3
+// gave done = true (R 1.373 -> 1.241) with R_gravity 5.0, and the three refusals were absent.
+TEST(Fabricability, DoneIsTheRequestedDesigns) {
+  const BSplineCurve2 c = cubic_with_one_inflection();
+  for (int k = 0; k < 3; ++k) {
+    StripImproveOptions o;
+    o.target_R = 1.3;
+    const char* field = k == 0 ? "boundary: " : k == 1 ? "natural_curvature: " : "material.law: ";
+    if (k == 0) o.design.boundary.end.free_x = true;
+    if (k == 1) o.design.natural_curvature = 2;
+    if (k == 2) o.design.law.cubic = 1e-4;
+    std::string msg;
+    try {
+      improve_strip_fabricability(c, o);
+    } catch (const Error& e) {
+      msg = e.what();
+    }
+    EXPECT_EQ(msg.rfind(field, 0), 0u) << msg;
+  }
+  StripImproveOptions o;
+  o.target_R = 1.3;
+  o.design.gravity.enabled = true;
+  o.design.gravity.direction = Vec2(0, -1);
+  o.design.gravity.gravito_bending = 8.86e-4;  // the thesis cardboard, βl³ [m³]
+  const StripImproveResult r = improve_strip_fabricability(c, o);
+  std::cout << "R " << r.R_initial << " -> " << r.R << " (estimate " << r.R_upper << "), R_gravity " << r.R_gravity
+            << ", status " << r.status << "\n";
+  EXPECT_LE(r.R_upper, o.target_R);      // Eq. 4.4 reached the target ...
+  EXPECT_GT(r.R_gravity, o.target_R);    // ... the design under gravity did not
+  EXPECT_FALSE(r.done);
+  EXPECT_EQ(r.status, "target_without_gravity");
+  // Independent: the gravity design of the result straight from design_strip.
+  EXPECT_EQ(design_strip(r.curve, o.design).R, r.R_gravity);
+}
+
 // §4.8.2: a noisy section of y = 0.1 sin(2πx), x ∈ [0.1, 1.4] (inflections at x = 0.5 and 1.0).
 TEST(Fairing, NoisySectionKeepsExactlyTheTrueInflections) {
   std::mt19937 rng(11);
