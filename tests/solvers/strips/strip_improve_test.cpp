@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <iostream>
 #include <random>
@@ -253,11 +254,15 @@ void check_lp_gradient(const BSplineCurve2& c, double tol) {
     const double fm = lp_ratio_gradient(x, u, inflection_parameters(x)).objective;
     worst = std::max(worst, std::abs((fp - fm) / (2 * h) - g.gradient(k)));
   }
+  std::printf("[LP duals] R = %.6g: |dR/dq - finite differences| / max|dR/dq| = %.3g\n", g.R,
+              worst / g.gradient.cwiseAbs().maxCoeff());
   EXPECT_LT(worst, tol * g.gradient.cwiseAbs().maxCoeff()) << "R = " << g.R;
 }
-TEST(LpDuals, RatioGradientMatchesFiniteDifferencesWithoutInflection) { check_lp_gradient(arch(), 1e-5); }
+// Tolerances at 2x / 1.8x the measured relative errors (2026-11-28: 1.48e-8 without, 1.12e-7
+// with an inflection; before: 1e-5 for both).
+TEST(LpDuals, RatioGradientMatchesFiniteDifferencesWithoutInflection) { check_lp_gradient(arch(), 3e-8); }
 TEST(LpDuals, RatioGradientMatchesFiniteDifferencesWithOneInflection) {
-  check_lp_gradient(tanh_curve(), 1e-5);
+  check_lp_gradient(tanh_curve(), 2e-7);
 }
 
 // Algorithm 4.2's failure mode (§4.5.4): an objective that rewards a flatter curvature at an
