@@ -135,7 +135,10 @@ json improve_strip_json(const json& request, double target_R) {
   out["target_R"] = o.target_R;
   out["R_initial"] = num(r.R_initial);
   out["R"] = num(r.R);
-  out["R_upper"] = num(r.R_upper);
+  // R_continuous of the result's design: an estimate (sampled extrema refined), not a certified
+  // bound. R_upper is the same number under its former, misleading name (deprecated alias).
+  out["R_estimate"] = num(r.R_estimate);
+  out["R_upper"] = num(r.R_estimate);
   out["bspline"] = bspline_json(r.curve);
   out["original_bspline"] = bspline_json(curve);
   out["max_pole_move"] = r.max_pole_move;
@@ -155,8 +158,8 @@ json improve_strip_json(const json& request, double target_R) {
   if (has_design) {
     json req = request;
     req.erase("improve");
-    // As the improvement's own R (StripImproveOptions::design): certified to 1e-3 unless the
-    // request sets its own tolerance.
+    // As the improvement's own R (StripImproveOptions::design): tolerance 1e-3 on the estimated
+    // gap unless the request sets its own tolerance.
     if (!req.contains("tolerance")) req["tolerance"] = 1e-3;
     if (!req.contains("max_samples")) req["max_samples"] = 4097;
     req["curve"] = {{"bspline", bspline_json(r.curve)}};
@@ -167,7 +170,7 @@ json improve_strip_json(const json& request, double target_R) {
       out["done"] = false;
       out["status"] = "target_without_gravity";
       std::ostringstream m;
-      m << "R without gravity " << r.R_upper << " <= target " << o.target_R << ", but the requested design under "
+      m << "R without gravity " << r.R_estimate << " <= target " << o.target_R << ", but the requested design under "
         << "gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
       if (out["R_gravity"].is_number()) m << "R_gravity " << out["R_gravity"].get<double>() << " > target";
       else m << "no feasible design (" << out["design"].value("reason", std::string()) << ")";
