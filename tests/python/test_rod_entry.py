@@ -210,12 +210,41 @@ class HelixThroughJson(unittest.TestCase):
                 self.assertGreater(at_target["negative"], 0)
                 self.assertGreater(st["equilibrium_distance"], 0.01)  # the rod leaves the target
                 self.assertIn("leaves the target", st["message"])
+                self.assertEqual(st["verdict"], "unstable")
+                self.assertTrue(st["moved_away"])
                 self.assertGreater(sim["deviation"], 0.01)
         with self.assertRaises(parafab.Error) as cm:
             parafab.design_rod({"curve": {"points": helix_points()}, "stability_at": "middle"})
         self.assertIn("stability_at", str(cm.exception))
         r = parafab.design_rod({"curve": {"points": helix_points()}, "stability": False})
         self.assertIsNone(r["stability"])
+
+    def test_coarse_rod_that_moved_away_gets_its_inertia(self):
+        """sculpture_segment_0 with stability_edges 50: the coarse rod's equilibrium lies
+        1.30e-3 L from the target (beyond max_distance 1e-3). Before the fix the verdict was
+        "unstable" ("leaves the target") with no Hessian computed (negative 0, min_relative
+        null); now the inertia at the reached equilibrium is computed (positive definite),
+        the verdict is "moved_away", and the Hessian at the target agrees it is stable."""
+        req = sample("sculpture_segment_0")
+        req["stability_edges"] = 50
+        st = parafab.design_rod(req)["stability"]
+        self.assertEqual(st["method"], "hessian_at_equilibrium")
+        self.assertEqual(st["verdict"], "moved_away")
+        self.assertTrue(st["moved_away"])
+        self.assertTrue(st["equilibrium_stable"])
+        self.assertFalse(st["stable"])  # the design is not reproduced within 1e-3 L
+        self.assertEqual((st["negative"], st["zero"]), (0, 0))
+        self.assertGreater(st["min_relative"], 0)  # measured 3.58e-8
+        self.assertAlmostEqual(st["equilibrium_distance"], 1.304e-3, delta=2e-6)  # measured 1.3043e-3
+        self.assertIn("moved away", st["message"])
+        # Independent verdicts: the Hessian at the target at the same 50 edges, and the
+        # equilibrium verdict at the default 100 edges (distance 6.06e-4 < 1e-3).
+        self.assertTrue(parafab.design_rod(dict(req, stability_at="target"))["stability"]["stable"])
+        del req["stability_edges"]
+        fine = parafab.design_rod(req)["stability"]
+        self.assertEqual(fine["verdict"], "stable")
+        self.assertFalse(fine["moved_away"])
+        self.assertLess(fine["equilibrium_distance"], 1e-3)
 
     def test_section_factor_elongates_along_bending_axis(self):
         r = parafab.design_rod({"curve": {"points": helix_points()}, "section": {"factor": 4.0}})
