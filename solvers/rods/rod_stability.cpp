@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include "common/error.h"
 
@@ -42,6 +43,9 @@ RodStability rod_stability(const DiscreteRodModel& m, const RodStabilityOptions&
   out.stable = out.negative == 0 && out.zero == 0;
   if (out.negative > 0)
     out.message = std::to_string(out.negative) + " negative eigenvalue(s): an unstable equilibrium";
+  else if (out.zero > 0)
+    out.message = std::to_string(out.zero) + " zero eigenvalue(s): no verdict from second order";
+  out.verdict = out.stable ? "stable" : "unstable";
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
@@ -65,19 +69,48 @@ RodStability rod_stability_at_equilibrium(const DiscreteRodModel& m, const Discr
   for (size_t i = 1; i < m.nodes.size(); ++i) length += (m.nodes[i] - m.nodes[i - 1]).norm();
   const double distance = max_node_distance(r.nodes, m.nodes) / length;
   RodStability out;
-  if (r.ok() && distance <= o.max_distance) {
+  const bool moved_away = distance > o.max_distance;
+  // The inertia at the equilibrium the rod reached, wherever it lies (before, a rod farther than
+  // max_distance was declared unstable with no Hessian computed: negative 0 reported, and a
+  // stable rod at a coarse discretization, 1.3e-3 L off the target, was called unstable).
+  if (r.ok()) {
     DiscreteRodModel at = m;
     at.nodes = r.nodes;
     at.material_normal = r.material_normal;
     out = rod_stability(at, o.hessian);
-  } else {
-    out.stable = false;
-    if (distance > o.max_distance)
-      out.message = "the discrete rod leaves the target: " +
-                    std::string(r.ok() ? "its equilibrium lies " : "the simulation, not converged, is ") +
-                    std::to_string(distance) + " of the length away (an unstable design)";
-    else
-      out.message = "the forward simulation from the target did not converge (" + r.message + ")";
+  }
+  out.equilibrium_stable = r.ok() && out.stable;
+  out.stable = out.equilibrium_stable && !moved_away;
+  out.moved_away = moved_away;
+  out.verdict = out.stable ? "stable" : out.equilibrium_stable ? "moved_away" : "unstable";
+  // Settled stably far away: an unstable target (the rod left it for a buckled state) or a
+  // coarse rod whose equilibrium is off the target. The target's own Hessian tells them apart
+  // when it is indefinite (it can be barely positive near a bifurcation: then "moved_away").
+  std::string target_note;
+  if (out.verdict == "moved_away") {
+    const RodStability at_target = rod_stability(m, o.hessian);
+    if (!at_target.stable) {
+      out.verdict = "unstable";
+      target_note = "; the target itself is unstable (" +
+                    (at_target.message.empty() ? std::string("not positive definite") : at_target.message) + ")";
+    }
+  }
+  char dist[32];
+  std::snprintf(dist, sizeof dist, "%.3g", distance);
+  if (!r.ok()) {
+    out.message = "the forward simulation from the target did not converge (" + r.message + ")" +
+                  (moved_away ? std::string("; it stopped ") + dist + " of the length away: the rod leaves the target"
+                              : std::string());
+  } else if (moved_away) {
+    const std::string where = std::string("the discrete rod moved away from the target: its equilibrium lies ") +
+                              dist + " of the length away";
+    out.message = out.verdict == "unstable"
+                      ? where + (out.equilibrium_stable ? std::string(", stable there")
+                                                         : " and " + out.message + " there") +
+                            ": the rod leaves the target" + target_note
+                      : where + " and is stable there (positive definite Hessian), the target's Hessian too: "
+                                "the discretization error of a coarse rod (then more edges bring it back) or "
+                                "another state near a bifurcation";
   }
   out.method = "hessian_at_equilibrium";
   out.equilibrium_distance = distance;

@@ -21,12 +21,15 @@ struct RodEquilibriumStabilityOptions {
   RodStabilityOptions hessian;
   DiscreteRodOptions simulation;
   /// The discrete equilibrium counts as the design's when no node is farther than this ·
-  /// length from the target; otherwise the rod leaves the target and the verdict is unstable.
+  /// length from the target; otherwise the rod moved away from the target (`moved_away`), and
+  /// the design is not `stable` whatever the inertia at the reached equilibrium says.
   double max_distance = 1e-3;
 };
 
 struct RodStability {
-  bool stable = false;         ///< no negative and no zero eigenvalue
+  /// no negative and no zero eigenvalue (hessian_at_equilibrium: at the reached equilibrium,
+  /// and that equilibrium is the design's: not moved_away)
+  bool stable = false;
   int negative = 0, zero = 0, positive = 0;
   int free_dofs = 0;
   double min_eigenvalue = NAN;  ///< smallest eigenvalue of the free Hessian [J per DOF unit²]
@@ -37,6 +40,18 @@ struct RodStability {
   /// hessian_at_equilibrium: max node distance of the discrete equilibrium from the target / length
   double equilibrium_distance = NAN;
   bool equilibrium_converged = false;
+  /// hessian_at_equilibrium: the equilibrium lies more than max_distance · length from the
+  /// target. The inertia above is still that of the reached equilibrium (computed whenever the
+  /// simulation converged): positive definite there means the rod settles stably somewhere
+  /// else — a coarse discretization (its equilibrium is O(h²) off the target) or another
+  /// state (a buckled helix) —, `equilibrium_stable` says which.
+  bool moved_away = false;
+  /// hessian_at_equilibrium: the reached equilibrium's Hessian has no negative or zero
+  /// eigenvalue (false when the simulation did not converge)
+  bool equilibrium_stable = false;
+  /// "stable", "unstable" (a negative or zero eigenvalue where the rod settles, or no
+  /// converged equilibrium) or "moved_away" (settles stably, but away from the target)
+  std::string verdict;
   std::string message;
 };
 

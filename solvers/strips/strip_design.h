@@ -23,8 +23,8 @@ struct StripDesignOptions {
   /// Yield strain ε_y of the material (σ_y / E); +∞: unknown. The bending strain h·|κ − κ₀|/2
   /// is reported for every design; a design whose strain exceeds ε_y is refused (parafab::Error
   /// naming `material_name`, the strain and s) unless the moment law models plasticity (a
-  /// finite law.curvature_limit). `strain_thickness` > 0 replaces h (e.g. the thicker layer
-  /// of a composite strip).
+  /// finite law.curvature_limit). `strain_thickness` > 0 replaces h (e.g. h₁ + h₂ of a
+  /// composite strip's glued laminate, §4.7.1).
   double yield_strain = INFINITY;
   std::string material_name;
   double strain_thickness = 0;

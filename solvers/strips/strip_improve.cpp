@@ -442,6 +442,20 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
                  "target_R must be a ratio >= 1, got " << o.target_R);
   PARAFAB_VERIFY(!input.rational(), "curve.bspline.weights: fabricability optimization moves the poles of a "
                                     "non-rational B-spline; give the curve without weights");
+  // The descent lowers R_p of LP Eq. 4.4 (clamped ends, κ₀ = 0, linear law, §4.3.2); a design
+  // with other ends, a natural curvature or a nonlinear law has another LP (§4.3.3, App. A.5),
+  // whose R the descent does not lower: refused rather than reported as done on Eq. 4.4.
+  // Gravity is accounted for afterwards (Eq. 4.6, §4.6.2) and `done` tests that design.
+  if (!o.design.boundary.kinematic())
+    PARAFAB_INPUT_ERROR("boundary: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 with "
+                        "clamped ends; free ends are not supported, remove \"boundary\" (or its free_x / free_y / "
+                        "free_angle) from the request");
+  if (o.design.natural_curvature != 0)
+    PARAFAB_INPUT_ERROR("natural_curvature: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 "
+                        "without natural curvature, got " << o.design.natural_curvature << " 1/m; remove it");
+  if (!o.design.law.linear())
+    PARAFAB_INPUT_ERROR("material.law: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 with "
+                        "the linear moment law; remove material.law");
   StripImproveResult res(input);
   BSplineCurve2 curve = input;
   if (curve.degree() < o.min_degree) {  // control points of degree ≥ 4 (thesis §4.5.4)
@@ -458,9 +472,10 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
   }
   StripDesignOptions plain = o.design;
   plain.gravity = StripGravity{};
-  // R as the target test sees it: the certified upper bound (the ratio of the LP's line on the
-  // continuous curve), so that any finer design of the result stays ≤ target.
-  auto upper = [](const StripDesign& d) { return std::isfinite(d.R_continuous) ? d.R_continuous : d.R; };
+  // R as the target test sees it: the estimate R_continuous of the ratio of the LP's line on the
+  // continuous curve (sampled extrema refined; an estimate, not a certified bound), so that a
+  // finer design of the result stays ≤ target unless a peak of K hides between samples.
+  auto estimate = [](const StripDesign& d) { return std::isfinite(d.R_continuous) ? d.R_continuous : d.R; };
   const StripDesign d0 = design_strip(curve, plain);
   if (!d0.feasible)
     PARAFAB_INPUT_ERROR("curve: not an equilibrium curve, so there is no R to lower (" << d0.reason_code << ": "
@@ -469,7 +484,7 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
   const double l = d0.length;
   std::vector<double> infl = inflection_parameters(curve);
   std::optional<StripDesign> last;  // the plain design of the current result, when known
-  if (upper(d0) <= o.target_R) {
+  if (estimate(d0) <= o.target_R) {
     res.done = true;
     res.status = "already";
     res.curve = curve;
@@ -504,7 +519,7 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
       if (grad) *grad = r.gradient / r.value;
       return std::log(r.value);
     };
-    // The descent stops on the samples' R; the certified R of the design may sit slightly
+    // The descent stops on the samples' R; the estimated R of the design may sit slightly
     // above (a peak between samples): then continue with the sample target lowered by the excess.
     BSplineCurve2 current = curve;
     double sample_target = o.target_R;
@@ -523,22 +538,36 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
       last.reset();
       if (dr.status != "target") break;
       last = design_strip(current, plain);
-      if (!last->feasible || upper(*last) <= o.target_R) break;
-      sample_target *= o.target_R / upper(*last) * 0.999;
+      if (!last->feasible || estimate(*last) <= o.target_R) break;
+      sample_target *= o.target_R / estimate(*last) * 0.999;
       target_now = sample_target;
     }
     res.curve = current;
   }
-  // Final figures: the certified design of the result, and the requested design (gravity:
+  // Final figures: the design of the result (tolerance 1e-3), and the requested design (gravity:
   // LP Eq. 4.6 afterwards, §4.6.2).
   const StripDesign d1 = last ? *last : (res.status == "already" ? d0 : design_strip(res.curve, plain));
   res.R = d1.feasible ? d1.R : NAN;
-  res.R_upper = d1.feasible ? upper(d1) : NAN;
-  res.done = d1.feasible && res.R_upper <= o.target_R;
+  res.R_estimate = d1.feasible ? estimate(d1) : NAN;
+  res.done = d1.feasible && res.R_estimate <= o.target_R;
   if (!res.done && res.status == "target") res.status = "target_on_samples";
   const bool same = !o.design.gravity.enabled;  // plain == o.design then
   res.design = same ? d1 : design_strip(res.curve, o.design);
-  if (o.design.gravity.enabled && res.design.feasible) res.R_gravity = res.design.R;
+  if (o.design.gravity.enabled) {
+    // done is the requested design's: R under gravity (a sampled optimum on nested grids,
+    // §4.4) must meet the target too, not only R of Eq. 4.4 that the descent lowered.
+    res.R_gravity = res.design.feasible ? res.design.R : NAN;
+    if (res.done && !(res.R_gravity <= o.target_R)) {
+      res.done = false;
+      res.status = "target_without_gravity";
+      std::ostringstream m;
+      m << "R without gravity " << res.R_estimate << " <= target " << o.target_R << ", but the requested design "
+        << "under gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
+      if (res.design.feasible) m << "R_gravity " << res.R_gravity << " > target";
+      else m << "no feasible design (" << res.design.reason << ")";
+      res.message = m.str();
+    }
+  }
   res.inflections = static_cast<int>(inflection_parameters(res.curve).size());
   {
     const Eigen::VectorXd d = poles_vector(res.curve) - poles_vector(curve);

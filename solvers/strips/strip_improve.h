@@ -119,8 +119,10 @@ struct StripImproveOptions {
   int deviation_samples = 400;  ///< for the curve deviation
   StripConstraintOptions constraints;
   /// The designs of the input and the result (gravity here: Eq. 4.6 afterwards). Default:
-  /// certified tolerance 1e-3 on R with at most 4097 samples (the solver's 1e-6 can take
-  /// seconds on curves whose K peaks sharply); the target test uses the certified upper bound.
+  /// tolerance 1e-3 on the estimated gap of R with at most 4097 samples (the solver's 1e-6 can
+  /// take seconds on curves whose K peaks sharply); the target test uses the continuous-curve
+  /// estimate R_continuous (sampled extrema of K refined: an estimate, not a certified bound;
+  /// StripDesignOptions::tolerance).
   StripDesignOptions design = [] {
     StripDesignOptions d;
     d.tolerance = 1e-3;
@@ -137,7 +139,11 @@ struct StripImproveResult {
   BSplineCurve2 curve;          ///< the improved curve
   double R_initial = NAN;       ///< design_strip's R of the input
   double R = NAN;               ///< design_strip's R of the result (no gravity)
-  double R_upper = NAN;         ///< its certified upper bound (R_continuous); done ⇔ R_upper ≤ target
+  /// its continuous-curve estimate R_continuous (the LP line's ratio with the 16 largest and
+  /// smallest sampled extrema of K refined; NOT a certified upper bound: a peak of K between
+  /// samples that is no sampled extremum is missed); done ⇔ R_estimate ≤ target (and, under
+  /// gravity, R_gravity ≤ target). JSON: `R_estimate`, and `R_upper` as a deprecated alias.
+  double R_estimate = NAN;
   double R_gravity = NAN;       ///< with the requested gravity (LP Eq. 4.6), if any
   double max_pole_move = 0;     ///< max |P − P₀| [length units]
   double deviation = 0;         ///< max over samples of the distance to the input curve (sampled Hausdorff)

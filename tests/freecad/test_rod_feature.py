@@ -198,7 +198,7 @@ class TestRodFeature(RodTestCase):
         self.assertGreater(rod.LoadIterations, 1)
         self.assertEqual(rod.LoadIterations, expected["load_iterations"]["iterations"])
         self.assertGreaterEqual(rod.Deviation, 0.0)
-        self.assertLess(rod.Deviation, 1e-3)
+        self.assertLess(rod.Deviation, 4.5e-4)  # measured 2.67e-4 (2026-11-28); before: 1e-3
         self.assertAlmostEqual(rod.Deviation, expected["simulation"]["deviation"], delta=1e-12)
         self.assertGreater(rod.TwistMax, 1.0)
 

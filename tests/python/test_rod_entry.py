@@ -7,7 +7,7 @@
   ParaFab's normalized R; an infeasible curve must be infeasible for HiGHS too.
 * A helix (a parallel curve, Prop. 7) gives zero twist and circular, constant sections.
 * validate=true: the forward simulation (discrete elastic rod) of the sample designs stays
-  within 1e-3·L of the target.
+  within 1.5-2x its measured deviation (VALIDATED_DEVIATION, at most 9e-4·L) of the target.
 * κ = 0: the CLI exits 2 with a JSON error naming the arc length; the module raises
   parafab.Error (a ValueError). Missing/invalid fields are named in the error.
 
@@ -210,12 +210,41 @@ class HelixThroughJson(unittest.TestCase):
                 self.assertGreater(at_target["negative"], 0)
                 self.assertGreater(st["equilibrium_distance"], 0.01)  # the rod leaves the target
                 self.assertIn("leaves the target", st["message"])
+                self.assertEqual(st["verdict"], "unstable")
+                self.assertTrue(st["moved_away"])
                 self.assertGreater(sim["deviation"], 0.01)
         with self.assertRaises(parafab.Error) as cm:
             parafab.design_rod({"curve": {"points": helix_points()}, "stability_at": "middle"})
         self.assertIn("stability_at", str(cm.exception))
         r = parafab.design_rod({"curve": {"points": helix_points()}, "stability": False})
         self.assertIsNone(r["stability"])
+
+    def test_coarse_rod_that_moved_away_gets_its_inertia(self):
+        """sculpture_segment_0 with stability_edges 50: the coarse rod's equilibrium lies
+        1.30e-3 L from the target (beyond max_distance 1e-3). Before the fix the verdict was
+        "unstable" ("leaves the target") with no Hessian computed (negative 0, min_relative
+        null); now the inertia at the reached equilibrium is computed (positive definite),
+        the verdict is "moved_away", and the Hessian at the target agrees it is stable."""
+        req = sample("sculpture_segment_0")
+        req["stability_edges"] = 50
+        st = parafab.design_rod(req)["stability"]
+        self.assertEqual(st["method"], "hessian_at_equilibrium")
+        self.assertEqual(st["verdict"], "moved_away")
+        self.assertTrue(st["moved_away"])
+        self.assertTrue(st["equilibrium_stable"])
+        self.assertFalse(st["stable"])  # the design is not reproduced within 1e-3 L
+        self.assertEqual((st["negative"], st["zero"]), (0, 0))
+        self.assertGreater(st["min_relative"], 0)  # measured 3.58e-8
+        self.assertAlmostEqual(st["equilibrium_distance"], 1.304e-3, delta=2e-6)  # measured 1.3043e-3
+        self.assertIn("moved away", st["message"])
+        # Independent verdicts: the Hessian at the target at the same 50 edges, and the
+        # equilibrium verdict at the default 100 edges (distance 6.06e-4 < 1e-3).
+        self.assertTrue(parafab.design_rod(dict(req, stability_at="target"))["stability"]["stable"])
+        del req["stability_edges"]
+        fine = parafab.design_rod(req)["stability"]
+        self.assertEqual(fine["verdict"], "stable")
+        self.assertFalse(fine["moved_away"])
+        self.assertLess(fine["equilibrium_distance"], 1e-3)
 
     def test_section_factor_elongates_along_bending_axis(self):
         r = parafab.design_rod({"curve": {"points": helix_points()}, "section": {"factor": 4.0}})
@@ -237,6 +266,13 @@ class HelixThroughJson(unittest.TestCase):
         self.assertEqual(r["bspline"]["weights"], [1, w, 1])
 
 
+# Deviation / L of the forward simulation per validated sample, measured 2026-11-28 (helix
+# 1.32e-5, plane_arc 5.95e-5, sculpture_segment_0 6.06e-4, _1 2.71e-4, _2 2.83e-4): bounds at
+# about 1.5-2x the measured figure (before: 1e-3 for all, up to 76x the measured figure).
+VALIDATED_DEVIATION = {"helix": 2.5e-5, "plane_arc": 1.2e-4, "sculpture_segment_0": 9e-4,
+                       "sculpture_segment_1": 5e-4, "sculpture_segment_2": 5e-4}
+
+
 class ValidateBySimulation(unittest.TestCase):
     def test_samples_are_reproduced_by_the_forward_simulation(self):
         for path in sorted(glob.glob(os.path.join(SAMPLES, "*.json"))):
@@ -252,7 +288,8 @@ class ValidateBySimulation(unittest.TestCase):
                       % (name, sim["deviation"], sim["max_distance"] * 1e3, sim["iterations"],
                          r["load_iterations"]["iterations"]), file=sys.stderr)
                 self.assertTrue(sim["converged"], sim["message"])
-                self.assertLessEqual(sim["deviation"], 1e-3)
+                self.assertIn(name, VALIDATED_DEVIATION, "a new validated sample: measure its deviation")
+                self.assertLessEqual(sim["deviation"], VALIDATED_DEVIATION[name])
                 if req.get("loads", {}).get("dead_load"):
                     hist = r["load_iterations"]["history"]
                     self.assertLess(hist[-1], 1e-10)
@@ -264,7 +301,7 @@ class ValidateBySimulation(unittest.TestCase):
         r = parafab.design_rod(req)
         # Simulated with the same (empty) loads it is reproduced; the contrast case (design
         # without, simulation with gravity) is in the C++ suite.
-        self.assertLess(r["simulation"]["deviation"], 1e-3)
+        self.assertLess(r["simulation"]["deviation"], 4e-4)  # measured 2.50e-4 (2026-11-28)
         self.assertEqual(r["load_iterations"]["iterations"], 0)
 
 

@@ -58,6 +58,31 @@ class Strain(unittest.TestCase):
         res = parafab.design_strip(req)
         self.assertIsNone(res["strain"]["yield_ratio"])
 
+    def test_composite_strain_is_that_of_the_laminate(self):
+        # Two glued 0.3 mm layers on an arc of r = 3 cm: the laminate's outer fibre lies
+        # (h1 + h2)/2 from the mid-plane the stiffness (h1 + h2)³ w2 bends about, so
+        # ε = 0.6e-3 / (2 · 0.03) = 0.01, 1.33 × cardboard's 0.0075: refused. Before the fix the
+        # thicker layer alone gave 0.005 and the design was accepted with yield_ratio 0.667.
+        h1 = h2 = 0.3e-3
+        r = 0.03
+        req = {"curve": arc(r), "material": {"E": 7.73e8, "thickness": h1, "yield_strain": 0.0075,
+                                             "name": "Cardboard 200 gsm"},
+               "min_width": 0.02, "composite": {"h1": h1, "h2": h2, "outer_width": 0.05}}
+        with self.assertRaises(parafab.Error) as cm:
+            parafab.design_strip(req)
+        self.assertIn('"Cardboard 200 gsm" yields', str(cm.exception))
+        p = run_cli(req)
+        self.assertEqual(p.returncode, 2, p.stdout + p.stderr)
+        self.assertIn('"Cardboard 200 gsm" yields', json.loads(p.stdout)["error"]["message"])
+        # With a yield strain above it: designed, strain and ratio by the closed form.
+        req["material"]["yield_strain"] = 0.0125
+        res = parafab.design_strip(req)
+        self.assertTrue(res["feasible"], res["reason"])
+        # measured differences from the closed form: 0, 5.2e-18, 4.4e-16
+        self.assertAlmostEqual(res["strain"]["thickness"], h1 + h2, delta=1e-18)
+        self.assertAlmostEqual(res["strain"]["max"], (h1 + h2) / (2 * r), delta=1e-17)
+        self.assertAlmostEqual(res["strain"]["yield_ratio"], (h1 + h2) / (2 * r) / 0.0125, delta=1e-15)
+
     def test_ideal_plasticity_is_designed(self):
         # κ = 40 > κ_lim = 20 everywhere: κ_eff constant, K constant (R = 1).
         req = {"curve": arc(0.025), "material": {"E": 3e9, "thickness": 3e-4,

@@ -75,6 +75,13 @@ class StripStabilizeEntry(unittest.TestCase):
         self.assertLess(before, 0)
         self.assertGreater(after, 0)
         self.assertAlmostEqual(r["design"]["R"], r["R_after"], delta=1e-9 * r["R_after"])
+        # R_max = 10 bounds the p-norm estimate R_p (<= R), not R: R_after is above R_max
+        # (README; measured 2026-11-28: R_after 12.71, last R_p 10.014, largest R_p 10.084).
+        self.assertEqual(r["R_max"], 10.0)
+        self.assertGreater(r["R_after"], 12.5)
+        self.assertLess(r["R_after"], 12.9)
+        self.assertLess(r["history"][-1]["R_p"], 10.03)
+        self.assertLess(max(h["R_p"] for h in r["history"]), 10.15)
         self.assertLess(r["deviation_relative"], 0.003)  # measured 0.0025
         # The sample runs on the R_max bound: trials that overshoot it return onto it (measured
         # 17 returns, 13 rejected trials); at most two returns per trial (bound_returns = 2).

@@ -276,6 +276,10 @@ json design_rod_json(const json& request) {
                             : validation && edges == stability_edges ? rod_stability_at_equilibrium(m, *validation)
                                                                      : rod_stability_at_equilibrium(m);
     out["stability"] = {{"stable", st.stable},          {"method", st.method},
+                        {"verdict", st.verdict},
+                        {"moved_away", st.method == "hessian_at_equilibrium" ? json(st.moved_away) : json(nullptr)},
+                        {"equilibrium_stable",
+                         st.method == "hessian_at_equilibrium" ? json(st.equilibrium_stable) : json(nullptr)},
                         {"equilibrium_distance", num(st.equilibrium_distance)},
                         {"negative", st.negative},      {"zero", st.zero},
                         {"free_dofs", st.free_dofs},    {"min_eigenvalue", num(st.min_eigenvalue)},

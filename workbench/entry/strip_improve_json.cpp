@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "common/error.h"
 #include "json_fields.h"
@@ -69,6 +70,25 @@ std::pair<BSplineCurve2, json> fair_points_json(const std::vector<Vec2>& P, cons
 
 json improve_strip_json(const json& request, double target_R) {
   if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  // The descent lowers R of LP Eq. 4.4 (clamped ends, κ₀ = 0, linear law; thesis §4.6.2), as
+  // improve_strip_fabricability does: other designs are refused (as strip-stabilize does), not
+  // reported as done on Eq. 4.4. Gravity is designed afterwards (Eq. 4.6) and done tests it.
+  for (const char* k : {"boundary", "natural_curvature"})
+    if (request.contains(k) && !request[k].is_null())
+      PARAFAB_INPUT_ERROR(k << ": fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 with clamped "
+                            "ends and no natural curvature; remove \"" << k << "\" from the request (got "
+                            << request[k].dump() << ")");
+  if (request.contains("material") && request["material"].is_object() && request["material"].contains("law"))
+    PARAFAB_INPUT_ERROR("material.law: fabricability optimization (thesis §4.6.2) lowers R of LP Eq. 4.4 with the "
+                        "linear moment law; remove material.law (got " << request["material"]["law"].dump() << ")");
+  const bool gravity = request.contains("gravity") && !request["gravity"].is_null() &&
+                       !(request["gravity"].is_boolean() && !request["gravity"].get<bool>());
+  // The final design: the strip request itself (material, gravity, ...) if it has one.
+  const bool has_design = request.contains("material") && request.contains("min_width");
+  if (gravity && !has_design)
+    PARAFAB_INPUT_ERROR("gravity: strip-improve designs the result under gravity (LP Eq. 4.6) with the request's "
+                        "material and min_width; give both (missing "
+                        << (request.contains("material") ? "min_width" : "material") << ")");
   StripImproveOptions o;
   const json imp = request.value("improve", json::object());
   only(imp, "improve", {"target_R", "max_iterations", "p", "samples", "max_seconds", "global_every",
@@ -106,8 +126,6 @@ json improve_strip_json(const json& request, double target_R) {
     }
     return parse_strip_curve(request);
   }();
-  // The final design: the strip request itself (material, gravity, ...) if it has one.
-  const bool has_design = request.contains("material") && request.contains("min_width");
   const StripImproveResult r = improve_strip_fabricability(curve, o);
 
   json out;
@@ -117,7 +135,10 @@ json improve_strip_json(const json& request, double target_R) {
   out["target_R"] = o.target_R;
   out["R_initial"] = num(r.R_initial);
   out["R"] = num(r.R);
-  out["R_upper"] = num(r.R_upper);
+  // R_continuous of the result's design: an estimate (sampled extrema refined), not a certified
+  // bound. R_upper is the same number under its former, misleading name (deprecated alias).
+  out["R_estimate"] = num(r.R_estimate);
+  out["R_upper"] = num(r.R_estimate);
   out["bspline"] = bspline_json(r.curve);
   out["original_bspline"] = bspline_json(curve);
   out["max_pole_move"] = r.max_pole_move;
@@ -137,13 +158,24 @@ json improve_strip_json(const json& request, double target_R) {
   if (has_design) {
     json req = request;
     req.erase("improve");
-    // As the improvement's own R (StripImproveOptions::design): certified to 1e-3 unless the
-    // request sets its own tolerance.
+    // As the improvement's own R (StripImproveOptions::design): tolerance 1e-3 on the estimated
+    // gap unless the request sets its own tolerance.
     if (!req.contains("tolerance")) req["tolerance"] = 1e-3;
     if (!req.contains("max_samples")) req["max_samples"] = 4097;
     req["curve"] = {{"bspline", bspline_json(r.curve)}};
     out["design"] = design_strip_json(req);  // gravity, if requested: LP Eq. 4.6 afterwards
-    out["R_gravity"] = req.contains("gravity") ? out["design"]["R"] : json(nullptr);
+    out["R_gravity"] = gravity ? out["design"]["R"] : json(nullptr);
+    // done is the requested design's: under gravity its R (null: infeasible) meets the target too.
+    if (gravity && r.done && !(out["R_gravity"].is_number() && out["R_gravity"].get<double>() <= o.target_R)) {
+      out["done"] = false;
+      out["status"] = "target_without_gravity";
+      std::ostringstream m;
+      m << "R without gravity " << r.R_estimate << " <= target " << o.target_R << ", but the requested design under "
+        << "gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
+      if (out["R_gravity"].is_number()) m << "R_gravity " << out["R_gravity"].get<double>() << " > target";
+      else m << "no feasible design (" << out["design"].value("reason", std::string()) << ")";
+      out["message"] = m.str();
+    }
   } else {
     out["design"] = nullptr;
     out["R_gravity"] = nullptr;

@@ -320,7 +320,10 @@ json_write::ColumnarResult design_strip_columns(const json& request) {
     o.composite.outer_width = composite_w1;
     if (c.contains("inner_density_ratio"))
       o.composite.inner_density_ratio = positive(c["inner_density_ratio"], "composite.inner_density_ratio");
-    o.strain_thickness = std::max(co.outer_thickness, co.inner_thickness);  // the thicker layer
+    // The glued laminate's outer fibre: the stiffness cK = h₁³w₁ + ((h₁+h₂)³ − h₁³)w₂ (§4.7.1,
+    // composite_strip.h) bends the full h₁ + h₂ about its mid-plane, so ε = (h₁ + h₂)·|κ|/2
+    // (before: the thicker layer alone, max(h₁, h₂), half the strain for equal layers).
+    o.strain_thickness = co.outer_thickness + co.inner_thickness;
   }
   PerforatedStripOptions po;
   double perforated_w = 0;

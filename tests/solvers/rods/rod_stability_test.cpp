@@ -76,6 +76,8 @@ TEST(RodStability, VerdictAtTheDiscreteEquilibriumCatchesTheNearBifurcationCase)
     EXPECT_EQ(reused.stable, st.stable);
     EXPECT_EQ(reused.negative, st.negative);
     EXPECT_EQ(reused.equilibrium_distance, st.equilibrium_distance);
+    EXPECT_EQ(st.verdict, factor < 2 ? "unstable" : "stable") << "factor " << factor;
+    EXPECT_EQ(st.moved_away, factor < 2) << "factor " << factor;
     if (factor == 1.5) {
       EXPECT_TRUE(at_target.stable);  // the known blind spot of the target verdict
       EXPECT_FALSE(st.stable);

@@ -214,10 +214,10 @@ TEST(GravityLp, GravitoBendingParameterFromMaterial) {
 namespace parafab {
 namespace {
 
-TEST(GravityDesign, GeneralPathWithoutGravityMatchesTheCertifiedEq44Design) {
+TEST(GravityDesign, GeneralPathWithoutGravityMatchesTheEq44Design) {
   for (const auto& curve : {test::ellipse_arc(), test::one_inflection(), test::two_inflections(),
                             test::three_inflections()}) {
-    const StripDesign ref = design_strip(curve, StripDesignOptions{});  // certified gap 1e-6
+    const StripDesign ref = design_strip(curve, StripDesignOptions{});  // estimated gap 1e-6
     StripDesignOptions o;
     o.fixed_samples = 2049;  // routes through the gravity LP with gravity off
     const StripDesign g = design_strip(curve, o);

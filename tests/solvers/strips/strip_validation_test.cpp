@@ -159,10 +159,12 @@ TEST(StripValidation, EndForceOfTheLpMatchesTheSimulatorsReaction) {
 TEST(StripValidation, HeavyStripDesignedWithoutGravitySags) {
   // Cardboard strips designed with Eq. 4.4 sag under their weight; designed with Eq. 4.6
   // (gravity in the LP) they hold their shape (the spiral is the analogue of Fig. 4.7).
-  struct Case { const char* name; BSplineCurve2 curve; double min_sag; };
-  const std::vector<Case> cases = {{"ellipse arc", test::ellipse_arc(), 1e-2},
-                                   {"one inflection", test::one_inflection(), 1e-2},
-                                   {"spiral", test::spiral(), 5e-2}};
+  // max_deviation: about 1.6-2x the deviation with gravity measured 2026-11-28 (9.1e-7,
+  // 6.1e-7, 2.5e-6; before: 1e-5 for all three).
+  struct Case { const char* name; BSplineCurve2 curve; double min_sag, max_deviation; };
+  const std::vector<Case> cases = {{"ellipse arc", test::ellipse_arc(), 1e-2, 1.5e-6},
+                                   {"one inflection", test::one_inflection(), 1e-2, 1.2e-6},
+                                   {"spiral", test::spiral(), 5e-2, 4e-6}};
   const StripDesignOptions with = cardboard(true), without = cardboard(false);
   for (const auto& c : cases) {
     const StripDesign d0 = design_strip(c.curve, without), d1 = design_strip(c.curve, with);
@@ -172,7 +174,7 @@ TEST(StripValidation, HeavyStripDesignedWithoutGravitySags) {
     std::printf("[ %s, cardboard ] designed without gravity: deviation %.3g (%.1f mm); with "
                 "gravity: %.3g\n", c.name, sag.deviation, 1e3 * sag.max_distance, ok.deviation);
     EXPECT_GT(sag.deviation, c.min_sag) << c.name;
-    EXPECT_LT(ok.deviation, 1e-5) << c.name;
+    EXPECT_LT(ok.deviation, c.max_deviation) << c.name;
   }
 }
 

@@ -78,13 +78,14 @@ _PROPERTIES = (
     ("App::PropertyFloat", "Deviation", "Results",
      "Validate: max distance of the simulated rod from the curve / length (-1 when not simulated)", -1.0, _RO),
     ("App::PropertyString", "Stability", "Results",
-     "Stable or Unstable: inertia of the discrete rod's energy Hessian at its equilibrium near the "
+     "Stable, Unstable or Moved away (stable where the rod settles, but more than 1e-3 of the length "
+     "from the target): inertia of the discrete rod's energy Hessian at the equilibrium reached from the "
      "design (thesis section 4.5.1 on the rod of section 5.7.4); empty when not designed", "", _RO),
     ("App::PropertyInteger", "NegativeEigenvalues", "Results",
      "Number of negative eigenvalues of that Hessian (0 when stable)", 0, _RO),
     ("App::PropertyFloat", "MinRelativeEigenvalue", "Results",
      "Smallest eigenvalue of that Hessian over its largest diagonal entry (near 0: close to buckling; "
-     "0 when the rod leaves the target)", 0.0, _RO),
+     "0 when the simulation from the target does not converge)", 0.0, _RO),
     ("App::PropertyFloat", "EquilibriumDistance", "Results",
      "Distance of the discrete rod's equilibrium, found from the target, to the target / length "
      "(large: the rod leaves, unstable; -1 when not computed)", -1.0, _RO),
@@ -193,7 +194,10 @@ class RodFeature(feature_proxy.FeatureProxy):
             obj.Deviation = float(result["simulation"]["deviation"])
         stability = result.get("stability")
         if stability:
-            obj.Stability = "Stable" if stability["stable"] else "Unstable"
+            # "Moved away": stable where the rod settles, but farther than 1e-3 L from the
+            # target (e.g. a coarse stability discretization)
+            obj.Stability = {"stable": "Stable", "moved_away": "Moved away"}.get(
+                stability.get("verdict"), "Stable" if stability["stable"] else "Unstable")
             obj.NegativeEigenvalues = int(stability["negative"])
             # null when the rod leaves the target (no equilibrium near it to take the Hessian at)
             mr = stability.get("min_relative")
