@@ -405,35 +405,57 @@ PoleDescentResult descend_poles(const BSplineCurve2& input, const PoleObjective&
   return res;
 }
 
+namespace {
+// Distance from x to the curve Y, given n samples (yu, yp) of Y: the nearest sample, refined
+// by Newton on ⟨Y(u) − x, Y'(u)⟩ = 0.
+double distance_to_curve(const BSplineCurve2& Y, const std::vector<double>& yu, const std::vector<Vec2>& yp,
+                         const Vec2& x) {
+  size_t best = 0;
+  for (size_t k = 1; k < yp.size(); ++k)
+    if ((yp[k] - x).squaredNorm() < (yp[best] - x).squaredNorm()) best = k;
+  double u = yu[best];
+  for (int it = 0; it < 20; ++it) {
+    const auto d = Y.derivatives(u);
+    const double g = (d[0] - x).dot(d[1]), hh = d[1].squaredNorm() + (d[0] - x).dot(d[2]);
+    if (hh <= 0) break;
+    const double un = std::clamp(u - g / hh, Y.first_parameter(), Y.last_parameter());
+    if (std::abs(un - u) < 1e-15) { u = un; break; }
+    u = un;
+  }
+  return std::min((Y.point(u) - x).norm(), (yp[best] - x).norm());
+}
+
+void sample_curve(const BSplineCurve2& Y, int n, std::vector<double>& yu, std::vector<Vec2>& yp) {
+  yu.resize(n), yp.resize(n);
+  for (int i = 0; i < n; ++i) {
+    yu[i] = Y.first_parameter() + (Y.last_parameter() - Y.first_parameter()) * i / (n - 1);
+    yp[i] = Y.point(yu[i]);
+  }
+}
+}  // namespace
+
 double curve_deviation(const BSplineCurve2& A, const BSplineCurve2& B, int samples) {
   auto one_sided = [&](const BSplineCurve2& X, const BSplineCurve2& Y) {
     const int n = std::max(8, samples);
-    std::vector<Vec2> yp(n);
-    std::vector<double> yu(n);
-    for (int i = 0; i < n; ++i) {
-      yu[i] = Y.first_parameter() + (Y.last_parameter() - Y.first_parameter()) * i / (n - 1);
-      yp[i] = Y.point(yu[i]);
-    }
+    std::vector<Vec2> yp;
+    std::vector<double> yu;
+    sample_curve(Y, n, yu, yp);
     double worst = 0;
-    for (int i = 0; i < n; ++i) {
-      const Vec2 x = X.point(X.first_parameter() + (X.last_parameter() - X.first_parameter()) * i / (n - 1));
-      int best = 0;
-      for (int k = 1; k < n; ++k)
-        if ((yp[k] - x).squaredNorm() < (yp[best] - x).squaredNorm()) best = k;
-      double u = yu[best];
-      for (int it = 0; it < 20; ++it) {  // Newton on ⟨Y(u) − x, Y'(u)⟩ = 0
-        const auto d = Y.derivatives(u);
-        const double g = (d[0] - x).dot(d[1]), hh = d[1].squaredNorm() + (d[0] - x).dot(d[2]);
-        if (hh <= 0) break;
-        const double un = std::clamp(u - g / hh, Y.first_parameter(), Y.last_parameter());
-        if (std::abs(un - u) < 1e-15) { u = un; break; }
-        u = un;
-      }
-      worst = std::max(worst, std::min((Y.point(u) - x).norm(), (yp[best] - x).norm()));
-    }
+    for (int i = 0; i < n; ++i)
+      worst = std::max(worst, distance_to_curve(Y, yu, yp, X.point(X.first_parameter() +
+                                                                     (X.last_parameter() - X.first_parameter()) * i / (n - 1))));
     return worst;
   };
   return std::max(one_sided(A, B), one_sided(B, A));
+}
+
+double points_deviation(const std::vector<Vec2>& points, const BSplineCurve2& curve, int samples) {
+  std::vector<Vec2> yp;
+  std::vector<double> yu;
+  sample_curve(curve, std::max(8, samples), yu, yp);
+  double worst = 0;
+  for (const Vec2& x : points) worst = std::max(worst, distance_to_curve(curve, yu, yp, x));
+  return worst;
 }
 
 StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const StripImproveOptions& o) {

@@ -163,5 +163,8 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& curve,
 /// Sampled two-sided distance between curves (max of the nearest-point distances of
 /// `samples` points of each, refined by local Newton projection).
 double curve_deviation(const BSplineCurve2& a, const BSplineCurve2& b, int samples = 400);
+/// Largest distance from the points to the curve (nearest of `samples` curve points, refined
+/// by Newton projection): how far a curve fitted to or moved from sampled points lies from them.
+double points_deviation(const std::vector<Vec2>& points, const BSplineCurve2& curve, int samples = 400);
 
 }  // namespace parafab

@@ -112,6 +112,48 @@ class StripImproveEntry(unittest.TestCase):
         h = max(d.min(1).max(), d.min(0).max())
         self.assertAlmostEqual(r["deviation"], h, delta=0.02 * h + 1e-6 * L)
 
+    def test_points_deviation_by_scipy(self):
+        # With points input the descent starts from the fair fit; points_deviation measures the
+        # result against the points themselves, fit_points_deviation the fit (dense scipy
+        # sampling, 20001 points: a bound from above close to the true distance).
+        r = self.result
+        P = np.array(s_curve_points())
+        L = r["length"]
+        for key, bs in (("points_deviation", r["bspline"]), ("fit_points_deviation", r["original_bspline"])):
+            c = spline(bs)
+            q = c(np.linspace(c.t[c.k], c.t[-c.k - 1], 20001))
+            d = np.sqrt(((P[:, None, :] - q[None, :, :]) ** 2).sum(-1)).min(1).max()
+            self.assertLessEqual(r[key], d * (1 + 1e-9), key)
+            self.assertGreater(r[key], d - 2e-6 * L, key)  # the sampling error of d: ≲ (L/20000)²κ
+        self.assertAlmostEqual(r["points_deviation_relative"], r["points_deviation"] / L, delta=1e-15)
+        self.assertLess(r["fit_points_deviation"], 1e-4 * L)  # the fair fit follows the points
+        self.assertGreater(r["points_deviation"], r["fit_points_deviation"])  # the curve was moved
+
+    def test_stability_verdict_agrees_with_the_hessian_inertia(self):
+        # The result carries the Jacobi verdict (of the requested design); the simulator's
+        # constrained Hessian inertia on the same curve is the independent check.
+        r = self.result
+        st = r["stability"]
+        self.assertIsInstance(st["stable"], bool)
+        self.assertEqual(st, r["design"]["stability"])
+        self.assertEqual(len(st["s"]), len(st["Z"]))
+        check = parafab.strip_stability({"curve": {"bspline": r["bspline"]}, "material": {"E": 3e9, "thickness": 5e-4},
+                                         "min_width": 0.01})["stability"]
+        self.assertEqual(check["eigenvalue"]["stable"], st["stable"])
+        self.assertEqual(check["stable"], st["stable"])
+        # Without material (no requested design) the verdict is of the improved curve's Eq. 4.4
+        # design; "stability": false leaves it out.
+        bare = {"curve": {"bspline": r["original_bspline"]}, "improve": {"max_iterations": 2}}
+        out = parafab.strip_improve(bare, target_R=3.0)
+        self.assertIsNone(out["design"])
+        self.assertIsInstance(out["stability"]["stable"], bool)
+        again = parafab.strip_stability({"curve": {"bspline": out["bspline"]}, "material": {"E": 3e9, "thickness": 5e-4},
+                                         "min_width": 0.01})["stability"]
+        self.assertEqual(again["eigenvalue"]["stable"], out["stability"]["stable"])
+        self.assertIsNone(out["points_deviation"])
+        bare["stability"] = False
+        self.assertIsNone(parafab.strip_improve(bare, target_R=3.0)["stability"])
+
     def test_cli_matches_module(self):
         with tempfile.TemporaryDirectory() as tmp:
             path = os.path.join(tmp, "in.json")

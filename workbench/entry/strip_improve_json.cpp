@@ -10,6 +10,7 @@
 #include "strips/curve_fairing.h"
 #include "strips/strip_improve.h"
 #include "json_write.h"
+#include "stability_json.h"
 
 namespace parafab::entry {
 
@@ -118,14 +119,18 @@ json improve_strip_json(const json& request, double target_R) {
   // with spurious-inflection removal (improve.fair), not the point interpolation of `strip`.
   const json& curve_j = require(request, "curve", "request");
   json fair_out = nullptr;
+  std::vector<Vec2> input_points;  // empty: a B-spline was given
   BSplineCurve2 curve = [&]() -> BSplineCurve2 {
     if (curve_j.is_object() && curve_j.contains("points") && !curve_j.contains("bspline")) {
-      auto [fitted, report] = fair_points_json(points(curve_j["points"]), imp.value("fair", json()), "improve.fair");
+      input_points = points(curve_j["points"]);
+      auto [fitted, report] = fair_points_json(input_points, imp.value("fair", json()), "improve.fair");
       fair_out = std::move(report);
       return std::move(fitted);
     }
     return parse_strip_curve(request);
   }();
+  StripStabilityOptions stability_options;  // the result's Jacobi verdict (thesis §4.5)
+  const bool stability = parse_stability_options(request, stability_options);
   const StripImproveResult r = improve_strip_fabricability(curve, o);
 
   json out;
@@ -149,6 +154,18 @@ json improve_strip_json(const json& request, double target_R) {
   out["refit"] = r.refit;
   out["refit_deviation"] = r.refit_deviation;
   out["fair"] = fair_out;
+  // With points input, R_initial, deviation and max_pole_move compare with the fair fit (the
+  // descent's start); these compare the result with the points themselves.
+  if (!input_points.empty()) {
+    const double dp = points_deviation(input_points, r.curve, o.deviation_samples);
+    out["points_deviation"] = dp;
+    out["points_deviation_relative"] = dp / r.design.length;
+    out["fit_points_deviation"] = points_deviation(input_points, curve, o.deviation_samples);
+  } else {
+    out["points_deviation"] = nullptr;
+    out["points_deviation_relative"] = nullptr;
+    out["fit_points_deviation"] = nullptr;
+  }
   out["seconds"] = r.seconds;
   json hist = json::array();
   for (const auto& h : r.history)
@@ -179,6 +196,17 @@ json improve_strip_json(const json& request, double target_R) {
   } else {
     out["design"] = nullptr;
     out["R_gravity"] = nullptr;
+  }
+  // The result's stability: the requested design's verdict (under gravity: Eq. 4.6's), else
+  // the Jacobi test of the improved curve's Eq. 4.4 design. Null: no feasible design.
+  if (!stability) {
+    out["stability"] = nullptr;
+  } else if (has_design) {
+    out["stability"] = out["design"].is_object() ? out["design"].value("stability", json(nullptr)) : json(nullptr);
+  } else {
+    out["stability"] = r.design.feasible ? stability_to_json(strip_stability(r.curve, r.design, o.design, stability_options),
+                                                             r.design.length)
+                                         : json(nullptr);
   }
   return out;
 }
