@@ -506,6 +506,32 @@ class TestStripVersion2(StripTestCase):
         self.assertEqual(strip.MaterialPreset, "Custom")
         self.assertAlmostEqual(strip.Thickness.Value, 0.6)
 
+    def test_a_preset_that_would_yield_is_refused(self):
+        """A 120° arc of radius 15 mm: bending strain h/(2r) (closed form) is 0.8/30 = 0.0267
+        for plywood 0.8 mm (yield strain 0.005: refused, 5.33x) and 0.5/30 = 0.0167 for POM
+        0.5 mm (0.023: accepted, ratio 0.725). The refused strip shows the error, the document
+        stays valid, and choosing POM recovers it."""
+        r = 15.0
+        edge = Part.Edge(Part.Circle(V(0, 0, 0), V(0, 0, 1), r), 0.2, 0.2 + 2 * math.pi / 3)
+        src, strip = self.strip_on("Arc", edge, recompute=False)
+        strip.MaterialPreset = "Plywood 0.8 mm"
+        strip.MinWidth = "5 mm"
+        self.doc.recompute()
+        self.assertTrue(_is_error(strip))
+        self.assertFalse(strip.Feasible)
+        self.assertTrue(strip.Shape.isNull())
+        self.assertIn('material "Plywood 0.8 mm" yields', strip.Reason)
+        self.assertIn(strip.Reason, strip.getStatusString())
+        strain = float(strip.Reason.split("h·|κ|/2 = ")[1].split()[0])
+        self.assertAlmostEqual(strain, 0.8 / (2 * r), delta=5e-8)  # printed to 6 digits
+        self.assertIn("exceeds its yield strain 0.005 (5.33", strip.Reason)
+        self.assertTrue(src.isValid())
+        self.assertEqual(src.State, ["Up-to-date"])
+        strip.MaterialPreset = "POM 0.5 mm"
+        self.doc.recompute()
+        self.assert_feasible_strip(strip)
+        self.assertAlmostEqual(strip.R, 1.0, delta=1e-6)  # a circular arc: constant K
+
     def test_gravity_changes_the_design(self):
         _, plain = self.cardboard_strip("Plain", gravity=False)
         _, heavy = self.cardboard_strip("Heavy", gravity=True)

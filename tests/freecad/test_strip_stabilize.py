@@ -9,6 +9,7 @@ the owner's new edge (Jacobi test and the simulator's constrained Hessian).
 
 import json
 import os
+import tempfile
 import unittest
 
 import test_strip_feature as base  # noqa: E402  (sets up sys.path)
@@ -97,6 +98,16 @@ class StabilizeTest(base.StripTestCase):
         self.assertNotEqual(orig.Name, src.Name)
         for a, b in zip(orig.Shape.Edges[0].Curve.getPoles(), old_poles):
             self.assertLess((a - b).Length, 1e-12)
+        # The before/after plot: the history starts unstable (a conjugate point inside) and
+        # ends stable (none up to the end), as the independent verdicts above say.
+        hist = result["history"]
+        self.assertIsNotNone(hist[0]["sigma"])
+        self.assertLess(hist[0]["sigma"], result["length"])
+        self.assertIsNone(hist[-1]["sigma"])
+        png = os.path.join(tempfile.gettempdir(), "parafab_stabilize_%d.png" % os.getpid())
+        self.assertEqual(strip_stabilize.plot_stabilization(result, png, show=False, title="Wave"), png)
+        self.assertGreater(os.path.getsize(png), 10000)
+        os.remove(png)
         strip_improve.restore_original(strip)
         self.assertAlmostEqual(strip.R, R0, delta=1e-9 * R0)
         self.assertFalse(_stability(src.Shape.Edges[0])["stable"])

@@ -385,9 +385,18 @@ def run(check):
     check("plot_profile_shown", plot is not None and len(plot.fig.axes) == 2
           and plot.windowTitle().startswith("Strip profile"),
           plot.windowTitle() if plot is not None else "no plot")
+    # Plot strip stability: Z(s) of the Jacobi test in another Plot tab.
+    check("stability_plot_command_registered", "ParaFab_PlotStripStability" in FreeCADGui.listCommands())
+    FreeCADGui.runCommand("ParaFab_PlotStripStability")
+    FreeCADGui.updateGui()
+    zplot = Plot.getPlot()
+    check("plot_stability_shown", zplot is not None and len(zplot.fig.axes) == 1
+          and zplot.windowTitle().startswith("Strip stability")
+          and len(zplot.fig.axes[0].lines) >= 2,  # Z(s) and the zero line
+          zplot.windowTitle() if zplot is not None else "no plot")
     mdi = Plot.getMdiArea()
     for sub in mdi.subWindowList():  # back to the 3D view for the screenshot
-        if sub.widget() is plot:
+        if sub.widget() in (plot, zplot):
             sub.close()
     FreeCADGui.updateGui()
 

@@ -17,7 +17,8 @@ class ParaFabWorkbench(FreeCADGui.Workbench):
 
     #: Commands shown in the toolbar and the menu.
     COMMANDS = ["ParaFab_Strip", "ParaFab_StripsFromSections", "ParaFab_RevolutionStrips",
-                "ParaFab_ExportCutSheets", "ParaFab_PlotStripProfile", "ParaFab_ImproveFabricability",
+                "ParaFab_ExportCutSheets", "ParaFab_PlotStripProfile", "ParaFab_PlotStripStability",
+                "ParaFab_ImproveFabricability",
                 "ParaFab_StabilizeStrip", "ParaFab_Rod", "ParaFab_AnalyzePart", "ParaFab_OptimizeShape"]
 
     def __init__(self):

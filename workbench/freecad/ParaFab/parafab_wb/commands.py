@@ -192,6 +192,33 @@ class PlotStripProfileCommand(object):
 FreeCADGui.addCommand("ParaFab_PlotStripProfile", PlotStripProfileCommand())
 
 
+class PlotStripStabilityCommand(object):
+    """Plot Z(s) of the selected strips (the Jacobi test, thesis 4.5) in FreeCAD's Plot module."""
+
+    def GetResources(self):
+        return {
+            "Pixmap": icon_path("ParaFab_PlotStripStability.svg"),
+            "MenuText": "Plot strip stability",
+            "ToolTip": "Plot the stability determinant Z(s) of each selected strip, its first conjugate "
+                       "point sigma marked when the strip is unstable (thesis 4.5; a Plot tab per strip)",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        for obj in selected_strips():
+            try:
+                strip_feature.plot_stability(obj, show=True)
+            except Exception as exc:
+                import traceback
+                FreeCAD.Console.PrintLog(traceback.format_exc())
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+FreeCADGui.addCommand("ParaFab_PlotStripStability", PlotStripStabilityCommand())
+
+
 class ImproveFabricabilityCommand(object):
     """Lower the stiffness ratio R of the selected strips by moving their curves' poles."""
 
@@ -239,7 +266,8 @@ class StabilizeStripCommand(object):
             "ToolTip": "Move the control points of each selected strip's curve until the strip is a "
                        "stable equilibrium (no conjugate point up to its end, thesis 4.5.4), keeping "
                        "the stiffness ratio R at most R_max. One undo step; the original curve is kept "
-                       "hidden (property OriginalCurve). Gravity is neglected",
+                       "hidden (property OriginalCurve); plots the curve and the conjugate point before "
+                       "and after. Gravity is neglected",
         }
 
     def IsActive(self):
@@ -256,6 +284,8 @@ class StabilizeStripCommand(object):
             try:
                 result = strip_stabilize.stabilize_strip(obj, R_max)
                 FreeCAD.Console.PrintMessage(strip_stabilize.report(obj.Label, result))
+                if result["status"] != "already":
+                    strip_stabilize.plot_stabilization(result, show=True, title=obj.Label)
             except Exception as exc:
                 FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
 

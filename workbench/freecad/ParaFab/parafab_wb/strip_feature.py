@@ -36,6 +36,7 @@ import Part
 from . import geometry
 from . import shapes
 from . import feature_proxy
+from . import plot_output
 
 #: Proxy type tag stored in documents.
 TYPE = "ParaFab::Strip"
@@ -289,33 +290,8 @@ def plot_profile(obj, png_path=None, show=None):
     canvas, no pyplot state) when given, and shown in FreeCAD's Plot module when ``show``
     (default: when the GUI is up and Plot imports). Returns ``png_path``."""
     result = strip_result(obj, "to plot")
-    if png_path:
-        from matplotlib.figure import Figure
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        fig = Figure(figsize=(8, 6))
-        FigureCanvasAgg(fig)
-        draw_profile(fig, result, obj.Label)
-        fig.tight_layout()
-        fig.savefig(png_path, dpi=100)
-    if show is None:
-        show = FreeCAD.GuiUp
-    if show:
-        try:
-            import Plot  # FreeCAD's Plot module (sets matplotlib's Qt backend: GUI only)
-        except ImportError as exc:
-            FreeCAD.Console.PrintWarning("ParaFab: FreeCAD's Plot module is not available (%s)\n" % exc)
-            return png_path
-        win = Plot.figure("Strip profile: %s" % obj.Label)
-        if win is not None:
-            # Not fig.clf(): with matplotlib 3.6 it updates the Plot tab's toolbar, whose
-            # actions PySide has already deleted (RuntimeError).
-            for ax in list(win.fig.axes):
-                win.fig.delaxes(ax)
-            axes = draw_profile(win.fig, result, obj.Label)
-            win.axes, win.axesList = axes[0], list(axes)
-            win.fig.tight_layout()
-            win.update()
-    return png_path
+    return plot_output.render(lambda fig: draw_profile(fig, result, obj.Label), png_path, show, (8, 6),
+                              "Strip profile: %s" % obj.Label)
 
 
 def draw_stability(fig, result, title=""):
@@ -341,18 +317,14 @@ def draw_stability(fig, result, title=""):
     return ax
 
 
-def plot_stability(obj, png_path):
-    """Z(s) of strip ``obj`` written to ``png_path`` (headless, matplotlib's Agg canvas).
-    Returns ``png_path``. Raises :class:`StripError` when the strip has no feasible design."""
+def plot_stability(obj, png_path=None, show=None):
+    """Z(s) of strip ``obj`` (thesis Fig. 4.9, sigma marked when unstable): written to
+    ``png_path`` when given and shown in FreeCAD's Plot module when ``show`` (default: when the
+    GUI is up). Returns ``png_path``. Raises :class:`StripError` when the strip has no feasible
+    design or no stability result."""
     result = strip_result(obj, "to plot")
-    from matplotlib.figure import Figure
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    fig = Figure(figsize=(8, 4))
-    FigureCanvasAgg(fig)
-    draw_stability(fig, result, obj.Label)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=100)
-    return png_path
+    return plot_output.render(lambda fig: draw_stability(fig, result, obj.Label), png_path, show, (8, 4),
+                              "Strip stability: %s" % obj.Label)
 
 
 def export_cut_sheets(obj, directory):

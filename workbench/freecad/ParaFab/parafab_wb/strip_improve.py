@@ -22,6 +22,7 @@ import Part
 
 from . import geometry
 from . import strip_feature
+from . import plot_output
 
 TITLE = "Improve fabricability"
 _READ_ONLY = 1
@@ -149,23 +150,29 @@ def _samples(spec, n=300):
     return [p.x / geometry.MM_TO_M for p in pts], [p.y / geometry.MM_TO_M for p in pts]
 
 
-def draw_improvement(fig, result, title=""):
-    """Curve and control polygon before (light) and after (dark), and R against iteration."""
-    ax = fig.add_subplot(1, 2, 1)
+def draw_curves(ax, result, title=""):
+    """The curve and its control polygon before (light) and after (dark) into ``ax``: a
+    strip-improve or strip-stabilize result (``original_bspline``, ``bspline``)."""
     for key, color, label in (("original_bspline", "#8fd18f", "before"), ("bspline", "#1b6e1b", "after")):
         x, y = _samples(result[key])
-        ax.plot(x, y, color=color, lw=2, label="%s" % label)
+        ax.plot(x, y, color=color, lw=2, label=label)
         px = [p[0] / geometry.MM_TO_M for p in result[key]["poles"]]
         py = [p[1] / geometry.MM_TO_M for p in result[key]["poles"]]
         ax.plot(px, py, "o--", color=color, lw=0.7, ms=3)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
-    ax.set_title("%s  R %.3g -> %.3g, deviation %.2f mm" % (
-        title, result["R_initial"] or float("nan"), result["R"] or float("nan"),
-        result["deviation"] / geometry.MM_TO_M), fontsize=9)
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
+
+
+def draw_improvement(fig, result, title=""):
+    """Curve and control polygon before (light) and after (dark), and R against time."""
+    ax = fig.add_subplot(1, 2, 1)
+    draw_curves(ax, result, "%s  R %.3g -> %.3g, deviation %.2f mm" % (
+        title, result["R_initial"] or float("nan"), result["R"] or float("nan"),
+        result["deviation"] / geometry.MM_TO_M))
     ax2 = fig.add_subplot(1, 2, 2)
     hist = result["history"]
     ax2.semilogy([h["seconds"] * 1e3 for h in hist], [h["R"] for h in hist], ".-")
@@ -179,28 +186,5 @@ def draw_improvement(fig, result, title=""):
 def plot_improvement(result, png_path=None, show=None, title=""):
     """Plot of a strip-improve result: to ``png_path`` (headless, Agg) and/or FreeCAD's Plot
     module (``show``; default when the GUI is up)."""
-    if png_path:
-        from matplotlib.figure import Figure
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        fig = Figure(figsize=(11, 4.5))
-        FigureCanvasAgg(fig)
-        draw_improvement(fig, result, title)
-        fig.tight_layout()
-        fig.savefig(png_path, dpi=100)
-    if show is None:
-        show = FreeCAD.GuiUp
-    if show:
-        try:
-            import Plot
-        except ImportError as exc:
-            FreeCAD.Console.PrintWarning("ParaFab: FreeCAD's Plot module is not available (%s)\n" % exc)
-            return png_path
-        win = Plot.figure("Fabricability: %s" % title)
-        if win is not None:
-            for ax in list(win.fig.axes):
-                win.fig.delaxes(ax)
-            axes = draw_improvement(win.fig, result, title)
-            win.axes, win.axesList = axes[0], list(axes)
-            win.fig.tight_layout()
-            win.update()
-    return png_path
+    return plot_output.render(lambda fig: draw_improvement(fig, result, title), png_path, show, (11, 4.5),
+                              "Fabricability: %s" % title)

@@ -16,6 +16,7 @@ Works headless; never imports ``FreeCADGui`` at import time.
 import FreeCAD
 
 from . import geometry
+from . import plot_output
 from . import strip_feature
 from . import strip_improve
 
@@ -79,3 +80,36 @@ def report(label, result):
     return "ParaFab: %s: %s -> %s (%s), R %.3g -> %.3g, max pole move %.3g mm, deviation %.3g mm, %.3f s\n" % (
         label, sig("sigma_before"), sig("sigma_after"), result["status"], result["R_before"] or 0,
         result["R_after"] or 0, result["max_pole_move"] * 1e3, result["deviation"] * 1e3, result["seconds"])
+
+
+def draw_stabilization(fig, result, title=""):
+    """Curve and control polygon before and after (left), and the first conjugate point
+    sigma / l of the curve and of the margin-scaled force (the objective) against the
+    iteration (right): stable once no conjugate point is left before the end (drawn at 1)."""
+    ax = fig.add_subplot(1, 2, 1)
+
+    def sig(key):
+        v = result[key]
+        return "stable" if v is None else "sigma/l %.3f" % (v / result["length"])
+    strip_improve.draw_curves(ax, result, "%s  %s -> %s, R %.3g -> %.3g, deviation %.2f mm" % (
+        title, sig("sigma_before"), sig("sigma_after"), result["R_before"] or float("nan"),
+        result["R_after"] or float("nan"), result["deviation"] / geometry.MM_TO_M))
+    ax2 = fig.add_subplot(1, 2, 2)
+    hist = result["history"]
+    it = [h["iteration"] for h in hist]
+    for key, style, label in (("sigma", "o-", "sigma / l"), ("sigma_margin", "s--", "sigma / l, force x (1 + margin)")):
+        y = [1.0 if h[key] is None else h[key] / result["length"] for h in hist]
+        ax2.plot(it, y, style, ms=3, label=label)
+    ax2.axhline(1.0, color="tab:green", lw=0.8, ls=":", label="end of the strip (stable above)")
+    ax2.set_xlabel("iteration")
+    ax2.set_ylabel("first conjugate point / length")
+    ax2.legend(fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    return ax, ax2
+
+
+def plot_stabilization(result, png_path=None, show=None, title=""):
+    """Plot of a strip-stabilize result: to ``png_path`` (headless, Agg) and/or FreeCAD's Plot
+    module (``show``; default when the GUI is up). Returns ``png_path``."""
+    return plot_output.render(lambda fig: draw_stabilization(fig, result, title), png_path, show, (11, 4.5),
+                              "Stabilize: %s" % title)
