@@ -31,6 +31,7 @@ void deviation_report(PerforatedStripResult& r, const std::vector<double>& s,
   const double s0 = s.front(), s1 = s.back(), p = r.pitch;
   const int n = std::max(64, static_cast<int>(std::ceil(64 * (s1 - s0) / p)));
   const double ds = (s1 - s0) / n;
+  auto inside = [&](double x) { return x >= r.perforated_from && x <= r.perforated_to; };
   std::vector<double> at(n + 1), inv_mat(n + 1), inv_des(n + 1);
   size_t first = 0;  // diamonds are sorted by s
   for (int i = 0; i <= n; ++i) {
@@ -47,6 +48,8 @@ void deviation_report(PerforatedStripResult& r, const std::vector<double>& s,
     const double dev = std::abs(mat / need - 1);
     if (dev > r.max_width_deviation) r.max_width_deviation = dev, r.max_width_deviation_s = at[i];
     if (holes == 0) r.end_zone_deviation = std::max(r.end_zone_deviation, mat / need - 1);
+    if (inside(at[i]) && dev > r.interior_width_deviation)
+      r.interior_width_deviation = dev, r.interior_width_deviation_s = at[i];
   }
   const int win = std::min(n, std::max(2, static_cast<int>(std::round(p / ds))));
   for (int i = 0; i + win <= n; ++i) {
@@ -56,6 +59,8 @@ void deviation_report(PerforatedStripResult& r, const std::vector<double>& s,
     const double dev = std::abs(cd / cm - 1);  // K_eff/K_design = (p/∫1/w_mat)/(p/∫1/w_K)
     if (dev > r.max_stiffness_deviation)
       r.max_stiffness_deviation = dev, r.max_stiffness_deviation_s = at[i] + 0.5 * win * ds;
+    if (inside(at[i]) && inside(at[i + win]) && dev > r.interior_stiffness_deviation)
+      r.interior_stiffness_deviation = dev, r.interior_stiffness_deviation_s = at[i] + 0.5 * win * ds;
   }
 }
 }  // namespace

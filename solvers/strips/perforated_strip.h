@@ -53,6 +53,13 @@ struct PerforatedStripResult {
   double max_stiffness_deviation = 0;
   double max_stiffness_deviation_s = -1;  ///< centre of that window
   double end_zone_deviation = 0;       ///< max w/w_K − 1 where no hole cuts the section
+  /// The same two figures inside the perforated range [perforated_from, perforated_to] only
+  /// (sections there; windows of one pitch lying within it): the pattern's own error, without
+  /// the hole-free end zones that dominate the maxima above.
+  double interior_width_deviation = 0;
+  double interior_width_deviation_s = -1;
+  double interior_stiffness_deviation = 0;
+  double interior_stiffness_deviation_s = -1;
 };
 
 /// `s` sorted, `outer_width` w(s) and `solid_width` w_K(s) ≤ w(s) (e.g. StripDesign::width),

@@ -629,6 +629,13 @@ class TestStripVersion2(StripTestCase):
             if kind != "Plain":
                 self.assertIn("feasible", strip.TypeMessage)
                 self.assertNotIn("infeasible", strip.TypeMessage)
+            if kind == "Perforated":  # the deviation of the pattern is shown, as the solver reports it
+                per = strip.Proxy.result["perforations"]
+                self.assertIn("within %.2f %% of the design (sections %.2f %%)" % (
+                    100 * per["interior_stiffness_deviation"], 100 * per["interior_width_deviation"]),
+                    strip.TypeMessage)
+                self.assertLess(per["interior_stiffness_deviation"], per["max_stiffness_deviation"])
+                self.assertLess(per["interior_width_deviation"], 0.02)
             dxf, svg = strip_feature.export_cut_sheets(strip, self.tmpdir)
             for path in (dxf, svg):
                 self.assertTrue(os.path.getsize(path) > 0)

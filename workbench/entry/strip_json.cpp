@@ -560,6 +560,10 @@ json_write::ColumnarResult design_strip_columns(const json& request) {
                              {"max_stiffness_deviation", r.max_stiffness_deviation},
                              {"max_stiffness_deviation_s", r.max_stiffness_deviation_s},
                              {"end_zone_deviation", r.end_zone_deviation},
+                             {"interior_width_deviation", r.interior_width_deviation},
+                             {"interior_width_deviation_s", r.interior_width_deviation_s},
+                             {"interior_stiffness_deviation", r.interior_stiffness_deviation},
+                             {"interior_stiffness_deviation_s", r.interior_stiffness_deviation_s},
                              {"diamonds", diamonds}};
     }
   }

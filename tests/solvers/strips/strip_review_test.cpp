@@ -368,15 +368,17 @@ TEST(PerforatedDeviation, ReportedDeviationMatchesTheIntegratedSections) {
     const int n = static_cast<int>(std::ceil(512 * s.back() / r.pitch)) & ~1;
     const double ds = s.back() / n;
     std::vector<double> mat(n + 1), des(n + 1);
-    double width_dev = 0, end_dev = 0;
+    double width_dev = 0, end_dev = 0, inner_width_dev = 0;
+    auto inside = [&](double x) { return x >= r.perforated_from && x <= r.perforated_to; };
     for (int i = 0; i <= n; ++i) {
       mat[i] = section_by_polygons(r, outer, ds * i);
       des[i] = need(ds * i);
       width_dev = std::max(width_dev, std::abs(mat[i] / des[i] - 1));
       if (mat[i] == outer) end_dev = std::max(end_dev, outer / des[i] - 1);
+      if (inside(ds * i)) inner_width_dev = std::max(inner_width_dev, std::abs(mat[i] / des[i] - 1));
     }
     const int win = 2 * static_cast<int>(std::round(0.5 * r.pitch / ds));
-    double stiff_dev = 0;
+    double stiff_dev = 0, inner_stiff_dev = 0;
     for (int i = 0; i + win <= n; i += 2) {
       double cm = 0, cd = 0;
       for (int k = i; k < i + win; k += 2) {
@@ -384,7 +386,16 @@ TEST(PerforatedDeviation, ReportedDeviationMatchesTheIntegratedSections) {
         cd += (1 / des[k] + 4 / des[k + 1] + 1 / des[k + 2]) / 6;
       }
       stiff_dev = std::max(stiff_dev, std::abs(cd / cm - 1));
+      if (inside(ds * i) && inside(ds * (i + win))) inner_stiff_dev = std::max(inner_stiff_dev, std::abs(cd / cm - 1));
     }
+    std::printf("[ perforated spiral, aspect %.0f ] inside [%.3f, %.3f] of %.3f m: width %.4f (independent %.4f), "
+                "stiffness %.4f (%.4f)\n", aspect, r.perforated_from, r.perforated_to, s.back(),
+                r.interior_width_deviation, inner_width_dev, r.interior_stiffness_deviation, inner_stiff_dev);
+    EXPECT_NEAR(r.interior_width_deviation, inner_width_dev, 0.02 * inner_width_dev);
+    EXPECT_NEAR(r.interior_stiffness_deviation, inner_stiff_dev, 0.03 * inner_stiff_dev);
+    EXPECT_LT(r.interior_stiffness_deviation, r.max_stiffness_deviation);  // the ends dominate the maxima
+    EXPECT_GE(r.interior_width_deviation_s, r.perforated_from);
+    EXPECT_LE(r.interior_width_deviation_s, r.perforated_to);
     std::printf("[ perforated spiral, aspect %.0f ] width deviation %.4f (independent %.4f), "
                 "stiffness over one pitch %.4f (%.4f) at s = %.3f, end zones %.3f (%.3f)\n", aspect,
                 r.max_width_deviation, width_dev, r.max_stiffness_deviation, stiff_dev,

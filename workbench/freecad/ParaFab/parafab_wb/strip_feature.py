@@ -447,7 +447,16 @@ class StripFeature(feature_proxy.FeatureProxy):
         part = result.get("composite") or result.get("perforations")
         if part is not None:
             kind = "composite" if result.get("composite") else "perforated"
-            if part.get("feasible"):
+            if part.get("feasible") and kind == "perforated":
+                # How far the hole pattern is from the designed stiffness (the solver's report):
+                # inside the perforated range, and at the hole-free ends.
+                obj.TypeMessage = (
+                    "perforated strip feasible; inside the holes the stiffness over one pitch is "
+                    "within %.2f %% of the design (sections %.2f %%); the hole-free ends are up to "
+                    "%.0f %% stiffer" % (100 * part["interior_stiffness_deviation"],
+                                         100 * part["interior_width_deviation"],
+                                         100 * part["end_zone_deviation"]))
+            elif part.get("feasible"):
                 obj.TypeMessage = "%s strip feasible" % kind
             else:
                 obj.TypeMessage = "%s strip infeasible: %s" % (kind, part.get("message", ""))
