@@ -1,5 +1,6 @@
 #include "sections_json.h"
 
+#include <sstream>
 #include <tbb/parallel_for.h>
 
 #include "common/error.h"
@@ -100,15 +101,18 @@ json strip_sections_json(const std::string& part_path, const json& job) {
     json& design = designs[k];
     json& fair_report = fair_reports[k];
     json request = strip;
-    auto fair_design = [&](const std::string& why) {
+    auto fair_fit = [&]() {
       std::vector<Vec2> P;
       for (const auto& x : c.points2d) P.emplace_back(x.x() * scale, x.y() * scale);
-      auto [curve, report] = fair_points_json(P, fair.is_object() ? fair : json(), "fair");
-      report["why"] = why;
-      request["curve"] = {{"bspline", bspline_json(curve)}};
-      fair_report = std::move(report);
+      return fair_points_json(P, fair.is_object() ? fair : json(), "fair");
+    };
+    auto design_fit = [&](std::pair<BSplineCurve2, json> fit, const std::string& why) {
+      fit.second["why"] = why;
+      request["curve"] = {{"bspline", bspline_json(fit.first)}};
+      fair_report = std::move(fit.second);
       return design_strip_json(request);
     };
+    auto fair_design = [&](const std::string& why) { return design_fit(fair_fit(), why); };
     try {
       if (fair_always) {
         design = fair_design("requested");
@@ -125,6 +129,28 @@ json strip_sections_json(const std::string& part_path, const json& job) {
             if (!design.value("feasible", false)) {
               const json& r = design.contains("reason") ? design["reason"] : json();
               why = "the interpolated curve is infeasible: " + (r.is_string() ? r.get<std::string>() : "no reason");
+            } else {
+              // Feasible, but possibly on spurious inflections of the noise (a few noisy points
+              // can give two inflections whose line the curve never crosses, and R in the
+              // hundreds): the fair fit decides; fewer inflections there means they were spurious.
+              size_t n_interp = 0;  // sign changes of κ (end zeros and touches are no inflections)
+              for (const json& z : design.value("inflections", json::array()))
+                n_interp += z.value("kind", std::string()) == "inflection";
+              if (n_interp > 0) {
+                auto fit = fair_fit();
+                const int n_fair = fit.second.value("inflections", static_cast<int>(n_interp));
+                if (n_fair < static_cast<int>(n_interp)) {
+                  std::ostringstream w;
+                  w << "the interpolated curve has " << n_interp << " inflection(s), the fair fit " << n_fair
+                    << ": spurious inflections removed (§4.8.2)";
+                  json plain = std::move(design);
+                  design = design_fit(std::move(fit), w.str());
+                  if (!design.value("feasible", false)) {  // the fit fails: keep the feasible interpolation
+                    fair_report["kept"] = "interpolation";
+                    design = std::move(plain);
+                  }
+                }
+              }
             }
           } catch (const parafab::Error& e) {
             design = error_json(e.what(), "invalid_input");
