@@ -458,6 +458,17 @@ double points_deviation(const std::vector<Vec2>& points, const BSplineCurve2& cu
   return worst;
 }
 
+std::string gravity_target_shortfall(double R_estimate, double target_R, bool gravity_feasible, double R_gravity,
+                                     const std::string& infeasible_reason) {
+  if (gravity_feasible && R_gravity <= target_R) return {};
+  std::ostringstream m;
+  m << "R without gravity " << R_estimate << " <= target " << target_R << ", but the requested design "
+    << "under gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
+  if (gravity_feasible) m << "R_gravity " << R_gravity << " > target";
+  else m << "no feasible design (" << infeasible_reason << ")";
+  return m.str();
+}
+
 StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const StripImproveOptions& o) {
   const auto t0 = Clock::now();
   PARAFAB_VERIFY(std::isfinite(o.target_R) && o.target_R >= 1,
@@ -579,15 +590,12 @@ StripImproveResult improve_strip_fabricability(const BSplineCurve2& input, const
     // done is the requested design's: R under gravity (a sampled optimum on nested grids,
     // §4.4) must meet the target too, not only R of Eq. 4.4 that the descent lowered.
     res.R_gravity = res.design.feasible ? res.design.R : NAN;
-    if (res.done && !(res.R_gravity <= o.target_R)) {
+    const std::string shortfall =
+        gravity_target_shortfall(res.R_estimate, o.target_R, res.design.feasible, res.R_gravity, res.design.reason);
+    if (res.done && !shortfall.empty()) {
       res.done = false;
       res.status = "target_without_gravity";
-      std::ostringstream m;
-      m << "R without gravity " << res.R_estimate << " <= target " << o.target_R << ", but the requested design "
-        << "under gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
-      if (res.design.feasible) m << "R_gravity " << res.R_gravity << " > target";
-      else m << "no feasible design (" << res.design.reason << ")";
-      res.message = m.str();
+      res.message = shortfall;
     }
   }
   res.inflections = static_cast<int>(inflection_parameters(res.curve).size());

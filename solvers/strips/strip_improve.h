@@ -156,6 +156,12 @@ struct StripImproveResult {
   double seconds = 0;
 };
 
+/// The target under gravity (§4.6.2: gravity is designed afterwards with LP Eq. 4.6): empty
+/// when the requested design (feasible, with R_gravity) meets target_R, else the message that
+/// says why not (status "target_without_gravity"). One rule for the C++ and the JSON results.
+std::string gravity_target_shortfall(double R_estimate, double target_R, bool gravity_feasible, double R_gravity,
+                                     const std::string& infeasible_reason);
+
 /// Throws parafab::Error for a rational or infeasible input curve (naming the reason).
 StripImproveResult improve_strip_fabricability(const BSplineCurve2& curve,
                                                const StripImproveOptions& options = {});

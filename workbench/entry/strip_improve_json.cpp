@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 #include "common/error.h"
 #include "json_fields.h"
@@ -182,16 +181,18 @@ json improve_strip_json(const json& request, double target_R) {
     req["curve"] = {{"bspline", bspline_json(r.curve)}};
     out["design"] = design_strip_json(req);  // gravity, if requested: LP Eq. 4.6 afterwards
     out["R_gravity"] = gravity ? out["design"]["R"] : json(nullptr);
-    // done is the requested design's: under gravity its R (null: infeasible) meets the target too.
-    if (gravity && r.done && !(out["R_gravity"].is_number() && out["R_gravity"].get<double>() <= o.target_R)) {
-      out["done"] = false;
-      out["status"] = "target_without_gravity";
-      std::ostringstream m;
-      m << "R without gravity " << r.R_estimate << " <= target " << o.target_R << ", but the requested design under "
-        << "gravity (LP Eq. 4.6, accounted for afterwards, §4.6.2) has ";
-      if (out["R_gravity"].is_number()) m << "R_gravity " << out["R_gravity"].get<double>() << " > target";
-      else m << "no feasible design (" << out["design"].value("reason", std::string()) << ")";
-      out["message"] = m.str();
+    // done is the requested design's: under gravity its R (null: infeasible) meets the target too
+    // (the same rule as improve_strip_fabricability's with StripImproveOptions::design).
+    if (gravity && r.done) {
+      const json& dj = out["design"];
+      const bool feasible = dj.value("feasible", false) && dj["R"].is_number();
+      const std::string shortfall = gravity_target_shortfall(
+          r.R_estimate, o.target_R, feasible, feasible ? dj["R"].get<double>() : NAN, dj.value("reason", std::string()));
+      if (!shortfall.empty()) {
+        out["done"] = false;
+        out["status"] = "target_without_gravity";
+        out["message"] = shortfall;
+      }
     }
   } else {
     out["design"] = nullptr;
