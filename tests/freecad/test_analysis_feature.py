@@ -333,24 +333,28 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.assertNotAlmostEqual(a.MaxDisplacement.Value, hex27, delta=1e-6)
 
     def test_local_clamp_penalty_reaches_the_solver(self):
-        # NitschePenalty (version 4): "fixed" for a new analysis and for documents of version 3
-        # (what they ran); "local" goes into the job and changes the answer (another penalty on
-        # the clamped end).
+        # NitschePenalty (version 4): "auto" for a new analysis (the solver's default: local for
+        # this linear model; no key in the job), "fixed" for documents of version 3 (what they
+        # ran); "fixed" goes into the job and changes the answer (another penalty on the
+        # clamped end).
         a = self.make(Cells=CELLS)
-        self.assertEqual(a.NitschePenalty, "fixed")
-        fixed = a.MaxDisplacement.Value
-        a.NitschePenalty = "local"
+        self.assertEqual(a.NitschePenalty, "auto")
+        self.assertNotIn("nitsche_penalty", analysis_feature.build_job(a))
+        auto = a.MaxDisplacement.Value
+        brep = os.path.join(self.tmp, "beam.brep")
+        self.beam.Shape.exportBrep(brep)
+        r = parafab.simulate(brep, dict(analysis_feature.build_job(a), nitsche_penalty="local"))
+        self.assertAlmostEqual(auto, r["max_displacement"], delta=1e-9)  # auto is local here
+        a.NitschePenalty = "fixed"
         self.doc.recompute()
         self.assertNotIn("Invalid", a.State, a.Status)
         job = analysis_feature.build_job(a)
-        self.assertEqual(job["nitsche_penalty"], "local")
-        brep = os.path.join(self.tmp, "beam.brep")
-        self.beam.Shape.exportBrep(brep)
+        self.assertEqual(job["nitsche_penalty"], "fixed")
         r = parafab.simulate(brep, job)
-        self.assertEqual(r["nitsche_penalty"], "local")
+        self.assertEqual(r["nitsche_penalty"], "fixed")
         self.assertAlmostEqual(a.MaxDisplacement.Value, r["max_displacement"], delta=1e-9)
-        self.assertGreater(abs(a.MaxDisplacement.Value / fixed - 1), 1e-4)
-        print("\n[analysis] beam tip, fixed penalty %.6f mm, local %.6f mm" % (fixed, a.MaxDisplacement.Value))
+        self.assertGreater(abs(a.MaxDisplacement.Value / auto - 1), 1e-4)
+        print("\n[analysis] beam tip, fixed penalty %.6f mm, local %.6f mm" % (a.MaxDisplacement.Value, auto))
         # A document saved by version 3 (no NitschePenalty) gets "fixed", what it ran.
         a.removeProperty("NitschePenalty")
         a.Proxy.Version = 3

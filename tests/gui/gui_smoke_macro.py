@@ -147,7 +147,7 @@ def run_analysis(check):
     panel.force[2].setValue(-500.0)
     panel.preset.setCurrentIndex(panel.preset.findText("Steel"))
     panel.cells.setValue(10)
-    check("panel_penalty_default", panel.penalty.currentText() == "fixed", panel.penalty.currentText())
+    check("panel_penalty_default", panel.penalty.currentText() == "auto", panel.penalty.currentText())
     panel.penalty.setCurrentIndex(panel.penalty.findText("local"))
     panel.output_dir.setText(ANALYSIS_OUT)
     check("panel_estimate", "unknowns" in panel.estimate_label.text(), panel.estimate_label.text())

@@ -22,7 +22,8 @@ BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
 # probe (60, 20, 4): u_z = CCX_TIP).
 CCX_TIP = -0.11056
 HEX27_NEWTON_TOL = 5e-4  # measured 3.5e-5 and 1.5e-4 at the two probes (hex8: 1.3e-4)
-XFEM_16_ERROR = 0.0161  # measured: the sample's 16-cell grid (hex27, the default element) is stiff by this much
+XFEM_16_ERROR = 0.0064  # measured: the sample's 16-cell grid (hex27, the default element, local penalty) is stiff by this much
+XFEM_16_FIXED_ERROR = 0.0161  # the same with "nitsche_penalty": "fixed" (β = 100, the default until 2026-11-28)
 
 
 def run(part, job, out=None):
@@ -46,14 +47,22 @@ class Simulate(unittest.TestCase):
             self.assertTrue(os.path.getsize(os.path.join(d, "result.vtu")) > 1000)
             with open(os.path.join(d, "result.json")) as f:
                 self.assertEqual(json.load(f)["dofs"], out["dofs"])
-        # Against CalculiX: triquadratic hexahedra (the default element) on 16 cells are stiff by
-        # the measured XFEM_16_ERROR (trilinear ones were 12.7 %); the band is that ± 0.3 %.
+        # Against CalculiX: triquadratic hexahedra (the default element) with the default local
+        # clamp penalty on 16 cells are stiff by the measured XFEM_16_ERROR (the fixed penalty
+        # β = 100: XFEM_16_FIXED_ERROR; trilinear ones were 12.7 %); the bands are ± 0.3 %.
         tip = out["probes"][0]["displacement"][2]
         error = 1 - tip / CCX_TIP
-        print("bracket tip u_z %.5f mm, CalculiX %.5f mm: %.1f %% stiff" % (tip, CCX_TIP, 100 * error))
+        fixed = parafab.simulate(BRACKET, dict(job, nitsche_penalty="fixed"))
+        fixed_error = 1 - fixed["probes"][0]["displacement"][2] / CCX_TIP
+        print("bracket tip u_z %.5f mm, CalculiX %.5f mm: %.2f %% stiff (fixed penalty: %.2f %%)"
+              % (tip, CCX_TIP, 100 * error, 100 * fixed_error))
         self.assertEqual(out["element"], "hex27")
+        self.assertEqual(out["nitsche_penalty"], "local")
         self.assertGreater(error, XFEM_16_ERROR - 0.003)
         self.assertLess(error, XFEM_16_ERROR + 0.003)
+        self.assertEqual(fixed["nitsche_penalty"], "fixed")
+        self.assertGreater(fixed_error, XFEM_16_FIXED_ERROR - 0.003)
+        self.assertLess(fixed_error, XFEM_16_FIXED_ERROR + 0.003)
         mod = parafab.simulate(BRACKET, job)
         self.assertAlmostEqual(mod["probes"][0]["displacement"][2], tip, delta=1e-12)
 
@@ -84,6 +93,9 @@ class Simulate(unittest.TestCase):
         job["grid"] = {"cells": 10}
         job["material"]["model"] = "neo_hooke"
         job["load_steps"] = 2
+        # The hyperelastic models' default clamp penalty is fixed (β = 100): the linear solve
+        # compared with it must hold the clamp the same way.
+        job["nitsche_penalty"] = "fixed"
         # The default element, hex27: Newton's deflection equals the linear solve's at small strain.
         r27 = parafab.simulate(BRACKET, job)
         self.assertEqual(r27["element"], "hex27")

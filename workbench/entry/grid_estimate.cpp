@@ -26,13 +26,19 @@ xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType de
   return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
 }
 
-void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options) {
+void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options, bool linear_model) {
   using Penalty = xfem::LinearXfemOptions::NitschePenalty;
+  // The default where the job names no penalty: local where it was measured better (the linear
+  // model on hex27), fixed elsewhere (README "Local Nitsche penalty").
+  options.nitsche_penalty =
+      linear_model && options.element == xfem::ElementType::Hex27 ? Penalty::Local : Penalty::Fixed;
   if (job.contains("nitsche_penalty")) {
     const nlohmann::json& np = job["nitsche_penalty"];
     if (np == "fixed") options.nitsche_penalty = Penalty::Fixed;
     else if (np == "local") options.nitsche_penalty = Penalty::Local;
     else PARAFAB_INPUT_ERROR("nitsche_penalty must be \"fixed\" (beta E/h) or \"local\" (from each clamped cut cell's eigenvalue), got " << np.dump());
+  } else if (job.contains("nitsche_beta")) {
+    options.nitsche_penalty = Penalty::Fixed;  // a β names the fixed penalty β E/h
   }
   const bool local = options.nitsche_penalty == Penalty::Local;
   if (job.contains("nitsche_beta")) {

@@ -413,7 +413,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
     S->tractions.push_back(t);
   }
   if (job.contains("gravity")) S->fo.gravity = vec3(job["gravity"], "gravity");
-  nitsche_of_job(job, S->fo);
+  nitsche_of_job(job, S->fo, model_name_is_linear(S->model));  // default: local for linear hex27
   if (job.contains("incompatible_modes")) {  // linear model only; Newton uses plain hexahedra
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();

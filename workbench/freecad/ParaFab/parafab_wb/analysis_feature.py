@@ -71,15 +71,20 @@ _PROPERTIES = (
     # Version 3: the element (documents of versions 1-2 ran hex8 and keep it, see onDocumentRestored).
     ("App::PropertyEnumeration", "Element", "Grid",
      "hex27: triquadratic (the default, more accurate per unknown); hex8: trilinear", None, 0),
-    # Version 4: how the fixed faces are held (documents of versions 1-3 ran "fixed", the default).
+    # Version 4: how the fixed faces are held (documents of versions 1-3 ran "fixed" and keep it;
+    # new analyses get "auto", the solver's default since 2026-11-28).
     ("App::PropertyEnumeration", "NitschePenalty", "Grid",
-     "How the fixed faces are held on cut cells. fixed: penalty 100 E/h (the default); local: from "
-     "each cut cell's eigenvalue, stable on cut cells but the thinnest slivers, and without locking "
-     "(more accurate on coarse grids; converges where 'fixed' fails with rubber)", None, 0),
+     "How the fixed faces are held on cut cells. auto (the default): local for the linear model, "
+     "fixed for rubber. local: from each cut cell's eigenvalue, stable on cut cells but the "
+     "thinnest slivers, and without locking (more accurate on coarse grids; converges where "
+     "'fixed' fails with rubber, though less accurate there); fixed: penalty 100 E/h", None, 0),
 )
 MODELS = ["linear", "neo_hooke", "neo_hooke_isochoric", "mooney_rivlin"]
 ELEMENTS = ["hex27", "hex8"]
-PENALTIES = ["fixed", "local"]
+PENALTIES = ["fixed", "local", "auto"]  # saved documents index this order: append only
+#: "auto" leaves the choice to the solver: local for the linear model, fixed (β = 100) for the
+#: hyperelastic ones, whose linearized Nitsche terms lose accuracy with the smaller local penalty.
+DEFAULT_PENALTY = "auto"
 
 #: Material presets of the task panel: E [MPa], nu, density [kg/m^3], model.
 MATERIALS = (
@@ -127,7 +132,7 @@ def apply_inputs(obj, inputs):
     obj.Model = inputs["model"]
     obj.Cells = int(inputs["cells"])
     obj.Element = inputs.get("element", ELEMENTS[0])
-    obj.NitschePenalty = inputs.get("nitsche_penalty", PENALTIES[0])
+    obj.NitschePenalty = inputs.get("nitsche_penalty", DEFAULT_PENALTY)
     obj.OutputDir = inputs.get("output_dir") or ""
 
 
@@ -145,13 +150,15 @@ def job_from_inputs(part_obj, inputs):
         "material": {"E": float(inputs["E"]), "nu": float(inputs["nu"]),
                      "density": float(inputs["density"]) * 1e-12, "model": inputs["model"]},
         "element": inputs.get("element", ELEMENTS[0]),
-        "nitsche_penalty": inputs.get("nitsche_penalty", PENALTIES[0]),
         "grid": {"cells": int(inputs["cells"])},
         "supports": [{"face": i} for i in fixed],
         # The total force is spread over all loaded faces by area.
         "loads": [{"face": i, "traction": [fx / area, fy / area, fz / area]} for i in loaded]
         if loaded and area > 0 else [],
     }
+    penalty = inputs.get("nitsche_penalty", DEFAULT_PENALTY)
+    if penalty != "auto":
+        job["nitsche_penalty"] = penalty
     if inputs["gravity"]:
         job["gravity"] = [0, 0, -9810.0]
     return job
@@ -206,11 +213,18 @@ class AnalysisFeature(feature_proxy.FeatureProxy):
     progress = None
     _quiet = False
 
+    def __init__(self, obj):
+        super(AnalysisFeature, self).__init__(obj)
+        obj.NitschePenalty = DEFAULT_PENALTY  # new analyses; restored ones keep theirs
+
     def onDocumentRestored(self, obj):
         had_element = "Element" in obj.PropertiesList
+        had_penalty = "NitschePenalty" in obj.PropertiesList
         super(AnalysisFeature, self).onDocumentRestored(obj)
         if not had_element:  # saved before the element choice: those runs were hex8; keep their results
             obj.Element = "hex8"
+        if not had_penalty:  # saved before the penalty choice: those runs held faces by β E/h
+            obj.NitschePenalty = "fixed"
         if FreeCAD.GuiUp and obj.ViewObject is not None and not obj.ViewObject.Proxy:
             ViewProviderAnalysis(obj.ViewObject)  # documents saved before the task panel existed
 

@@ -198,10 +198,11 @@ class AnalysisTaskPanel(object):
         form_out.addRow("Element", self.element)
         self.penalty = _narrow(QtGui.QComboBox())
         self.penalty.addItems(analysis_feature.PENALTIES)
-        self.penalty.setCurrentIndex(max(0, self.penalty.findText(inputs.get("nitsche_penalty", "fixed"))))
-        self.penalty.setToolTip("How the fixed faces are held on cut cells. fixed: penalty 100 E/h (the default); "
-                                "local: from each cut cell's eigenvalue, stable but on the thinnest slivers, no "
-                                "locking")
+        self.penalty.setCurrentIndex(max(0, self.penalty.findText(
+            inputs.get("nitsche_penalty", analysis_feature.DEFAULT_PENALTY))))
+        self.penalty.setToolTip("How the fixed faces are held on cut cells. auto (the default): local for the "
+                                "linear model, fixed for rubber; local: from each cut cell's eigenvalue, stable "
+                                "but on the thinnest slivers, no locking; fixed: penalty 100 E/h")
         form_out.addRow("Clamp penalty", self.penalty)
         folder_row = QtGui.QHBoxLayout()
         self.output_dir = _narrow(QtGui.QLineEdit(inputs["output_dir"]))

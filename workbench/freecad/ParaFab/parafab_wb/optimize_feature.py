@@ -428,8 +428,7 @@ def build_job(shape, options, placement=None):
         penalty = opts.get("nitsche_penalty", "fixed")
         if penalty not in ("fixed", "local"):
             raise OptimizeError("clamp penalty must be 'fixed' or 'local', got %r" % (penalty,))
-        if penalty != "fixed":
-            job["nitsche_penalty"] = penalty
+        job["nitsche_penalty"] = penalty  # explicit: the engine's default depends on the element
     if opts.get("max_volume_ratio"):
         job["constraints"] = [{"type": "volume", "max_ratio": float(opts["max_volume_ratio"])}]
     return job
