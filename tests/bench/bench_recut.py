@@ -7,8 +7,9 @@ of the reference script (CalculiX, meshing included). Writes DIR/recut.json and 
 The figure of merit is the speed-up at equal accuracy: for every XFEM update, the CalculiX
 time interpolated (log–log) at the XFEM error, divided by the update time (goal ≥ 5).
 
-Both Nitsche penalties on the clamp (--nitsche): "fixed" (beta E / h, beta = 100, the default of
-`parafab simulate`) and "local" (from each clamped cut cell's eigenvalue), each with its own
+Both Nitsche penalties on the clamp (--nitsche): "fixed" (beta E / h, beta = 100, `parafab
+simulate`'s default for hex8) and "local" (from each clamped cut cell's eigenvalue; the default for
+linear hex27 jobs since 2026-11-28), each with its own
 error against the same reference.
 
 Usage: /usr/bin/python3 tests/bench/bench_recut.py [--quick] [--nitsche fixed,local] [--out DIR]

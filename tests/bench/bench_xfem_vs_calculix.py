@@ -15,8 +15,9 @@ wall at the free end.
 
 XFEM runs with both elements in the same run: "hex8" (trilinear + incompatible modes) and
 "hex27" (triquadratic), each on its own grid sequence (--elements picks them), and with both
-Nitsche penalties (--nitsche): "fixed" (beta E / h, beta = 100, the default) and "local"
-(from each clamped cut cell's eigenvalue; routes xfem_<element>_local).
+Nitsche penalties (--nitsche): "fixed" (beta E / h, beta = 100; the default of hex8 jobs) and
+"local" (from each clamped cut cell's eigenvalue, the default of linear hex27 jobs since
+2026-11-28; routes xfem_<element>_local).
 
 Usage: /usr/bin/python3 tests/bench/bench_xfem_vs_calculix.py
            [--case l_bracket|cantilever|cantilever_turned|tube_turned] [--elements hex8,hex27] [--nitsche fixed,local]
