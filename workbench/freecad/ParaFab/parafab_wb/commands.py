@@ -165,7 +165,26 @@ class ExportCutSheetsCommand(object):
 FreeCADGui.addCommand("ParaFab_ExportCutSheets", ExportCutSheetsCommand())
 
 
-class PlotStripProfileCommand(object):
+class PlotSelectedStripsCommand(object):
+    """Base of the plot commands: ``plot(obj)`` for each selected strip, errors reported."""
+
+    def plot(self, obj):
+        raise NotImplementedError
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
+
+    def Activated(self):
+        for obj in selected_strips():
+            try:
+                self.plot(obj)
+            except Exception as exc:
+                import traceback
+                FreeCAD.Console.PrintLog(traceback.format_exc())
+                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+
+
+class PlotStripProfileCommand(PlotSelectedStripsCommand):
     """Plot K(s) and w(s) of the selected strips in FreeCAD's Plot module."""
 
     def GetResources(self):
@@ -176,23 +195,14 @@ class PlotStripProfileCommand(object):
                        "(a Plot tab per strip)",
         }
 
-    def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
-
-    def Activated(self):
-        for obj in selected_strips():
-            try:
-                strip_feature.plot_profile(obj, show=True)
-            except Exception as exc:
-                import traceback
-                FreeCAD.Console.PrintLog(traceback.format_exc())
-                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+    def plot(self, obj):
+        strip_feature.plot_profile(obj, show=True)
 
 
 FreeCADGui.addCommand("ParaFab_PlotStripProfile", PlotStripProfileCommand())
 
 
-class PlotStripStabilityCommand(object):
+class PlotStripStabilityCommand(PlotSelectedStripsCommand):
     """Plot Z(s) of the selected strips (the Jacobi test, thesis 4.5) in FreeCAD's Plot module."""
 
     def GetResources(self):
@@ -203,17 +213,8 @@ class PlotStripStabilityCommand(object):
                        "point sigma marked when the strip is unstable (thesis 4.5; a Plot tab per strip)",
         }
 
-    def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and bool(selected_strips())
-
-    def Activated(self):
-        for obj in selected_strips():
-            try:
-                strip_feature.plot_stability(obj, show=True)
-            except Exception as exc:
-                import traceback
-                FreeCAD.Console.PrintLog(traceback.format_exc())
-                FreeCAD.Console.PrintError("ParaFab: %s: %s\n" % (obj.Label, exc))
+    def plot(self, obj):
+        strip_feature.plot_stability(obj, show=True)
 
 
 FreeCADGui.addCommand("ParaFab_PlotStripStability", PlotStripStabilityCommand())
