@@ -26,9 +26,10 @@ struct EquilibriumCheckOptions {
   double collinear_tolerance = 1e-6;   ///< max distance from the line / length
   double tangent_tolerance = 1e-6;     ///< |sin(angle between line and tangent)|
   double secant_tolerance = 1e-6;      ///< |κ'|·length / max|κ| below this counts as zero
-  /// An end of the curve that lies on the inflection line (within collinear_tolerance) and
-  /// has |κ − κ₀| up to this times max |κ − κ₀| is a zero at the end (kind end), e.g. a curve
-  /// given as points whose curvature vanishes at the end up to the interpolation error.
+  /// An end of the curve that lies on the inflection line (within collinear_tolerance, or within
+  /// this times the length) and has |κ − κ₀| up to this times max |κ − κ₀| is a zero at the
+  /// end (kind end), e.g. a curve given as points whose curvature vanishes at the end up to
+  /// the interpolation error.
   double end_zero_tolerance = 1e-3;
 };
 

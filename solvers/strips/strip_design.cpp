@@ -205,6 +205,39 @@ void bending_strain(const PlaneCurve& curve, const ZeroCurvatureResult& zeros,
 
 // Ends that the equilibrium check found on the inflection line with vanishing curvature are
 // zeros at the ends (kind end).
+// With fewer than two zeros the LP chooses the line (§4.3.2), and the equilibrium check cannot
+// say whether it will pass through an end. When it does, at an end where κ − κ₀ vanishes too
+// (both to end_zero_tolerance of their largest values along the curve: a curve from points
+// whose curvature vanishes at the end up to the interpolation error, e.g. y = sin x from
+// x = 0), that end is a zero at the end (kind end), as check_equilibrium reports it for lines
+// fixed by two or more zeros.
+void report_line_end_zeros(const PlaneCurve& curve, const ZeroCurvatureResult& zeros,
+                           const StripDesignOptions& o, StripDesign& d) {
+  if (zeros.points.size() >= 2 || d.b.norm() == 0) return;
+  double m_max = 0;  // the largest moment K κ = a + <b, γ> along the curve
+  for (const auto& p : d.samples) m_max = std::max(m_max, std::abs(d.a + d.b.dot(p.point)));
+  const double l = d.length;
+  bool added = false;
+  for (int e = 0; e < 2; ++e) {
+    const double se = e == 0 ? 0.0 : l;
+    bool listed = false;
+    for (const auto& z : d.zeros) listed |= std::abs(z.at.s - se) <= 1e-3 * l;
+    if (listed) continue;
+    ZeroCurvaturePoint z;
+    z.at = curve.at_parameter(e == 0 ? curve.first_parameter() : curve.last_parameter());
+    z.at.kappa -= o.natural_curvature;
+    z.kind = ZeroKind::AtEnd;
+    const double tol = o.check.end_zero_tolerance;
+    if (std::abs(d.a + d.b.dot(z.at.point)) <= tol * m_max && std::abs(z.at.kappa) <= tol * zeros.kappa_scale) {
+      d.zeros.push_back(z);
+      added = true;
+    }
+  }
+  if (added)
+    std::sort(d.zeros.begin(), d.zeros.end(),
+              [](const ZeroCurvaturePoint& x, const ZeroCurvaturePoint& y) { return x.at.s < y.at.s; });
+}
+
 void add_end_zeros(const EquilibriumCheck& check, ZeroCurvatureResult& zeros, StripDesign& d) {
   if (check.end_zeros.empty()) return;
   zeros.points.insert(zeros.points.end(), check.end_zeros.begin(), check.end_zeros.end());
@@ -642,6 +675,7 @@ StripDesign design_strip(const BSplineCurve2& bspline, const StripDesignOptions&
   d.b = lp.b / kmin;
   d.R = kmax / kmin;
   d.feasible = true;
+  report_line_end_zeros(curve, zeros, options, d);
   finish_outputs(options, d);
   d.phases.outputs = lap(tp);
   d.total_seconds = elapsed();

@@ -129,6 +129,38 @@ class PerforationDeviation(unittest.TestCase):
             self.assertGreater(p[key], 0)
             self.assertGreaterEqual(p[key + "_s"], 0)
             self.assertLessEqual(p[key + "_s"], res["length"])
+        # Inside the perforated range the pattern's own error, smaller than the maxima that the
+        # hole-free ends set.
+        for key in ("width", "stiffness"):
+            inner = p["interior_%s_deviation" % key]
+            self.assertGreater(inner, 0)
+            self.assertLess(inner, p["max_%s_deviation" % key])
+            self.assertGreaterEqual(p["interior_%s_deviation_s" % key], p["from"])
+            self.assertLessEqual(p["interior_%s_deviation_s" % key], p["to"])
+
+
+class EndZeros(unittest.TestCase):
+    def test_points_whose_curvature_vanishes_at_the_start(self):
+        """y = a sin(x/a) from x = 0 to 1.5 pi a, as 121 points (quartic interpolation): the start
+        is a zero of the curvature on the line the LP chooses through the inflection at x = pi a
+        (closed form: the line y = 0), so it is listed as kind "end" at s = 0; before the fix
+        it was not listed. The CLI gives the same zeros."""
+        a = 0.05
+        pts = [[a * t, a * math.sin(t)] for t in (1.5 * math.pi * i / 120 for i in range(121))]
+        req = {"curve": {"points": pts}, "material": {"E": 3e9, "thickness": 5e-4}, "min_width": 0.01}
+        res = parafab.design_strip(req)
+        self.assertTrue(res["feasible"], res["reason"])
+        zeros = res["inflections"]
+        self.assertEqual([z["kind"] for z in zeros], ["end", "inflection"])
+        self.assertEqual(zeros[0]["s"], 0.0)
+        self.assertAlmostEqual(zeros[1]["point"][0], a * math.pi, delta=1e-6 * a)
+        self.assertAlmostEqual(zeros[1]["point"][1], 0.0, delta=1e-6 * a)
+        line = res["line"]  # a + <b, x> = 0 is y = 0: b along y, a = 0
+        self.assertLess(abs(line["b"][0]) / abs(line["b"][1]), 1e-4)
+        self.assertLess(abs(line["a"]) / (abs(line["b"][1]) * res["length"]), 1e-4)
+        out = run_cli(req)
+        self.assertEqual(out.returncode, 0, out.stderr)
+        self.assertEqual([z["kind"] for z in json.loads(out.stdout)["inflections"]], ["end", "inflection"])
 
 
 if __name__ == "__main__":

@@ -153,6 +153,112 @@ TEST(StripEndZeros, SineThroughPointsEndsOnTheInflectionLine) {
   }
 }
 
+// y = a sin(x/a) through n points on x/a ∈ [t0, t1], interpolated by a quartic (the JSON
+// default), and its exact arc length from x/a = 0 (composite Simpson on a√(1 + cos²)).
+constexpr double kSineA = 0.05;
+BSplineCurve2 sine_through_points(double t0, double t1, int n) {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < n; ++i) {
+    const double t = t0 + (t1 - t0) * i / (n - 1);
+    pts.emplace_back(kSineA * t, kSineA * std::sin(t));
+  }
+  return interpolate_points(pts, 4);
+}
+double sine_arc(double t0, double t1) {
+  const int m = 20000;
+  const double h = (t1 - t0) / m;
+  auto f = [](double t) { return kSineA * std::sqrt(1 + std::cos(t) * std::cos(t)); };
+  double sum = f(t0) + f(t1);
+  for (int i = 1; i < m; ++i) sum += (i % 2 ? 4 : 2) * f(t0 + i * h);
+  return sum * h / 3;
+}
+
+// Points of y = a sin(x/a) with an exact zero at one end and an inflection 1e-5…1e-4 of the
+// length from the other. Closer to the end than the point spacing (l/120, l/400), the quartic
+// interpolant may not resolve that inflection (its κ keeps its sign there); the zero of the
+// sampled shape then shows as an end on the line with κ ≈ 0, a zero at the end. Either way the
+// design is feasible, with four zeros, and the strip bends into the curve: the independent
+// check is the forward simulation of the design (validate_strip) and the sine's closed-form
+// zeros. Before the fix: "the inflection line crosses the curve at s = 1.36e-06 (0.573030),
+// which is not an inflection" — the exact zero at the other end lay 1.4e-6 l off the line
+// fitted through the interpolated inflections, more than the collinearity tolerance.
+void expect_near_end_inflection_designed(const BSplineCurve2& c, double s_zero, const std::string& what) {
+  const StripDesign d = design_strip(c, options());
+  ASSERT_TRUE(d.feasible) << what << ": " << d.reason;
+  ASSERT_EQ(d.zeros.size(), 4u) << what;
+  // The zero near an end: an inflection at the sine's zero, or (unresolved) the end itself.
+  const bool at_start = s_zero < 0.5 * d.length;
+  const ZeroCurvaturePoint& z = at_start ? d.zeros.front() : d.zeros.back();
+  if (z.kind == ZeroKind::Inflection) EXPECT_NEAR(z.at.s, s_zero, 5e-6 * d.length) << what;  // measured 2.1e-6 off
+  else EXPECT_EQ(z.kind, ZeroKind::AtEnd) << what;
+  if (z.kind == ZeroKind::AtEnd) EXPECT_EQ(z.at.s, at_start ? 0.0 : d.length) << what;
+  const ZeroCurvaturePoint& other = at_start ? d.zeros.back() : d.zeros.front();
+  EXPECT_EQ(other.kind, ZeroKind::AtEnd) << what;  // the exact zero of the sine at that end
+  // The whole sine has R = 2^{3/2} (K ∝ (1 + cos²)^{3/2}); the interpolated ends add to it.
+  EXPECT_NEAR(d.R, std::pow(2.0, 1.5), 0.12 * std::pow(2.0, 1.5)) << what;  // measured 2.93-3.12
+  StripValidationOptions vo;
+  vo.rod.edges = 400;
+  const StripValidation v = validate_strip(c, d, options(), vo);
+  ASSERT_TRUE(v.converged) << what << ": " << v.message;
+  EXPECT_LT(v.deviation, 4e-5) << what;  // relative to the length; measured 5.8e-6 - 2.5e-5
+  std::printf("[ %s ] R = %.4f, near-end zero %s at s = %.4g (sine: %.4g), simulated deviation %.2g l\n",
+              what.c_str(), d.R, to_string(z.kind), z.at.s, s_zero, v.deviation);
+}
+
+TEST(StripEndZeros, SinePointsZeroAtStartInflectionJustBeforeTheEnd) {
+  const double l3 = sine_arc(0, 3 * M_PI);
+  const double dt = 1e-4 * l3 / (kSineA * std::sqrt(2.0));  // ds/dt = a√2 at the inflection
+  for (int n : {121, 401})
+    expect_near_end_inflection_designed(sine_through_points(0, 3 * M_PI + dt, n), l3,
+                                        "sine 0..3π + 1e-4 l, " + std::to_string(n) + " points");
+}
+
+TEST(StripEndZeros, SinePointsInflectionJustAfterTheStartZeroAtTheEnd) {
+  const double l3 = sine_arc(0, 3 * M_PI);
+  for (double f : {1e-5, 1e-4}) {
+    const double dt = f * l3 / (kSineA * std::sqrt(2.0));
+    for (int n : {121, 401})
+      expect_near_end_inflection_designed(sine_through_points(-dt, 3 * M_PI, n), sine_arc(-dt, 0),
+                                          "sine -" + std::to_string(f) + " l..3π, " + std::to_string(n) + " points");
+  }
+}
+
+// y = a sin(x/a) on x/a ∈ [0, 1.5π] as points: the zero at the start is the end's
+// (kind end, s = 0), the other the inflection at x/a = π. With one inflection the LP chooses
+// the line; it passes through the start, where κ vanishes up to the interpolation error.
+// Before the fix the start was not listed as an end zero.
+TEST(StripEndZeros, SinePointsOneAndAHalfPeriodsStartIsEndZero) {
+  for (int n : {121, 401}) {
+    const StripDesign d = design_strip(sine_through_points(0, 1.5 * M_PI, n), options());
+    ASSERT_TRUE(d.feasible) << n << ": " << d.reason;
+    ASSERT_EQ(d.zeros.size(), 2u) << n;
+    EXPECT_EQ(d.zeros[0].kind, ZeroKind::AtEnd) << n;
+    EXPECT_EQ(d.zeros[0].at.s, 0.0) << n;
+    EXPECT_EQ(d.zeros[1].kind, ZeroKind::Inflection) << n;
+    EXPECT_NEAR(d.zeros[1].at.point.x(), kSineA * M_PI, 1e-6 * kSineA) << n;
+    EXPECT_NEAR(d.R, std::pow(2.0, 1.5), 1e-2) << n;
+    std::printf("[ sine 0..1.5π, n = %d ] R = %.6f, zeros at s = %.3g (%s), %.6f\n", n, d.R,
+                d.zeros[0].at.s, to_string(d.zeros[0].kind), d.zeros[1].at.s);
+  }
+}
+
+// The line through the zeros passes through the start, where κ is not zero: K = d/κ would
+// vanish there. x = L t, y = L c f(t) with f = t(t − 1)(t² − t − 1) for t ∈ [(1 − √5)/2, 1.3]:
+// f(t_start) = 0 (the start lies on y = 0) and f'' = 12 t (t − 1) vanishes at t = 0 and 1.
+TEST(StripEndZeros, LineThroughTheStartWithCurvatureIsRejected) {
+  const double ts = 0.5 * (1 - std::sqrt(5.0));
+  const BSplineCurve2 c = beam_curve(ts, 1.3);
+  const double k_start = beam_kappa(ts);  // closed form
+  const StripDesign d = design_strip(c, options());
+  ASSERT_FALSE(d.feasible);
+  EXPECT_EQ(d.reason_code, "line_crosses_curve");
+  EXPECT_NE(d.reason.find("the inflection line passes through the start of the curve (s = 0), "
+                          "where κ − κ₀ = "), std::string::npos) << d.reason;
+  EXPECT_NE(d.reason.find("is not zero: K would vanish there"), std::string::npos) << d.reason;
+  const size_t at = d.reason.find("κ₀ = ") + std::string("κ₀ = ").size();
+  EXPECT_NEAR(std::stod(d.reason.substr(at)), k_start, 1e-5 * std::abs(k_start)) << d.reason;
+}
+
 // ---- Bending strain against the yield strain --------------------------------------------
 
 BSplineCurve2 exact_arc(double r) {  // 120°, rational quadratic
