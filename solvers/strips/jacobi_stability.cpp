@@ -83,7 +83,11 @@ Jacobi assemble(const DiscreteRodState& s) {
     J.t[j] = Vec2(std::cos(s.angles[j]), std::sin(s.angles[j]));
     J.tp[j] = Vec2(-J.t[j].y(), J.t[j].x());
   }
-  const plane_rod::EndReferences ends = plane_rod::end_references(s.boundary, s.stiffness, J.w, N);
+  PARAFAB_VERIFY(s.weight_ratio.empty() || static_cast<int>(s.weight_ratio.size()) == N + 1,
+                 "stability: " << s.weight_ratio.size() << " weight ratios for " << N << " edges (need N + 1)");
+  std::vector<double> weight = s.stiffness;  // weight per length / |e|
+  for (size_t k = 0; k < s.weight_ratio.size(); ++k) weight[k] *= s.weight_ratio[k];
+  const plane_rod::EndReferences ends = plane_rod::end_references(s.boundary, weight, J.w, N);
   for (int d = 0; d < 2; ++d) J.constrained[d] = ends.constrained[d], J.ref_start[d] = ends.ref_start[d], J.Q[d] = ends.Q[d];
   J.mu.resize(N);
   J.d.resize(N);
@@ -247,6 +251,9 @@ ConjugatePointSensitivity conjugate_point_sensitivity(const DiscreteRodState& st
   const auto t0 = Clock::now();
   PARAFAB_VERIFY(state.law.linear(),
                  "conjugate_point_sensitivity: only the linear moment law is supported (m'' is not modelled)");
+  PARAFAB_VERIFY(state.weight_ratio.empty() || state.load.norm() == 0,
+                 "conjugate_point_sensitivity: a weight that does not follow K (weight_ratio, composite strips "
+                 "under gravity) is not modelled");
   Jacobi J = assemble(state);
   integrate(J);
   const Scan sc = scan(J, o.degenerate_tolerance);
@@ -467,6 +474,10 @@ DiscreteRodState rod_state(const PlaneRodProblem& p, const PlaneRodResult& r) {
   s.multiplier = r.multiplier;
   s.boundary = p.boundary;
   s.load = p.load;
+  if (!p.weight_ratio.empty()) {
+    s.weight_ratio.resize(N + 1);
+    for (int k = 0; k <= N; ++k) s.weight_ratio[k] = interpolate(p.stiffness_s, p.weight_ratio, p.length * k / N);
+  }
   s.law = p.law;
   s.natural_curvature = p.natural_curvature;
   return s;
@@ -518,7 +529,16 @@ DiscreteRodState rod_state(const BSplineCurve2& bspline, const StripDesign& desi
   s.multiplier = design.general_lp ? Vec2(-design.end_force) : Vec2(-design.b.y(), design.b.x());
   s.boundary = o.boundary;
   s.load = o.gravity.load();
+  if (!design.weight_ratio.empty()) {  // composite under gravity: the LP's weight of both layers
+    s.weight_ratio.resize(N + 1);
+    for (int k = 0; k <= N; ++k) s.weight_ratio[k] = interpolate(ks, design.weight_ratio, l * k / N);
+  }
   s.law = o.law;
+  // Ideal plasticity (H = 0, App. A.5): the bent strip is the elastic one with the permanent
+  // set as natural curvature (what validate_strip simulates), so the second variation is that
+  // of the linear law, P = K (P = K m′(κ) = 0 beyond the limit would fail Legendre). A
+  // hardening law (H > 0) keeps P = K m′(κ), as the simulator keeps that law.
+  if (std::isfinite(s.law.curvature_limit) && s.law.plastic_hardening == 0) s.law.curvature_limit = INFINITY;
   s.natural_curvature = o.natural_curvature;
   return s;
 }
@@ -558,6 +578,10 @@ StripStability strip_stability(const BSplineCurve2& curve, const StripDesign& de
   ss.angles = r.edge_angles;
   ss.stiffness.resize(N + 1);
   for (int k = 0; k <= N; ++k) ss.stiffness[k] = interpolate(ks, kv, r.node_s[k]);
+  if (!design.weight_ratio.empty()) {
+    ss.weight_ratio.resize(N + 1);
+    for (int k = 0; k <= N; ++k) ss.weight_ratio[k] = interpolate(ks, design.weight_ratio, r.node_s[k]);
+  }
   ss.start_angle = unwrap_near(state.start_angle, r.edge_angles.front());
   ss.end_angle = unwrap_near(state.end_angle, r.edge_angles.back());
   ss.multiplier = r.multiplier;

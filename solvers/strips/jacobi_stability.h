@@ -33,7 +33,10 @@ struct DiscreteRodState {
   /// whose end coordinate is free is ignored.
   Vec2 multiplier{0, 0};
   StripBoundary boundary;
-  Vec2 load{0, 0};                  ///< e [1/m³]: weight per length K e
+  Vec2 load{0, 0};                  ///< e [1/m³]: weight per length K e (times weight_ratio)
+  /// Optional, N + 1 values: weight per length = weight_ratio_k K_k e at the nodes (composite
+  /// strips, whose broad layer's weight does not follow K, §4.7.1); empty: 1.
+  std::vector<double> weight_ratio;
   MomentLaw law;
   double natural_curvature = 0;
   int edges() const { return static_cast<int>(angles.size()); }

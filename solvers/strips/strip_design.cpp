@@ -524,6 +524,7 @@ void design_general(const PlaneCurve& curve, const StripDesignOptions& o, StripD
   for (const auto& p : used_smp) {
     if (!o.inflection_rows && p.zero) continue;
     d.samples.push_back({p.s, p.point, p.kappa, lp.K[j++]});
+    if (composite_weight) d.weight_ratio.push_back(p.weight);
   }
   if (o.gravity.enabled) {  // weight per length [N/m]; ρg = E h²/(12 βl³)
     const double rho_g = o.youngs_modulus * o.thickness * o.thickness / (12 * o.gravity.gravito_bending);

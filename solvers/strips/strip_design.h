@@ -146,6 +146,9 @@ struct StripDesign {
   std::vector<double> weight_per_length;
   int weight_iterations = 0;
   double weight_change = 0;  ///< last relative change of the composite weight (fixed point)
+  /// Composite strips under gravity: per sample the ratio λ = (weight per length)/(K e) the
+  /// LP used (not 1: the broad layer's weight does not follow K); empty otherwise (λ = 1).
+  std::vector<double> weight_ratio;
 };
 
 /// Widths of the two layers of a composite strip for the normalized profile K (min 1):
