@@ -634,6 +634,8 @@ class TestStripVersion2(StripTestCase):
                 self.assertIn("within %.2f %% of the design (sections %.2f %%)" % (
                     100 * per["interior_stiffness_deviation"], 100 * per["interior_width_deviation"]),
                     strip.TypeMessage)
+                self.assertIn("the hole-free ends are up to %.0f %% stiffer" % (100 * per["end_zone_deviation"]),
+                              strip.TypeMessage)
                 self.assertLess(per["interior_stiffness_deviation"], per["max_stiffness_deviation"])
                 self.assertLess(per["interior_width_deviation"], 0.02)
             dxf, svg = strip_feature.export_cut_sheets(strip, self.tmpdir)

@@ -74,16 +74,17 @@ _PROPERTIES = (
     # Version 4: how the fixed faces are held (documents of versions 1-3 ran "fixed" and keep it;
     # new analyses get "auto", the solver's default since 2026-11-28).
     ("App::PropertyEnumeration", "NitschePenalty", "Grid",
-     "How the fixed faces are held on cut cells. auto (the default): local for the linear model, "
-     "fixed for rubber. local: from each cut cell's eigenvalue, stable on cut cells but the "
+     "How the fixed faces are held on cut cells. auto (the default): local for the linear model "
+     "on hex27, fixed for hex8 and for rubber. local: from each cut cell's eigenvalue, stable on cut cells but the "
      "thinnest slivers, and without locking (more accurate on coarse grids; converges where "
      "'fixed' fails with rubber, though less accurate there); fixed: penalty 100 E/h", None, 0),
 )
 MODELS = ["linear", "neo_hooke", "neo_hooke_isochoric", "mooney_rivlin"]
 ELEMENTS = ["hex27", "hex8"]
 PENALTIES = ["fixed", "local", "auto"]  # saved documents index this order: append only
-#: "auto" leaves the choice to the solver: local for the linear model, fixed (β = 100) for the
-#: hyperelastic ones, whose linearized Nitsche terms lose accuracy with the smaller local penalty.
+#: "auto" leaves the choice to the solver: local for the linear model on hex27, fixed (β = 100)
+#: for hex8 (soft with local on thin parts) and for the hyperelastic models, whose linearized
+#: Nitsche terms lose accuracy with the smaller local penalty.
 DEFAULT_PENALTY = "auto"
 
 #: Material presets of the task panel: E [MPa], nu, density [kg/m^3], model.

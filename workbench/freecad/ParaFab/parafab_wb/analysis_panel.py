@@ -201,7 +201,7 @@ class AnalysisTaskPanel(object):
         self.penalty.setCurrentIndex(max(0, self.penalty.findText(
             inputs.get("nitsche_penalty", analysis_feature.DEFAULT_PENALTY))))
         self.penalty.setToolTip("How the fixed faces are held on cut cells. auto (the default): local for the "
-                                "linear model, fixed for rubber; local: from each cut cell's eigenvalue, stable "
+                                "linear model on hex27, fixed for hex8 and for rubber; local: from each cut cell's eigenvalue, stable "
                                 "but on the thinnest slivers, no locking; fixed: penalty 100 E/h")
         form_out.addRow("Clamp penalty", self.penalty)
         folder_row = QtGui.QHBoxLayout()
