@@ -1077,6 +1077,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
       cholesky_ = std::move(fresh);
     }
     SparseCholesky& chol = *cholesky_;
+    if (options.memory_limit_mb > 0) chol.memory_limit_mb = options.memory_limit_mb;
     chol.factorize(K);
     if (chol.IsDone()) {
       // Cholesky: two steps of iterative refinement; the LU fallback solves once, as before.

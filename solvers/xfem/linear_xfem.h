@@ -103,6 +103,9 @@ struct LinearXfemOptions {
   /// the node's position), so conditioning stays bounded
   /// as fractions go to 0. 0 turns it off.
   double aggregation_fraction = 0.05;
+  /// Memory the factorization may bring the process to, in MB (SparseCholesky::memory_limit_mb:
+  /// checked against the factor's exact size before it is computed). 0: 70% of the memory.
+  double memory_limit_mb = 0;
   /// What a LinearXfemSolver carries from one solve to the next (a re-solve after a re-cut):
   struct Reuse {
     /// Elements equal to one of the previous solve (same cell, box and rule bit for bit, and for

@@ -150,6 +150,7 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
   Eigen::VectorXd ur = Eigen::VectorXd::Zero(T.cols());
   r.u = Eigen::VectorXd::Zero(r.dofs);
   SparseCholesky llt;  // symbolic analysis once: every Newton Hessian has the same pattern
+  if (options.boundary.memory_limit_mb > 0) llt.memory_limit_mb = options.boundary.memory_limit_mb;
   for (int step = 1; step <= options.load_steps; ++step) {
     const double lambda = static_cast<double>(step) / options.load_steps;
     const Eigen::VectorXd f = lambda * (reduce ? Eigen::VectorXd(Tt * boundary.f) : boundary.f);

@@ -3,14 +3,36 @@
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseLU>
+#include <unistd.h>
+
 #include <chrono>
+#include <cmath>
+#include <fstream>
 
 #include "common/error.h"
 
 namespace parafab::xfem {
 
+namespace {
+// Eigen keeps CHOLMOD's factor protected; the analysis's sizes are read from it.
+struct SupernodalLlt : Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> {
+  const cholmod_factor* factor() const { return m_cholmodFactor; }
+};
+}  // namespace
+
+double SparseCholesky::default_memory_limit_mb() {
+  return 0.7 * static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGE_SIZE)) / 1e6;
+}
+
+double SparseCholesky::resident_mb() {
+  std::ifstream statm("/proc/self/statm");  // size resident shared ... (pages)
+  double size = 0, resident = 0;
+  if (!(statm >> size >> resident)) return 0;
+  return resident * static_cast<double>(sysconf(_SC_PAGE_SIZE)) / 1e6;
+}
+
 struct SparseCholesky::Impl {
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  SupernodalLlt llt;
   std::unique_ptr<Eigen::SparseLU<Eigen::SparseMatrix<double>>> lu;
   std::shared_ptr<const Eigen::SparseMatrix<double>> K;  // for iterative refinement (compressed)
 };
@@ -42,6 +64,11 @@ void SparseCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
   }
   impl_->llt.analyzePattern(P);
   impl_->lu.reset();
+  // The factor's real storage (supernodal: xsize values, amalgamation zeros included) and the
+  // flops of a simplicial LLᵀ, both known from the symbolic analysis alone.
+  const cholmod_factor* L = impl_->llt.factor();
+  factor_entries_ = L ? static_cast<double>(L->is_super ? L->xsize : L->nzmax) : 0.0;
+  factor_flops_ = c.fl;
   rows_ = static_cast<int>(P.rows());
   outer_.assign(P.outerIndexPtr(), P.outerIndexPtr() + P.outerSize() + 1);
   inner_.assign(P.innerIndexPtr(), P.innerIndexPtr() + P.nonZeros());
@@ -66,6 +93,16 @@ bool SparseCholesky::factorize(std::shared_ptr<const Eigen::SparseMatrix<double>
   }
   const Eigen::SparseMatrix<double>& K = *K_in;
   if (!same_pattern(K)) analyze(K);
+  // Refuse before the numeric factorization allocates a factor the machine cannot hold: the
+  // analysis knows the factor's size exactly; the rest of the run is what it holds now.
+  if (memory_limit_mb > 0) {
+    const double held = resident_mb();
+    PARAFAB_VERIFY(factor_mb() + held <= memory_limit_mb,
+                   "the sparse Cholesky factor of these " << rows_ << " unknowns needs " << std::lround(factor_mb())
+                   << " MB (" << factor_entries_ << " values by CHOLMOD's analysis) and the run already holds "
+                   << std::lround(held) << " MB: more than the " << std::lround(memory_limit_mb)
+                   << " MB allowed (memory_limit_mb; default 70% of the memory): use fewer cells");
+  }
   const auto t0 = std::chrono::steady_clock::now();
   impl_->lu.reset();
   impl_->llt.factorize(K);

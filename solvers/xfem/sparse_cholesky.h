@@ -36,6 +36,14 @@ class SparseCholesky {
   /// 24 and 32 cells (10,374 / 22,242) about equal (METIS's longer analysis eats the gain).
   int metis_from = 10000;
 
+  /// factorize() throws parafab::Error, before any numeric work, when the factor's memory (exact,
+  /// from the symbolic analysis) plus what the process holds now (resident_mb()) exceeds this
+  /// many MB (0: no limit). Default: 70% of physical memory.
+  double memory_limit_mb = default_memory_limit_mb();
+  static double default_memory_limit_mb();
+  /// The process's resident memory now (Linux /proc/self/statm; 0 where unreadable).
+  static double resident_mb();
+
   /// Symbolic analysis of K's pattern (square, both triangles stored as Eigen's
   /// SparseMatrix; only the pattern is read). Throws parafab::Error for a non-square matrix.
   void analyze(const Eigen::SparseMatrix<double>& pattern);
@@ -58,6 +66,12 @@ class SparseCholesky {
   /// True if K has exactly the analyzed pattern (same size, outer and inner indices).
   bool same_pattern(const Eigen::SparseMatrix<double>& K) const;
 
+  /// From the last analysis: values stored in the factor L (supernodal, amalgamation zeros
+  /// included), their memory in MB (8 bytes each), and the flops of the factorization.
+  double factor_entries() const { return factor_entries_; }
+  double factor_mb() const { return 8.0 * factor_entries_ / 1e6; }
+  double factor_flops() const { return factor_flops_; }
+
   // Diagnostics: how often each step ran, and its accumulated wall time.
   int analyses = 0, factorizations = 0;
   double analyze_seconds = 0, factorize_seconds = 0;
@@ -68,6 +82,7 @@ class SparseCholesky {
   Status status_ = Status::Empty;
   std::string message_;
   int rows_ = 0;
+  double factor_entries_ = 0, factor_flops_ = 0;
   std::vector<int> outer_, inner_;  // the analyzed pattern (compressed)
 };
 

@@ -149,21 +149,69 @@ class Simulate(unittest.TestCase):
         self.assertLess(abs(tip[1e3] - tip[1e5]) / abs(tip[1e5]), 0.001)
 
     def test_estimate_counts_the_cells_the_part_occupies(self):
-        # The refusal before a run rests on the estimated unknowns: from V/h^3 + 2 A/h^2 cells
-        # (OCCT's volume and area), not the bounding box's nodes, which counted 2.3-4x the DOFs
-        # and refused the 80-cell hex8 bracket (263k DOFs, 3.2 GB peak, 38 s) at "35.9 GB".
-        # Measured estimated / solved: hex8 16 / 32 cells 1.84 / 1.69, hex27 8 cells 2.27.
+        # The size before a run, from the part's volume and area: unknowns m^3 V/h^3 + b m^2 A/h^2,
+        # the factor 8 C n^(4/3) bytes with C = 26 (compact parts) and 7 (thin-walled), the rest of
+        # the run 5 / 9 kB per unknown. Against what the run then has: its unknowns, CHOLMOD's
+        # factor size and the CLI's peak resident memory (os.wait4). Measured on the bracket
+        # (2026-11-28): unknowns 1.26 / 1.21 / 1.17 x, compact factor 2.5 / 2.5 / 2.3 x CHOLMOD's,
+        # peak 1.19 / 1.51 / 1.33 x (compact) and 1.03 / 0.98 / 1.16 x (thin-walled) the measured.
         with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
             job = json.load(f)
         for element, cells in (("hex8", 16), ("hex8", 32), ("hex27", 8)):
             job.update(element=element, grid={"cells": cells})
-            sim = parafab.Simulation(BRACKET, job)
-            estimated = sim.estimate()["unknowns"]
-            solved = sim.run()["dofs"]
-            print("%s %d cells: %.0f unknowns estimated, %d solved (%.2f)" % (element, cells, estimated, solved,
-                                                                              estimated / solved))
-            self.assertGreaterEqual(estimated, solved)  # never below: the refusal stays on the safe side
-            self.assertLessEqual(estimated, 2.5 * solved)
+            est = parafab.Simulation(BRACKET, job).estimate()
+            with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+                json.dump(job, f)
+            try:
+                p = subprocess.Popen([CLI, "simulate", BRACKET, f.name], stdout=subprocess.PIPE)
+                out = p.stdout.read()
+                p.stdout.close()
+                _, status, usage = os.wait4(p.pid, 0)
+                p.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+            finally:
+                os.unlink(f.name)
+            self.assertEqual(os.waitstatus_to_exitcode(status), 0)
+            r = json.loads(out)
+            peak = usage.ru_maxrss / 1024.0
+            print("%s %d cells: unknowns %.0f estimated / %d solved (%.2f); factor %.0f MB estimated (compact) / "
+                  "%.1f MB CHOLMOD (%.2f); peak %.0f-%.0f MB estimated / %.0f MB measured (%.2f-%.2f)" % (
+                      element, cells, est["unknowns"], r["dofs"], est["unknowns"] / r["dofs"], est["factor_mb"],
+                      r["solver"]["factor_mb"], est["factor_mb"] / r["solver"]["factor_mb"], est["peak_mb_min"],
+                      est["peak_mb"], peak, est["peak_mb_min"] / peak, est["peak_mb"] / peak))
+            self.assertGreaterEqual(est["unknowns"], r["dofs"])
+            self.assertLessEqual(est["unknowns"], 1.4 * r["dofs"])
+            self.assertGreater(est["factor_mb"], r["solver"]["factor_mb"])  # the compact figure: an upper one
+            self.assertLess(est["factor_mb"], 3.0 * r["solver"]["factor_mb"])
+            self.assertGreaterEqual(est["peak_mb"], peak)
+            self.assertLessEqual(est["peak_mb"], 1.8 * peak)
+            self.assertGreater(est["peak_mb_min"], 0.85 * peak)
+            self.assertLess(est["peak_mb_min"], 1.3 * peak)
+            self.assertEqual(est["fits"], True)
+
+    def test_memory_limit_refuses_before_the_run_or_before_the_factorization(self):
+        # memory_limit_mb (default 70 % of the memory). The box on 32 hex8 cells: 42,075 unknowns,
+        # a 238 MB factor, a 454 MB peak; estimated 340 MB (thin-walled figure) to 580 MB (compact).
+        # 100 MB: refused before anything runs. 400 MB: the thin-walled figure passes, and CHOLMOD's
+        # analysis then finds factor + resident memory above 400 MB: refused before the factorization.
+        box = os.path.join(SAMPLES, "parts", "box.step")
+        job = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8", "grid": {"cells": 32},
+               "supports": [{"point": [20, 15, 0]}], "gravity": [0, 0, -9810]}
+        est = parafab.Simulation(box, dict(job, memory_limit_mb=400)).estimate()
+        self.assertEqual(est["limit_mb"], 400)
+        self.assertLess(est["peak_mb_min"], 400)
+        self.assertGreater(est["peak_mb"], 400)
+        self.assertEqual((est["fits"], est["may_fit"]), (False, True))
+        for limit, expected in ((100, "this grid needs at least about"), (400, "sparse Cholesky factor of these 42075 unknowns needs")):
+            with self.subTest(limit=limit):
+                code, out = run(box, dict(job, memory_limit_mb=limit))
+                self.assertEqual(code, 2, out)
+                self.assertIn(expected, out["error"]["message"])
+                self.assertIn("memory_limit_mb", out["error"]["message"])
+                with self.assertRaises(parafab.Error):
+                    parafab.simulate(box, dict(job, memory_limit_mb=limit))
+        r = parafab.simulate(box, dict(job, memory_limit_mb=2000))  # room enough: solved
+        self.assertEqual(r["dofs"], 42075)
+        self.assertGreater(r["solver"]["factor_mb"], 200)
 
     def test_job_errors_name_the_field(self):
         base = {"material": {"E": 210000, "nu": 0.3}, "supports": [{"point": [0, 20, 30]}]}
@@ -175,6 +223,7 @@ class Simulate(unittest.TestCase):
             (dict(base, supports=[{"point": [500, 500, 500]}]), "no face"),
             (dict(base, loads=[{"face": 0}]), "loads[0] needs"),
             (dict(base, grid={"cells": 100000}), "memory"),
+            (dict(base, memory_limit_mb=0), "memory_limit_mb must be positive"),
             (dict(base, material={"E": 1, "nu": 0.3, "model": "ogden"}), "ogden"),
             (dict(base, nitsche_penalty="strong"), "nitsche_penalty must be"),
             (dict(base, nitsche_beta=0), "nitsche_beta must be positive"),

@@ -135,7 +135,7 @@ int main(int argc, char** argv) {
                        "Threads for rules, assembly and result writing (overrides the job's \"threads\"; "
                        "default: all cores)")->check(CLI::PositiveNumber);
   simulate->add_flag("--estimate", estimate_only,
-                     "Only print the size estimate {unknowns, factor_mb, memory_mb, fits}; do not run");
+                     "Only print the size estimate {unknowns, factor_mb, factor_mb_min, peak_mb, peak_mb_min, limit_mb, memory_mb, fits, may_fit, cut}; do not run");
   simulate->add_flag("--progress", show_progress,
                      "Print one JSON line per phase to stderr: {\"progress\": {\"phase\": ..., \"fraction\": ...}}");
   auto* sections = app.add_subcommand(

@@ -456,7 +456,7 @@ PYBIND11_MODULE(parafab, m) {
            }),
            py::arg("path"), py::arg("job"))
       .def("estimate", [](const parafab::entry::SimulationSession& s) { return to_python(s.estimate()); },
-           "Size of the run before running it: unknowns, factor_mb, memory_mb, fits.")
+           "Size of the run before running it: unknowns, factor_mb (a compact part) and factor_mb_min (a thin-walled one), peak_mb and peak_mb_min (the whole run), limit_mb, memory_mb (physical), fits, may_fit, cut.")
       .def(
           "run",
           [](parafab::entry::SimulationSession& s, const std::string& out_dir, const py::object& progress) {

@@ -247,7 +247,10 @@ struct SimulationSession::Setup {
   std::vector<xfem::TractionCondition> tractions;
   xfem::LinearXfemOptions fo;
   int load_steps = 5;
-  double dofs = 0, factor_mb = 0, physical_mb = 0;
+  double dofs = 0, physical_mb = 0;
+  /// Factor memory for compact parts (an upper figure) and for thin-walled ones (a lower one),
+  /// the whole run's peak with each, and what the run may use (memory_limit_mb).
+  double factor_mb = 0, factor_mb_min = 0, peak_mb = 0, peak_mb_min = 0, limit_mb = 0;
   double target = 0;   ///< relative accuracy target (grid.target); 0: the given grid
   int max_cells = 64;  ///< refinement stops here (grid.max_cells)
   int threads = 0;     ///< "threads": 0 = all cores
@@ -456,46 +459,64 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   S->extent = size.max - size.min;
   S->info.bbox_min = size.min, S->info.bbox_max = size.max, S->info.area = size.area, S->info.volume = size.volume;
   S->physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
+  S->limit_mb = 0.7 * S->physical_mb;
+  if (job.contains("memory_limit_mb")) {
+    S->limit_mb = number(job["memory_limit_mb"], "memory_limit_mb");
+    if (!(S->limit_mb > 0)) PARAFAB_INPUT_ERROR("memory_limit_mb must be positive (MB), got " << job["memory_limit_mb"].dump());
+  }
+  S->fo.memory_limit_mb = S->limit_mb;  // the exact check before the factorization
   S->set_estimate();
   return S;
 }
 
-// Estimate before running: DOFs from the cells the part occupies, factor memory from a 3D fill
-// model.
+// Estimate before running, from the part's box, volume V and area A only. Calibrated on the
+// eight sample parts, hex8 on 16–48 and hex27 on 8–24 cells (2026-11-28, README "Memory
+// estimate"):
+// - DOF nodes m³V/h³ inside plus b·m²A/h² along the surface (the cut cells' outer nodes and the
+//   enriched copies), m = 1 (hex8) or 2 (hex27): b was 0.5 (the aligned box) to 1.4 for hex8
+//   and 1.2 to 2.0 for hex27 (2.9 once, the wrench on 8 cells: 1,152 unknowns). b = 1.5 / 2.0.
+// - The factor: 8 bytes · C · n^{4/3} (nested-dissection fill), C = 7.7–15 on the thin-walled
+//   parts and 20–26 on the compact ones. The box and the area do not tell which: factor_mb takes
+//   C = 26, factor_mb_min C = 7.
+// - The rest of the run: 5 (hex8) or 9 (hex27) kB per unknown above about 50 MB.
+// A single run is refused here only when even the thin-walled figure exceeds the limit; between
+// the two, CHOLMOD's analysis decides exactly before the factorization (SparseCholesky).
 void SimulationSession::Setup::set_estimate() {
   const Vec3& ext = extent;
   const double h = go.grid.cell_size > 0 ? go.grid.cell_size : ext.maxCoeff() / go.grid.cells_longest;
-  // Hex27 has nodes at every half cell, and about 4.6× the entries per row of hex8 (125 vs 27
-  // neighbour nodes), which fills the factor more.
-  const int m = fo.element == xfem::ElementType::Hex27 ? 2 : 1;
+  const bool quadratic = fo.element == xfem::ElementType::Hex27;
+  const double m = quadratic ? 2 : 1;
   const double box_nodes = (m * std::ceil(ext.x() / h) + 1) * (m * std::ceil(ext.y() / h) + 1) * (m * std::ceil(ext.z() / h) + 1);
-  // Only cells inside or cut carry DOFs: about V/h³ + A/h² of them (A/h² overestimates the cut
-  // cells 1.4–2.2×, grid_estimate.cpp), m³ nodes each in the bulk; the surface term is doubled
-  // for the extra node layer of thin walls. Measured on the L-bracket (2026-11-28): 1.5–2.6× the
-  // DOFs the solve then has (hex8 and hex27, 8–64 cells), where the box's nodes were 2.3–4×.
-  const double cells = info.volume / (h * h * h) + 2 * info.area / (h * h);
-  const double nodes = std::min(box_nodes, m * m * m * cells);
-  dofs = 3 * nodes * 1.2;  // enriched copies at cut cells
-  // Nested-dissection fill ~ n^{4/3}. The constant 25 (40 until 2026-11-28) keeps the estimate
-  // 1.75–1.9× above the whole run's measured peak memory on the hex8 bracket at 64 / 80 cells
-  // (1.5 / 3.1 GB; bench_xfem_parallel.py), and the peak grew like DOFs^0.96 there, slower than
-  // the model.
-  factor_mb = (m == 2 ? 2.0 : 1.0) * 8.0 * dofs * 25.0 * std::cbrt(dofs) / 1e6;
+  const double nodes = m * m * m * info.volume / (h * h * h) + (quadratic ? 2.0 : 1.5) * m * m * info.area / (h * h);
+  dofs = 3 * std::min(box_nodes, nodes);
+  auto factor = [&](double C) { return 8.0 * C * dofs * std::cbrt(dofs) / 1e6; };
+  factor_mb = factor(26), factor_mb_min = factor(7);
+  const double rest = 50 + (quadratic ? 9e-3 : 5e-3) * dofs;
+  peak_mb = rest + factor_mb, peak_mb_min = rest + factor_mb_min;
   cut_estimate = estimate_grid(info, go.grid);
 }
 
 json SimulationSession::estimate() const {
-  return {{"unknowns", setup_->dofs}, {"factor_mb", setup_->factor_mb}, {"memory_mb", setup_->physical_mb},
-          {"fits", setup_->factor_mb <= 0.7 * setup_->physical_mb && setup_->cut_estimate.fits},
-          {"cut", to_json(setup_->cut_estimate)}};
+  const Setup& S = *setup_;
+  return {{"unknowns", S.dofs},
+          {"factor_mb", S.factor_mb},
+          {"factor_mb_min", S.factor_mb_min},
+          {"peak_mb", S.peak_mb},
+          {"peak_mb_min", S.peak_mb_min},
+          {"limit_mb", S.limit_mb},
+          {"memory_mb", S.physical_mb},
+          {"fits", S.peak_mb <= S.limit_mb && S.cut_estimate.fits},
+          {"may_fit", S.peak_mb_min <= S.limit_mb && S.cut_estimate.fits},
+          {"cut", to_json(S.cut_estimate)}};
 }
 
 void SimulationSession::refuse_if_too_big() const {
   const Setup& S = *setup_;
-  if (S.factor_mb > 0.7 * S.physical_mb)
-    PARAFAB_INPUT_ERROR("this grid needs about " << S.factor_mb << " MB for the factorization (" << S.dofs
-                                                 << " unknowns), more than 70% of the " << S.physical_mb
-                                                 << " MB of memory: use fewer cells");
+  if (S.peak_mb_min > S.limit_mb)
+    PARAFAB_INPUT_ERROR("this grid needs at least about " << std::lround(S.peak_mb_min) << " MB (" << std::lround(S.dofs)
+                        << " unknowns; " << std::lround(S.peak_mb) << " MB for a compact part), more than the "
+                        << std::lround(S.limit_mb) << " MB allowed (memory_limit_mb; default 70% of the "
+                        << std::lround(S.physical_mb) << " MB of memory): use fewer cells");
   entry::refuse_if_too_big(S.cut_estimate, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
 }
 
@@ -538,7 +559,7 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
     }
     S.go.grid.cells_longest = cells;
     S.set_estimate();
-    if (S.factor_mb > 0.7 * S.physical_mb || !S.cut_estimate.fits) {
+    if (S.peak_mb > S.limit_mb || !S.cut_estimate.fits) {  // the safe figure: a refusal would lose the levels
       stop = "the next grid (" + std::to_string(cells) + " cells) would not fit in memory";
       break;
     }
@@ -852,7 +873,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"dofs", r.dofs},
            {"element", xfem::element_type_name(S.fo.element)},
            {"nitsche_penalty", S.fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed"},
-           {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}, {"cut", to_json(S.cut_estimate)}}},
+           {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}, {"factor_mb_min", S.factor_mb_min},
+                         {"peak_mb", S.peak_mb}, {"peak_mb_min", S.peak_mb_min}, {"cut", to_json(S.cut_estimate)}}},
            {"max_displacement", umax},
            {"max_von_mises", vmmax},
            {"points_classified", classified},
@@ -884,7 +906,9 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"cached_element_matrices", r.cached_element_matrices},
                      {"method", si.method}, {"fallback", si.fallback}, {"iterations", si.iterations},
                      {"residual", si.residual}, {"mapped_dofs", si.mapped_dofs}, {"changed_dofs", si.changed_dofs},
-                     {"local_dofs", si.local_dofs}};
+                     {"local_dofs", si.local_dofs},
+                     {"factor_mb", linear_solver_->cholesky().factor_mb()},
+                     {"factor_flops", linear_solver_->cholesky().factor_flops()}};
     out["seconds"]["assemble_parts"] = {{"number", r.number_seconds}, {"integrate", r.integrate_seconds},
                                         {"scatter", r.scatter_seconds}, {"aggregate", r.aggregate_seconds}};
     out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"pcg_setup", si.pcg_setup_seconds}, {"factorize", si.factorize_seconds}};

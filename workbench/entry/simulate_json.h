@@ -32,8 +32,11 @@ class SimulationSession {
   /// Reads the part and checks the job; throws parafab::Error like simulate_part_json.
   SimulationSession(const std::string& part_path, const nlohmann::json& job);
   ~SimulationSession();
-  /// Size of the run before running it: {"unknowns", "factor_mb", "memory_mb", "fits"}; run()
-  /// and update() refuse a run that does not fit (factorization > 70 % of the memory).
+  /// Size of the run before running it: {"unknowns", "factor_mb" (a compact part),
+  /// "factor_mb_min" (a thin-walled one), "peak_mb", "peak_mb_min" (the whole run), "limit_mb",
+  /// "memory_mb" (physical), "fits" (with the compact figure), "may_fit", "cut"}. run() and
+  /// update() refuse a run whose thin-walled figure exceeds limit_mb; between the figures the
+  /// factor's exact size decides before it is computed.
   nlohmann::json estimate() const;
   /// Cuts, solves and reports (the result JSON of simulate_part_json).
   nlohmann::json run(const std::string& out_dir, const ProgressFn& progress = {});

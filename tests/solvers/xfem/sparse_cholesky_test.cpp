@@ -53,6 +53,43 @@ TEST(SparseCholesky, SolvesLikeADenseFactorizationAndReusesTheAnalysis) {
   EXPECT_THROW(chol.solve(b), Error);  // wrong size
 }
 
+TEST(SparseCholesky, KnowsTheFactorSizeFromTheAnalysisAndRefusesWhatExceedsTheLimit) {
+  // A dense SPD matrix is one supernode: its factor stores n × n values (the upper part as zeros)
+  // and an LLᵀ of it costs about n³/3 multiply-adds.
+  const int n = 40;
+  Eigen::MatrixXd M = Eigen::MatrixXd::Random(n, n);
+  M = M * M.transpose() + n * Eigen::MatrixXd::Identity(n, n);
+  SparseCholesky dense;
+  ASSERT_TRUE(dense.factorize(Eigen::SparseMatrix<double>(M.sparseView())));
+  EXPECT_EQ(dense.factor_entries(), n * n);
+  EXPECT_DOUBLE_EQ(dense.factor_mb(), 8.0 * n * n / 1e6);
+  EXPECT_GT(dense.factor_flops(), n * n * n / 3.0);
+  EXPECT_LT(dense.factor_flops(), n * n * n / 3.0 * 1.2);
+
+  // The limit counts the factor plus what the process holds.
+  const double held = SparseCholesky::resident_mb();
+  EXPECT_GT(held, 1.0);  // this test binary alone holds more than a megabyte
+  EXPECT_LT(held, SparseCholesky::default_memory_limit_mb());
+  const Eigen::SparseMatrix<double> A = laplacian(12, 0.01);
+  SparseCholesky tight;
+  tight.memory_limit_mb = 1;
+  try {
+    tight.factorize(A);
+    FAIL() << "a 1 MB limit was not refused";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("1728 unknowns needs"), std::string::npos) << what;
+    EXPECT_NE(what.find("more than the 1 MB allowed (memory_limit_mb"), std::string::npos) << what;
+  }
+  EXPECT_EQ(tight.status(), SparseCholesky::Status::Analyzed);  // analyzed, nothing factorized
+  EXPECT_FALSE(tight.IsDone());
+  EXPECT_GT(tight.factor_mb(), 0.0);
+  tight.memory_limit_mb = SparseCholesky::resident_mb() + tight.factor_mb() + 64;
+  EXPECT_TRUE(tight.factorize(A));
+  const Eigen::VectorXd b = Eigen::VectorXd::Ones(A.rows());
+  EXPECT_LT((tight.solve(b) - Eigen::MatrixXd(A).llt().solve(b)).norm(), 1e-12 * b.norm());
+}
+
 TEST(SparseCholesky, IndefiniteMatrixFallsBackToLU) {
   const Eigen::SparseMatrix<double> A = laplacian(4, -3.0);  // eigenvalues 6 − 2Σcos: some below 3
   const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(A.rows(), 1, 3);

@@ -281,7 +281,7 @@ class AnalysisTaskPanel(object):
             self.estimate_label.setText("No part linked")
             return
         unknowns, mb = analysis_feature.estimate(self.obj.Part, self.cells.value(), self.element.currentText())
-        self.estimate_label.setText("Estimate: about %d unknowns, %.0f MB for the factorization" % (unknowns, mb))
+        self.estimate_label.setText("Estimate: about %d unknowns, up to %.0f MB for the factorization" % (unknowns, mb))
 
     # -- running -----------------------------------------------------------------------------
 
