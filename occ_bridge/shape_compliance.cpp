@@ -568,18 +568,18 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
             const xfem::Vec3 n_f = sign[on] * grad / gn;
             const double c = n_f.dot(conormal);
             // Conormal speed of the edge per entry of F's block: a transversal edge moves with F's
-            // normal speed over n_F·ν. A cylinder running tangent into Γ (a fillet into a support)
-            // touches it along the axis line moved onto Γ, so on the constraint manifold (tangency
-            // kept) the edge moves with the axis: a = ν·(∂c/∂p + τ ∂v/∂p), τ = v·(X − c)/|v|² (the
-            // null-space completion of Fig. 6.12, case 2); other tangent contacts are flagged.
+            // normal speed over n_F·ν. A swept face running tangent into Γ (a fillet into a
+            // support: cylinder or torus; a ball end: sphere) touches it along its spine offset
+            // onto Γ, so on the constraint manifold (tangency kept) the edge moves with the spine
+            // point S nearest X: a = ν·∂S/∂p (optimize::spine_point; the null-space completion of
+            // Fig. 6.12, case 2). Planes and cones tangent to Γ are flagged.
             std::vector<double> speed_k(nb, 0.0);
             if (std::abs(c) >= 0.2) {
               for (int k = 0; k < nb; ++k) speed_k[k] = (-sign[on] * phi.g[k] / gn) / c;
-            } else if (b.kind == optimize::PrimitiveKind::cylinder) {
-              const double* cyl = p.data() + b.offset;  // axis point (3), axis (3), radius
-              const xfem::Vec3 centre(cyl[0], cyl[1], cyl[2]), axis(cyl[3], cyl[4], cyl[5]);
-              const double tau = axis.dot(X - centre) / axis.squaredNorm();
-              for (int k = 0; k < 3; ++k) speed_k[k] = conormal[k], speed_k[3 + k] = tau * conormal[k];
+            } else if (b.kind == optimize::PrimitiveKind::cylinder || b.kind == optimize::PrimitiveKind::torus ||
+                       b.kind == optimize::PrimitiveKind::sphere) {
+              const optimize::V3<optimize::Dual> S = optimize::spine_point(b.kind, p.data() + b.offset, X);
+              for (int k = 0; k < nb; ++k) speed_k[k] = conormal.x() * S.x.g[k] + conormal.y() * S.y.g[k] + conormal.z() * S.z.g[k];
             } else {
               tangent = true;
               break;

@@ -85,10 +85,11 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// (xfem::boundary_term_density; ν the outward conormal in Γ), and for a total force F_i its
 /// traction's change −2 W_i dA_i / A_i (W_i = ∫ u_h·t dA). Exact for the discrete compliance with
 /// its topology (cut cells, subvolumes, aggregation, incompatible-mode switches) frozen at `at`,
-/// as in the semi-analytic route. Where F is tangent to Γ (|n_F·ν| < 0.2) and F is a cylinder
-/// (a fillet running into a support), the edge moves with the cylinder's axis (the null-space
-/// completion of Fig. 6.12, case 2). Not included, flagged `incomplete`: a support's or load's own
-/// motion, other tangent contacts with a support or load (a torus or sphere, a cone), and the
+/// as in the semi-analytic route. Where F is tangent to Γ (|n_F·ν| < 0.2) and F is a cylinder,
+/// torus or sphere (a fillet running into a support, a ball end), the edge moves with F's spine
+/// (optimize::spine_point; the null-space completion of Fig. 6.12, case 2). Not included, flagged
+/// `incomplete`: a support's or load's own motion, a cone or plane tangent to a support or
+/// load, and the
 /// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
 /// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)). With the local Nitsche penalty a
 /// clamped cut cell's penalty κΛ changes with every face that cuts it: C changes by

@@ -416,4 +416,29 @@ Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vec
   }
 }
 
+V3<Dual> spine_point(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
+  const int nb = block_size(kind);
+  std::vector<Dual> x;
+  for (int k = 0; k < nb; ++k) x.push_back(Dual::variable(block[k], k, nb));
+  auto v = [&](int at) { return V3<Dual>{x[at], x[at + 1], x[at + 2]}; };
+  const V3<Dual> P{Dual(X.x(), nb), Dual(X.y(), nb), Dual(X.z(), nb)};
+  switch (kind) {
+    case PrimitiveKind::sphere:
+      return v(0);
+    case PrimitiveKind::cylinder: {
+      const V3<Dual> a = v(3);
+      return v(0) + (dot(a, P - v(0)) / dot(a, a)) * a;
+    }
+    case PrimitiveKind::torus: {
+      const V3<Dual> w = P - v(0), a = (1.0 / norm(v(3))) * v(3);
+      const V3<Dual> radial = w - dot(w, a) * a;
+      const Dual rho = norm(radial);
+      PARAFAB_VERIFY(rho.v > 1e-12 * (1 + std::abs(x[6].v)), "spine_point: X lies on the torus's axis");
+      return v(0) + (x[6] / rho) * radial;
+    }
+    default:
+      PARAFAB_INPUT_ERROR("spine_point: a " << to_string(kind) << " has no spine");
+  }
+}
+
 }  // namespace parafab::optimize

@@ -121,4 +121,13 @@ int add_rotation(ConstraintSystem& system, const ParameterBlock& a, const Parame
 /// Returns its value with the gradient over (block parameters, X) in that order.
 Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
 
+/// The point S of a swept primitive's spine nearest X, with its gradient over the block's
+/// parameters (X held): cylinder, the axis line (S = c + a a·(X − c)/|a|²); torus, the centre
+/// circle (S = c + R ρ̂, ρ̂ the unit radial direction of X); sphere, the centre. Where such a face
+/// runs tangent into a fixed face along a curve, that curve moves with S when the tangency is
+/// kept, so its speed across the curve per parameter is ν·∂S/∂p_k (thesis Fig. 6.12, case 2, the
+/// null-space completion). Throws parafab::Error for planes and cones (no spine; a cone's
+/// tangent line turns about its apex) and for X on the axis of a torus.
+V3<Dual> spine_point(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
+
 }  // namespace parafab::optimize

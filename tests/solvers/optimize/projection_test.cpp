@@ -9,6 +9,7 @@
 #include <map>
 #include <random>
 
+#include "common/error.h"
 #include "optimize/lbfgs.h"
 #include "optimize/projection.h"
 #include "optimize/shape_constraints.h"
@@ -159,6 +160,38 @@ TEST(ShapeConstraints, ImplicitFunctionGradientsMatchCentralDifferences) {
   // Closed forms: distance to a unit cylinder about z through the origin, radius 2.
   const double cyl[] = {0, 0, 0, 0, 0, 1, 2};
   EXPECT_NEAR(implicit_function(PrimitiveKind::cylinder, cyl, Eigen::Vector3d(3, 4, 7)).v, 3.0, 1e-15);
+}
+
+TEST(ShapeConstraints, SpinePointsAreTheClosedFormsAndTheirGradientsMatchCentralDifferences) {
+  // Closed forms: cylinder about z through (1, 2, 0): S = (1, 2, X.z); torus about z centred at
+  // (1, 2, 3), R = 4: S = (1, 2, 3) + 4 (X − c)_⊥ / |(X − c)_⊥|; sphere: the centre.
+  const Eigen::Vector3d X(4, 6, 5);
+  const double cyl[] = {1, 2, 0, 0, 0, 2.5, 1};  // an axis of length 2.5: S must not depend on it
+  const double tor[] = {1, 2, 3, 0, 0, -1, 4, 1};
+  const double sph[] = {1, 2, 3, 2};
+  auto value = [](const V3<Dual>& S) { return Eigen::Vector3d(S.x.v, S.y.v, S.z.v); };
+  EXPECT_LT((value(spine_point(PrimitiveKind::cylinder, cyl, X)) - Eigen::Vector3d(1, 2, 5)).norm(), 1e-15);
+  EXPECT_LT((value(spine_point(PrimitiveKind::torus, tor, X)) - Eigen::Vector3d(1 + 4 * 0.6, 2 + 4 * 0.8, 3)).norm(), 1e-14);
+  EXPECT_LT((value(spine_point(PrimitiveKind::sphere, sph, X)) - Eigen::Vector3d(1, 2, 3)).norm(), 1e-15);
+  std::mt19937 rng(5);
+  for (PrimitiveKind k : {PrimitiveKind::cylinder, PrimitiveKind::sphere, PrimitiveKind::torus}) {
+    const ParameterBlock b{0, k, 0};
+    Eigen::VectorXd p(b.size());
+    fill_block(p, b, rng);
+    const Eigen::Vector3d Y(0.4, -1.3, 0.8);
+    const V3<Dual> S = spine_point(k, p.data(), Y);
+    const double h = 1e-6;
+    for (int i = 0; i < b.size(); ++i) {
+      Eigen::VectorXd pp = p, pm = p;
+      pp[i] += h, pm[i] -= h;
+      const Eigen::Vector3d fd = (value(spine_point(k, pp.data(), Y)) - value(spine_point(k, pm.data(), Y))) / (2 * h);
+      const Eigen::Vector3d g(S.x.g[i], S.y.g[i], S.z.g[i]);
+      EXPECT_LT((g - fd).norm(), 1e-8 * std::max(1.0, fd.norm())) << to_string(k) << " entry " << i;
+    }
+  }
+  const double plane[] = {0, 0, 1, 0};
+  EXPECT_THROW(spine_point(PrimitiveKind::plane, plane, X), parafab::Error);
+  EXPECT_THROW(spine_point(PrimitiveKind::torus, tor, Eigen::Vector3d(1, 2, 9)), parafab::Error);  // on the axis
 }
 
 namespace {
