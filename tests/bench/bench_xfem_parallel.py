@@ -122,8 +122,14 @@ def scale(cli, grids, max_seconds, fit_min_dofs, threads):
                 break
         row = {"cells": cells, "dofs": r["dofs"], "wall": wall, "peak_mb": rss, "cpu": r["cpu_seconds"],
                "seconds": {ph: r["seconds"].get(ph, 0.0) for ph in PHASES},
-               "cut_cells": r["grid"]["cut_cells"], "interior_cells": r["grid"]["interior_cells"]}
+               "cut_cells": r["grid"]["cut_cells"], "interior_cells": r["grid"]["interior_cells"],
+               # CHOLMOD's factor and the estimate before the run (peak: thin-walled to compact figure)
+               "factor_mb": r["solver"].get("factor_mb"), "estimate": r.get("estimate")}
         rows.append(row)
+        est = r.get("estimate") or {}
+        if "peak_mb" in est:
+            print(f"scale: {cells} cells: estimated {est['unknowns']:.0f} unknowns, peak {est['peak_mb_min']:.0f}-"
+                  f"{est['peak_mb']:.0f} MB; CHOLMOD's factor {row['factor_mb']:.0f} MB", flush=True)
         print(f"scale: {cells} cells, {r['dofs']} dofs, {wall:.2f} s (cpu {r['cpu_seconds']:.2f} s), {rss:.0f} MB: " +
               ", ".join(f"{ph} {row['seconds'][ph]:.3f}" for ph in PHASES), flush=True)
         if wall > max_seconds:
@@ -171,7 +177,14 @@ def plot(data, path):
     b.set_ylabel("seconds")
     b.set_title("Scale: time per phase")
     b.legend(fontsize=7)
-    c.loglog(dofs, [r["peak_mb"] for r in rows], "o-")
+    c.loglog(dofs, [r["peak_mb"] for r in rows], "o-", label="measured peak (whole run)")
+    with_est = [r for r in rows if (r.get("estimate") or {}).get("peak_mb")]
+    if with_est:
+        d = [r["dofs"] for r in with_est]
+        c.fill_between(d, [r["estimate"]["peak_mb_min"] for r in with_est], [r["estimate"]["peak_mb"] for r in with_est],
+                       color="C1", alpha=0.25, label="estimate before the run (thin-walled … compact)")
+        c.loglog(d, [r["factor_mb"] for r in with_est], "s:", color="C2", label="CHOLMOD's factor (exact)")
+    c.legend(fontsize=7)
     c.set_xlabel("unknowns (DOFs)")
     c.set_ylabel("peak resident memory [MB]")
     e = data["scale"]["exponents"].get("peak_mb")
