@@ -144,11 +144,36 @@ NurbsSurface nurbs_of(const TopoDS_Face& nface, int index) {
 }
 
 // The B-rep's own B-spline surface of a face (located, not segmented), or count_u = 0 for other
-// surfaces and periodic B-splines (whose poles wrap around and are not parameters here).
+// surfaces. A periodic direction is unwrapped (NurbsSurface::periodic_u): OCCT's periodic flat
+// knots (distinct poles + 2 degree + 1 of them) over the distinct poles followed by the first
+// `degree` again, the layout in which OCCT evaluates it (checked against Geom_BSplineSurface::D0
+// by BsplinePoles.PeriodicFacePolesAreParametersWithExactMassDerivatives).
 NurbsSurface own_bspline(const TopoDS_Face& face) {
   const auto bs = Handle(Geom_BSplineSurface)::DownCast(BRep_Tool::Surface(face));
-  if (bs.IsNull() || bs->IsUPeriodic() || bs->IsVPeriodic()) return {};
-  return projective(*bs);
+  if (bs.IsNull()) return {};
+  if (!bs->IsUPeriodic() && !bs->IsVPeriodic()) return projective(*bs);
+  NurbsSurface n;
+  n.degree_u = bs->UDegree();
+  n.degree_v = bs->VDegree();
+  n.periodic_u = bs->IsUPeriodic();
+  n.periodic_v = bs->IsVPeriodic();
+  const int du = bs->NbUPoles(), dv = bs->NbVPoles();
+  n.count_u = du + (n.periodic_u ? n.degree_u : 0);
+  n.count_v = dv + (n.periodic_v ? n.degree_v : 0);
+  for (double k : bs->UKnotSequence()) n.knots_u.push_back(k);
+  for (double k : bs->VKnotSequence()) n.knots_v.push_back(k);
+  PARAFAB_VERIFY(static_cast<int>(n.knots_u.size()) == n.count_u + n.degree_u + 1 &&
+                     static_cast<int>(n.knots_v.size()) == n.count_v + n.degree_v + 1,
+                 "periodic B-spline surface: " << n.knots_u.size() << " x " << n.knots_v.size()
+                                               << " flat knots for " << du << " x " << dv << " poles");
+  for (int i = 0; i < n.count_u; ++i)
+    for (int j = 0; j < n.count_v; ++j) {
+      const int pi = i % du + 1, pj = j % dv + 1;
+      const double w = bs->Weight(pi, pj);
+      const gp_Pnt P = bs->Pole(pi, pj);
+      n.poles.emplace_back(w * P.X(), w * P.Y(), w * P.Z(), w);
+    }
+  return n;
 }
 
 // Parameters at which to sample a pcurve: its ends for a line, its knots for a polyline

@@ -3,6 +3,7 @@
 #include "nurbs_surface.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "common/error.h"
 
@@ -28,7 +29,12 @@ struct Basis {
   std::vector<double> value, derivative;
 };
 
-Basis basis(const std::vector<double>& U, int p, int count, double t) {
+Basis basis(const std::vector<double>& U, int p, int count, double t, bool periodic) {
+  if (periodic) {  // into [U[p], U[count]) by whole periods
+    const double period = U[count] - U[p];
+    t -= std::floor((t - U[p]) / period) * period;
+    if (t >= U[count]) t -= period;
+  }
   t = std::clamp(t, U[p], U[count]);
   Basis b;
   b.span = t >= U[count]
@@ -66,8 +72,8 @@ Basis basis(const std::vector<double>& U, int p, int count, double t) {
 
 Eigen::Vector4d evaluate_projective(const NurbsSurface& s, double u, double v) {
   check(s);
-  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u),
-              bv = basis(s.knots_v, s.degree_v, s.count_v, v);
+  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u, s.periodic_u),
+              bv = basis(s.knots_v, s.degree_v, s.count_v, v, s.periodic_v);
   Eigen::Vector4d q = Eigen::Vector4d::Zero();
   for (int a = 0; a <= s.degree_u; ++a)
     for (int b = 0; b <= s.degree_v; ++b)
@@ -78,8 +84,8 @@ Eigen::Vector4d evaluate_projective(const NurbsSurface& s, double u, double v) {
 void evaluate(const NurbsSurface& s, double u, double v, Eigen::Vector3d& X, Eigen::Vector3d& Xu,
               Eigen::Vector3d& Xv) {
   check(s);
-  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u),
-              bv = basis(s.knots_v, s.degree_v, s.count_v, v);
+  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u, s.periodic_u),
+              bv = basis(s.knots_v, s.degree_v, s.count_v, v, s.periodic_v);
   Eigen::Vector4d q = Eigen::Vector4d::Zero(), qu = q, qv = q;
   for (int a = 0; a <= s.degree_u; ++a)
     for (int b = 0; b <= s.degree_v; ++b) {
@@ -96,17 +102,21 @@ void evaluate(const NurbsSurface& s, double u, double v, Eigen::Vector3d& X, Eig
 
 std::vector<PoleInfluence> pole_influence(const NurbsSurface& s, double u, double v) {
   check(s);
-  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u),
-              bv = basis(s.knots_v, s.degree_v, s.count_v, v);
+  const Basis bu = basis(s.knots_u, s.degree_u, s.count_u, u, s.periodic_u),
+              bv = basis(s.knots_v, s.degree_v, s.count_v, v, s.periodic_v);
   std::vector<PoleInfluence> r;
   r.reserve((s.degree_u + 1) * (s.degree_v + 1));
   double W = 0;
+  const int nu = s.distinct_u(), nv = s.distinct_v();
   for (int a = 0; a <= s.degree_u; ++a)
     for (int b = 0; b <= s.degree_v; ++b) {
-      const int index = (bu.span - s.degree_u + a) * s.count_v + bv.span - s.degree_v + b;
-      const double wN = s.poles[index][3] * bu.value[a] * bv.value[b];
+      const int i = bu.span - s.degree_u + a, j = bv.span - s.degree_v + b;
+      const double wN = s.pole(i, j)[3] * bu.value[a] * bv.value[b];
       W += wN;
-      r.push_back({index, wN});
+      const int index = (i % nu) * nv + j % nv;  // a periodic copy is its distinct pole
+      auto same = std::find_if(r.begin(), r.end(), [&](const PoleInfluence& x) { return x.index == index; });
+      if (same != r.end()) same->value += wN;
+      else r.push_back({index, wN});
     }
   for (PoleInfluence& x : r) x.value /= W;
   return r;

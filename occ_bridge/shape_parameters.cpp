@@ -106,7 +106,7 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     if (f.primitive.type != SurfaceType::bspline) continue;
     if (f.bspline.count_u == 0) {
       sp.notes.push_back("face " + std::to_string(f.index) +
-                         ": its B-spline surface is periodic or wrapped (trimmed, offset); its poles are not parameters");
+                         ": its surface is a wrapped B-spline (trimmed, offset); its poles are not parameters");
       continue;
     }
     sp.pole_block_of_face[f.index] = static_cast<int>(sp.pole_blocks.size());

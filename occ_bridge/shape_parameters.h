@@ -59,8 +59,8 @@ struct PoleBlock {
   int face = -1;
   int offset = 0;
   NurbsSurface surface;  ///< the surface as read (knots and weights stay; its poles are p0's)
-  int count_u() const { return surface.count_u; }
-  int count_v() const { return surface.count_v; }
+  int count_u() const { return surface.distinct_u(); }  ///< free poles (a periodic direction's distinct ones)
+  int count_v() const { return surface.distinct_v(); }
   int size() const { return 3 * count_u() * count_v(); }
   int entry(int i, int j, int c) const { return offset + 3 * ((i - 1) * count_v() + j - 1) + c; }
 };
@@ -68,7 +68,7 @@ struct PoleBlock {
 struct ShapeParameters {
   std::vector<optimize::ParameterBlock> blocks;  ///< one per analytic face
   std::vector<int> block_of_face;                ///< per face: index into blocks, or −1
-  /// One per B-spline face on a non-periodic surface, after all analytic blocks in p. A face
+  /// One per B-spline face (periodic ones by their distinct poles), after all analytic blocks in p. A face
   /// tangent (G1) to another keeps its poles fixed, as its neighbours keep theirs.
   std::vector<PoleBlock> pole_blocks;
   std::vector<int> pole_block_of_face;           ///< per face: index into pole_blocks, or −1

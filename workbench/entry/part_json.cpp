@@ -53,8 +53,8 @@ json face(const occ::FaceInfo& f) {
             {"reversed", f.reversed},   {"area", f.area},
             {"uv_bounds", f.uv_bounds}, {"parameters", parameters(f.primitive)},
             {"nurbs", nurbs(f.nurbs)},  {"loops", loops}};
-  // A non-periodic B-spline face: its poles are shape parameters "pole i j x|y|z" (1-based).
-  if (f.bspline.count_u > 0) j["pole_count"] = {f.bspline.count_u, f.bspline.count_v};
+  // A B-spline face: its poles are shape parameters "pole i j x|y|z" (1-based; periodic: the distinct ones).
+  if (f.bspline.count_u > 0) j["pole_count"] = {f.bspline.distinct_u(), f.bspline.distinct_v()};
   return j;
 }
 
