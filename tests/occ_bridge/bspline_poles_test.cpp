@@ -206,18 +206,30 @@ TEST(BsplinePoles, MovedPolesGiveValidPartsAndExactMassDerivatives) {
   }
 }
 
+// `unturned` turned 11° about (1, 2, 3) through `center` (its cells are cut), with the steel
+// cantilever job: the faces through `support` and `load` (unturned points) clamped and pulled by
+// `force` (unturned).
+struct TurnedCantilever {
+  std::shared_ptr<const PartShape> part;
+  ComplianceSetup setup;
+  TurnedCantilever(const PartShape& unturned, const Vec3& center, const Vec3& support, const Vec3& load,
+                   const Vec3& force) {
+    const Vec3 axis = Vec3(1, 2, 3).normalized();
+    const double degrees = 11;
+    auto turned = [&](const Vec3& X) -> Vec3 { return center + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - center); };
+    part = rotated_part(unturned, center, axis, degrees);
+    setup = testing::steel_cantilever(*part, face_at_point(*part, turned(support), 1e-6),
+                                      face_at_point(*part, turned(load), 1e-6), turned(force) - turned(Vec3::Zero()));
+  }
+};
+
 // The compliance derivative of an interior pole by both routes (exact: Vₙ = R_ij n_c on the
 // patches; semi-analytic: two perturbed re-cut models) against Richardson-extrapolated central
 // differences of the whole pipeline, on the bump block turned 11° off the grid: x = 0
 // supported, x = 60 pulled down by 500 N.
 TEST(BsplinePoles, ComplianceDerivativeOfAPoleMatchesTheFullPipeline) {
-  const Vec3 center(30, 20, 8), axis = Vec3(1, 2, 3).normalized();
-  const double degrees = 11;
-  auto turned = [&](const Vec3& X) -> Vec3 { return center + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - center); };
-  const auto part = rotated_part(*read_part(sample_part("bump_block")), center, axis, degrees);
-  const ComplianceSetup setup = testing::steel_cantilever(*part, face_at_point(*part, turned({0, 20, 5}), 1e-6),
-                                                          face_at_point(*part, turned({60, 20, 5}), 1e-6),
-                                                          turned(Vec3(0, 0, -500)) - turned(Vec3::Zero()));
+  const TurnedCantilever c(*read_part(sample_part("bump_block")), {30, 20, 8}, {0, 20, 5}, {60, 20, 5}, {0, 0, -500});
+  const auto& [part, setup] = c;
   const testing::DesignSpace space(*part, {setup.dirichlet[0].face, setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
@@ -262,13 +274,8 @@ TEST(BsplinePoles, ComplianceDerivativeOfAPoleMatchesTheFullPipeline) {
 // (dΛ = vᵀdBv − Λ vᵀdÂv, see compliance_gradient). Until 2026-11-28 such poles were flagged and
 // differenced.
 TEST(BsplinePoles, LocalPenaltyComplianceDerivativeOfAClampSidePoleIsExact) {
-  const Vec3 center(30, 20, 8), axis = Vec3(1, 2, 3).normalized();
-  const double degrees = 11;
-  auto turned = [&](const Vec3& X) -> Vec3 { return center + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - center); };
-  const auto part = rotated_part(*read_part(sample_part("bump_block")), center, axis, degrees);
-  ComplianceSetup setup = testing::steel_cantilever(*part, face_at_point(*part, turned({0, 20, 5}), 1e-6),
-                                                    face_at_point(*part, turned({60, 20, 5}), 1e-6),
-                                                    turned(Vec3(0, 0, -500)) - turned(Vec3::Zero()));
+  TurnedCantilever c(*read_part(sample_part("bump_block")), {30, 20, 8}, {0, 20, 5}, {60, 20, 5}, {0, 0, -500});
+  auto& [part, setup] = c;
   setup.solver.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Local;
   setup.solver.nitsche_beta = 0;
   const testing::DesignSpace space(*part, {setup.dirichlet[0].face, setup.tractions[0].face});
@@ -390,13 +397,8 @@ TEST(BsplinePoles, PeriodicFacePolesAreParametersWithExactMassDerivatives) {
 // rules' (u, v)) against Richardson-extrapolated central differences of the whole pipeline: the
 // tube turned 11° off the grid, its bottom cap clamped, its top cap pulled sideways by 500 N.
 TEST(BsplinePoles, PeriodicFacePoleComplianceDerivativeMatchesThePipeline) {
-  const Vec3 center(0, 0, 10), axis = Vec3(1, 2, 3).normalized();
-  const double degrees = 11;
-  auto turned = [&](const Vec3& X) -> Vec3 { return center + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - center); };
-  const auto part = rotated_part(*periodic_tube(), center, axis, degrees);
-  const ComplianceSetup setup = testing::steel_cantilever(*part, face_at_point(*part, turned({0, 0, 0}), 1e-6),
-                                                          face_at_point(*part, turned({0, 0, 20}), 1e-6),
-                                                          turned(Vec3(500, 0, 0)) - turned(Vec3::Zero()));
+  const TurnedCantilever c(*periodic_tube(), {0, 0, 10}, {0, 0, 0}, {0, 0, 20}, {500, 0, 0});
+  const auto& [part, setup] = c;
   const testing::DesignSpace space(*part, {setup.dirichlet[0].face, setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
