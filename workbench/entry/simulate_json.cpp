@@ -470,13 +470,13 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
 }
 
 // Estimate before running, from the part's box, volume V and area A only. Calibrated on the
-// eight sample parts, hex8 on 16–48 and hex27 on 8–24 cells (2026-11-28, README "Memory
-// estimate"):
+// eight sample parts, hex8 on 16–48 and hex27 on 8–24 cells (2026-11-28, README "Estimate
+// first, then the exact factor size"):
 // - DOF nodes m³V/h³ inside plus b·m²A/h² along the surface (the cut cells' outer nodes and the
 //   enriched copies), m = 1 (hex8) or 2 (hex27): b was 0.5 (the aligned box) to 1.4 for hex8
 //   and 1.2 to 2.0 for hex27 (2.9 once, the wrench on 8 cells: 1,152 unknowns). b = 1.5 / 2.0.
-// - The factor: 8 bytes · C · n^{4/3} (nested-dissection fill), C = 7.7–15 on the thin-walled
-//   parts and 20–26 on the compact ones. The box and the area do not tell which: factor_mb takes
+// - The factor: 8 bytes · C · n^{4/3} (nested-dissection fill), C = 5.1–15 on the thin-walled
+//   parts (the wrench's coarse grids lowest) and 17.6–25.8 on the compact ones. The box and the area do not tell which: factor_mb takes
 //   C = 26, factor_mb_min C = 7.
 // - The rest of the run: 5 (hex8) or 9 (hex27) kB per unknown above about 50 MB.
 // A single run is refused here only when even the thin-walled figure exceeds the limit; between
