@@ -195,7 +195,10 @@ class ParameterModification : public BRepTools_Modification {
     double of, ol;
     const Handle(Geom2d_Curve) old = BRep_Tool::CurveOnSurface(E, F, of, ol);
     tol = BRep_Tool::Tolerance(E);
-    if (!edge_modified_[e] && pole_face_[f]) {  // the old pcurve on the moved poles: see stays_on_moved_poles
+    const auto iso = iso_pcurve_.find(e);
+    if ((!edge_modified_[e] && pole_face_[f]) || (iso != iso_pcurve_.end() && iso->second == f)) {
+      // the old pcurve on the moved poles (see stays_on_moved_poles), or the iso-line the new
+      // curve was taken from
       C = Handle(Geom2d_Curve)::DownCast(old->Copy());
       return Standard_True;
     }
@@ -402,6 +405,17 @@ class ParameterModification : public BRepTools_Modification {
         } else if (r.kind == "cylinder-sphere") {
           c = new Geom_Circle(gp_Ax2(pnt(B.location), dir(A.axis)), A.radius);
         }
+        if (r.kind == "g1") {  // a B-spline face leaving a plane along its boundary row: that iso-curve
+          for (const int f : {fa, fb})
+            if (pole_face_[f]) {
+              double pf, pl;
+              const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(part_.edge(e), part_.face(f), pf, pl);
+              const gp_Pnt2d p0 = pc->Value(pf), p1 = pc->Value(pl);
+              const bool u_const = std::abs(p1.X() - p0.X()) < std::abs(p1.Y() - p0.Y());
+              c = u_const ? surfaces_[f]->UIso(p0.X()) : surfaces_[f]->VIso(p0.Y());
+              iso_pcurve_[e] = f;  // its pcurve there stays the old iso-line
+            }
+        }
         if (!c.IsNull()) return oriented_like(c, e);
       }
       throw Failure{"edge " + std::to_string(e) + ": tangent edge between faces " + std::to_string(fa) + " and " +
@@ -476,6 +490,7 @@ class ParameterModification : public BRepTools_Modification {
   std::vector<Handle(Geom_Curve)> curves_;
   std::vector<gp_Pnt> points_;
   std::map<std::pair<int, int>, const TangencyRelation*> relation_;
+  std::map<int, int> iso_pcurve_;  ///< edge → the pole face whose iso-curve it became (new_curve)
   TopTools_IndexedDataMapOfShapeListOfShape edge_faces_, vertex_edges_, vertex_faces_;
 };
 

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -88,6 +89,69 @@ Primitive primitive_of_block(const optimize::ParameterBlock& b, const Eigen::Vec
   return pr;
 }
 
+namespace {
+
+// A "g1" relation between a plane and a B-spline face whose two boundary rows of poles on one
+// side (i = 1, 2; i = n, n − 1; j = 1, 2 or j = m, m − 1; clamped there) lie in the plane at p:
+// the poles those rows hold. Nothing when no side, or more than one, does.
+struct PlaneRows {
+  const TangencyRelation* relation = nullptr;
+  const optimize::ParameterBlock* plane = nullptr;
+  const PoleBlock* poles = nullptr;
+  std::vector<std::pair<int, int>> rows;  ///< (i, j), 1-based
+};
+
+std::optional<PlaneRows> plane_boundary_rows(const ShapeParameters& sp, const TangencyRelation& r, const Eigen::VectorXd& p) {
+  PlaneRows out;
+  out.relation = &r;
+  for (int k = 0; k < 2; ++k) {
+    const auto* b = sp.block(r.faces[k]);
+    if (b && b->kind == optimize::PrimitiveKind::plane) out.plane = b, out.poles = sp.poles(r.faces[1 - k]);
+  }
+  if (!out.plane || !out.poles) return std::nullopt;
+  const PoleBlock& pb = *out.poles;
+  const NurbsSurface& s = pb.surface;
+  const Vec3 n(p[out.plane->offset], p[out.plane->offset + 1], p[out.plane->offset + 2]);
+  const double d = p[out.plane->offset + 3];
+  double scale = 1;
+  for (int k = 0; k < pb.size(); ++k) scale = std::max(scale, std::abs(p[pb.offset + k]));
+  auto on_plane = [&](int i, int j) {
+    const Vec3 P(p[pb.entry(i, j, 0)], p[pb.entry(i, j, 1)], p[pb.entry(i, j, 2)]);
+    return std::abs(n.dot(P) - d) <= 1e-9 * scale;
+  };
+  const int nu = pb.count_u(), nv = pb.count_v();
+  // Clamped ends only: the boundary curve is the end row, the cross derivative the next one.
+  auto clamped = [](const std::vector<double>& U, int degree, bool periodic, bool start) {
+    if (periodic) return false;
+    const int n = static_cast<int>(U.size());
+    for (int k = 1; k <= degree; ++k)
+      if (start ? U[k] != U[0] : U[n - 1 - k] != U[n - 1]) return false;
+    return true;
+  };
+  std::vector<std::vector<std::pair<int, int>>> sides;
+  auto try_side = [&](bool along_u, bool start) {
+    if (!clamped(along_u ? s.knots_u : s.knots_v, along_u ? s.degree_u : s.degree_v, along_u ? s.periodic_u : s.periodic_v, start))
+      return;
+    const int count = along_u ? nu : nv, other = along_u ? nv : nu;
+    if (count < 3) return;
+    std::vector<std::pair<int, int>> rows;
+    for (int row : {start ? 1 : count, start ? 2 : count - 1})
+      for (int k = 1; k <= other; ++k) {
+        const int i = along_u ? row : k, j = along_u ? k : row;
+        if (!on_plane(i, j)) return;
+        rows.push_back({i, j});
+      }
+    sides.push_back(rows);
+  };
+  for (bool along_u : {true, false})
+    for (bool start : {true, false}) try_side(along_u, start);
+  if (sides.size() != 1) return std::nullopt;
+  out.rows = sides[0];
+  return out;
+}
+
+}  // namespace
+
 ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParameterOptions& options) {
   ShapeParameters sp;
   const int nf = static_cast<int>(model.faces.size());
@@ -146,8 +210,20 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     PARAFAB_VERIFY(f >= 0 && f < nf, "fixed face " << f << " does not exist (the part has " << nf << " faces)");
     fixed.insert(f);
   }
+  // G1 between a plane and a B-spline face along one of its boundaries, the rows of poles on
+  // that boundary and next to it in the plane (what makes a clamped B-spline leave a plane
+  // tangentially): kept as equations n·P − d = 0 on those poles (below), not by fixing both.
+  std::vector<PlaneRows> plane_rows;
+  for (const TangencyRelation& r : model.relations) {
+    if (r.kind != "g1") continue;
+    if (std::optional<PlaneRows> pr = plane_boundary_rows(sp, r, sp.initial)) plane_rows.push_back(*pr);
+  }
+  auto plane_rows_of = [&](const TangencyRelation& r) {
+    return std::any_of(plane_rows.begin(), plane_rows.end(), [&](const PlaneRows& pr) { return pr.relation == &r; });
+  };
   for (const TangencyRelation& r : model.relations) {
     const bool a = sp.block_of_face[r.faces[0]] >= 0, b = sp.block_of_face[r.faces[1]] >= 0;
+    if (plane_rows_of(r)) continue;
     if (r.kind == "g1" || !a || !b) {
       std::ostringstream os;
       os << "faces " << r.faces[0] << " and " << r.faces[1] << " (" << to_string(model.faces[r.faces[0]].primitive.type)
@@ -176,6 +252,18 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     sp.relation_equations += optimize::add_tangency(sp.constraints, r.kind, *a, *b, r.sign, sp.initial,
                                                     "faces " + std::to_string(r.faces[0]) + "-" +
                                                         std::to_string(r.faces[1]) + " " + r.kind);
+  }
+  for (const PlaneRows& pr : plane_rows) {
+    if (is_fixed(pr.plane->face) && is_fixed(pr.poles->face)) continue;
+    const std::string label = "faces " + std::to_string(pr.plane->face) + "-" + std::to_string(pr.poles->face) + " g1";
+    for (const auto& [i, j] : pr.rows) {
+      std::vector<int> vars;
+      for (int k = 0; k < 4; ++k) vars.push_back(pr.plane->offset + k);  // n, d
+      for (int c = 0; c < 3; ++c) vars.push_back(pr.poles->entry(i, j, c));
+      sp.constraints.add({label + ": pole " + std::to_string(i) + " " + std::to_string(j) + " in the plane", vars,
+                          [](const std::vector<optimize::Jet>& x) { return x[0] * x[4] + x[1] * x[5] + x[2] * x[6] - x[3]; }});
+      ++sp.relation_equations;
+    }
   }
   for (const auto& tie : options.ties) {
     PARAFAB_VERIFY(tie.size() >= 2, "a tie needs at least two parameters");
