@@ -308,6 +308,16 @@ TEST(BsplinePoles, LocalPenaltyComplianceDerivativeOfAClampSidePoleIsExact) {
   EXPECT_LE(std::abs(g.gradient[index] - fd), 1e-8 * std::abs(fd));  // measured 3.7e-9
 }
 
+// The solid bounded by the faces added to `sew` (sewn, oriented outward), as a part.
+std::shared_ptr<const PartShape> sewn_solid(BRepBuilderAPI_Sewing& sew, const std::string& name) {
+  sew.Perform();
+  TopExp_Explorer shells(sew.SewedShape(), TopAbs_SHELL);
+  EXPECT_TRUE(shells.More()) << name;
+  TopoDS_Solid solid = BRepBuilderAPI_MakeSolid(TopoDS::Shell(shells.Current())).Solid();
+  BRepLib::OrientClosedSolid(solid);
+  return make_part(solid, name);
+}
+
 // A closed free-form face: a tube periodic in u (8 distinct poles about z, cubic, a uniform
 // periodic knot vector), quadratic in v over three rows at z = 0, 10, 20 whose middle row bulges
 // by 1.5 + 0.5 cos 2t, capped by the planes of its first and last rows.
@@ -330,12 +340,7 @@ std::shared_ptr<const PartShape> periodic_tube() {
   sew.Add(BRepBuilderAPI_MakeFace(s, Precision::Confusion()).Face());
   for (const double v : {0.0, 1.0})
     sew.Add(BRepBuilderAPI_MakeFace(BRepBuilderAPI_MakeWire(BRepBuilderAPI_MakeEdge(s->VIso(v)).Edge()).Wire(), true).Face());
-  sew.Perform();
-  TopExp_Explorer shells(sew.SewedShape(), TopAbs_SHELL);
-  EXPECT_TRUE(shells.More());
-  TopoDS_Solid solid = BRepBuilderAPI_MakeSolid(TopoDS::Shell(shells.Current())).Solid();
-  BRepLib::OrientClosedSolid(solid);
-  return make_part(solid, "periodic tube");
+  return sewn_solid(sew, "periodic tube");
 }
 
 // Its poles are parameters (8 × 3 distinct, not the 11 × 3 of the unwrapped layout); the
@@ -466,12 +471,7 @@ std::shared_ptr<const PartShape> g1_block() {
     sew.Add(planar({line({0, y, 0}, {60, y, 0}), line({60, y, 0}, {60, y, zr}), BRepBuilderAPI_MakeEdge(s->VIso(v)).Edge(),
                     line({20, y, 10}, {0, y, 10}), line({0, y, 10}, {0, y, 0})}));
   }
-  sew.Perform();
-  TopExp_Explorer shells(sew.SewedShape(), TopAbs_SHELL);
-  EXPECT_TRUE(shells.More());
-  TopoDS_Solid solid = BRepBuilderAPI_MakeSolid(TopoDS::Shell(shells.Current())).Solid();
-  BRepLib::OrientClosedSolid(solid);
-  return make_part(solid, "g1 block");
+  return sewn_solid(sew, "g1 block");
 }
 
 // G1 between a plane and a B-spline face (§6.5.2 for free-form faces): the two boundary rows of
