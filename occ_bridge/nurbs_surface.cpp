@@ -114,7 +114,9 @@ std::vector<PoleInfluence> pole_influence(const NurbsSurface& s, double u, doubl
       const double wN = s.pole(i, j)[3] * bu.value[a] * bv.value[b];
       W += wN;
       const int index = (i % nu) * nv + j % nv;  // a periodic copy is its distinct pole
-      auto same = std::find_if(r.begin(), r.end(), [&](const PoleInfluence& x) { return x.index == index; });
+      auto same = r.end();  // only a periodic surface repeats poles
+      if (s.periodic_u || s.periodic_v)
+        same = std::find_if(r.begin(), r.end(), [&](const PoleInfluence& x) { return x.index == index; });
       if (same != r.end()) same->value += wN;
       else r.push_back({index, wN});
     }

@@ -254,13 +254,7 @@ TEST(BsplinePoles, ComplianceDerivativeOfAPoleMatchesTheFullPipeline) {
     ASSERT_TRUE(dc.done) << dc.message;
     EXPECT_GT(dc.cells_changed, 0);
     double coarse = 0;
-    const double fd = richardson(
-        [&](double H) {
-          const ComplianceState s = compliance_at(line.at(H), at, setup);
-          EXPECT_TRUE(s.done) << s.message;
-          return s.compliance;
-        },
-        2e-4 * L, &coarse);
+    const double fd = richardson([&](double H) { return testing::compliance_on(line.at(H), at, setup); }, 2e-4 * L, &coarse);
     std::printf("%s: C = %.10g, exact %.10g, semi-analytic %.10g, FD %.10g (H: %.10g), relative differences %.2e / %.2e, "
                 "%d cells, %d switches\n",
                 parameter, at.compliance, g.gradient[index], dc.derivative, fd, coarse,
@@ -291,13 +285,7 @@ TEST(BsplinePoles, LocalPenaltyComplianceDerivativeOfAClampSidePoleIsExact) {
   const ComplianceGradient g = compliance_gradient(at, setup, sp, start.p);
   ASSERT_TRUE(g.done) << g.message;
   EXPECT_FALSE(g.incomplete[index]);
-  const double fd = richardson(
-      [&](double H) {
-        const ComplianceState s = compliance_at(line.at(H), at, setup);
-        EXPECT_TRUE(s.done) << s.message;
-        return s.compliance;
-      },
-      2e-4 * L);
+  const double fd = richardson([&](double H) { return testing::compliance_on(line.at(H), at, setup); }, 2e-4 * L);
   const double h = 1e-4 * L;
   const ComplianceDerivative dc = compliance_derivative(at, line.at(h), line.at(-h), h, setup);
   ASSERT_TRUE(dc.done) << dc.message;
@@ -422,13 +410,7 @@ TEST(BsplinePoles, PeriodicFacePoleComplianceDerivativeMatchesThePipeline) {
     const ComplianceGradient g = compliance_gradient(at, setup, sp, start.p);
     ASSERT_TRUE(g.done) << g.message;
     EXPECT_FALSE(g.incomplete[index]) << parameter;  // a middle-row pole: its basis misses the caps' edges
-    const double fd = richardson(
-        [&](double H) {
-          const ComplianceState s = compliance_at(line.at(H), at, setup);
-          EXPECT_TRUE(s.done) << s.message;
-          return s.compliance;
-        },
-        2e-4 * L);
+    const double fd = richardson([&](double H) { return testing::compliance_on(line.at(H), at, setup); }, 2e-4 * L);
     std::printf("periodic tube, %s: C = %.10g, exact %.10g, FD %.10g, relative difference %.2e\n", parameter,
                 at.compliance, g.gradient[index], fd, std::abs(g.gradient[index] - fd) / std::abs(fd));
     EXPECT_LE(std::abs(g.gradient[index] - fd), 1e-8 * std::abs(fd)) << parameter;

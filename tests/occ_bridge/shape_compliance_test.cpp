@@ -23,17 +23,13 @@
 namespace parafab::occ {
 namespace {
 
+using testing::compliance_on;
 using testing::DesignLine;
+using testing::EntryCase;
 using testing::richardson;
 using testing::turned;
 using BracketCase = testing::TurnedBracket;
 
-// C of a perturbed model re-cut on the grid of `at` and solved (NaN, and a failure, if not).
-double compliance_on(std::shared_ptr<const PartShape> part, const ComplianceState& at, const ComplianceSetup& setup) {
-  const ComplianceState s = compliance_at(std::move(part), at, setup);
-  EXPECT_TRUE(s.done) << s.message;
-  return s.done ? s.compliance : std::nan("");
-}
 
 // Design entry `index` as the optimizer moves it: the start projected with a one-entry design's
 // weights (p0), the line through p0 along the entry, and the entry's column of dp⊥/dp̃ at p0.
@@ -57,21 +53,16 @@ TEST(ShapeCompliance, SemiAnalyticGradientMatchesFiniteDifferencesOfTheFullPipel
   const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
-  struct Case {
-    const char* what;
-    int index;
-    double tolerance;
-  };
   // Tolerances: near the measured relative differences (4.7e-7 hole, 1.2e-6 and 1.0e-6 fillets,
   // 5.5e-6 and 2.3e-6 plane offsets, whose moves cross many cells).
-  const std::vector<Case> cases = {
+  const std::vector<EntryCase> cases = {
       {"hole radius", parameter_index(sp, c.hole, "radius"), 1e-6},
       {"inner fillet radius (tangent planes follow)", parameter_index(sp, c.fillet, "radius"), 2.5e-6},
       {"outer fillet radius (tangent planes follow)", parameter_index(sp, c.outer, "radius"), 2e-6},
       {"upright inner plane offset (inner fillet follows)", parameter_index(sp, c.upright_inner, "offset"), 1e-5},
       {"base top plane offset (inner fillet follows)", parameter_index(sp, c.base_top, "offset"), 5e-6},
   };
-  for (const Case& k : cases) {
+  for (const EntryCase& k : cases) {
     const DesignLine line(*c.part, model, sp, k.index, start.p, L);
     auto part_at = [&](double s) { return line.at(s); };
     const ComplianceState at = compliance_start(part_at(0), c.setup);
@@ -178,21 +169,16 @@ TEST(ShapeCompliance, LocalPenaltyGradientIsExactAlsoInTheClampedCells) {
     const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
     ASSERT_TRUE(space.start.done);
     const auto& [model, sp, start, L] = space;
-    struct Case {
-      const char* what;
-      int index;
-      double tolerance;  // of the exact route
-    };
     // Measured relative differences of the exact route to the reference, hex8 / hex27: hole
     // 4.0e-8 / 2.8e-7, upright plane 7.8e-8 / 4.0e-8, outer fillet 3.7e-10 / 3.5e-8 (the
     // semi-analytic route: 4.8e-7 / 4.5e-6, 5.6e-6 / 1.3e-5, 9.4e-7 / 5.3e-6).
-    const std::vector<Case> cases = {
+    const std::vector<EntryCase> cases = {
         {"hole radius", parameter_index(sp, c.hole, "radius"), hex27 ? 6e-7 : 1e-7},
         {"upright inner plane offset (8 mm from the support, no cut cell shared)",
          parameter_index(sp, c.upright_inner, "offset"), hex27 ? 1e-7 : 3e-7},
         {"outer fillet radius (tangent to the support)", parameter_index(sp, c.outer, "radius"), hex27 ? 1e-7 : 1.5e-9},
     };
-    for (const Case& k : cases) {
+    for (const EntryCase& k : cases) {
       const ProjectedEntry entry(*c.part, model, sp, start.p, k.index, L);
       ASSERT_TRUE(entry.p0.done);
       auto part_at = [&](double s) { return entry.line->at(s); };
@@ -263,18 +249,13 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
   const testing::DesignSpace space(*part, {boss});
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
-  struct Case {
-    const char* what;
-    int index;
-    double tolerance;
-  };
-  const std::vector<Case> cases = {
+  const std::vector<EntryCase> cases = {
       // Measured 1.0e-8 and 5.7e-9 (the edge term is 31 % of the fillet's derivative; without it,
       // or with the cylinder's axis formula, the torus was flagged before 2026-11-28).
       {"boss fillet radius (torus tangent to the clamped boss)", parameter_index(sp, fillet, "minor radius"), 3e-8},
       {"fin side plane offset", parameter_index(sp, fin, "offset"), 2e-8},
   };
-  for (const Case& k : cases) {
+  for (const EntryCase& k : cases) {
     const ProjectedEntry entry(*part, model, sp, start.p, k.index, L);
     ASSERT_TRUE(entry.p0.done);
     auto part_at = [&](double s) { return entry.line->at(s); };

@@ -80,22 +80,17 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
-  struct Case {
-    const char* what;
-    int index;
-    double tolerance;
-  };
   // Tolerances near the measured relative differences (normalized / bare integral): hole
   // 2.3e-7 / 4.0e-7 (17 cells), fillet 2.3e-5 / 2.4e-5 (171 cells, one sliver switch), plane
   // offset 5.6e-5 / 5.9e-5 (171 cells). σ_y = 40 MPa with max σ_vm 125.5 MPa: a steep exponential.
-  const std::vector<Case> cases = {
+  const std::vector<testing::EntryCase> cases = {
       {"hole radius", parameter_index(sp, c.hole, "radius"), 6e-7},
       {"inner fillet radius (tangent planes follow)", parameter_index(sp, c.fillet, "radius"), 4e-5},
       {"base top plane offset (inner fillet follows)", parameter_index(sp, c.base_top, "offset"), 8e-5},
   };
   for (bool normalize : {true, false}) {
     const FailureOptions fo{40, 6, normalize};
-    for (const Case& k : cases) {
+    for (const testing::EntryCase& k : cases) {
       const testing::DesignLine line(*c.part, model, sp, k.index, start.p, L);
       auto part_at = [&](double s) { return line.at(s); };
       const ComplianceState at = compliance_start(part_at(0), c.setup);

@@ -125,6 +125,22 @@ struct DesignLine {
   }
 };
 
+/// One design entry checked against the pipeline's differences: what it is, its index in p and
+/// the relative tolerance (near the measured difference).
+struct EntryCase {
+  const char* what;
+  int index;
+  double tolerance;
+};
+
+/// C of a perturbed model re-cut on the grid of `at` and solved (NaN, and a failure, if not):
+/// the function the Richardson differences below are taken of.
+inline double compliance_on(std::shared_ptr<const PartShape> part, const ComplianceState& at, const ComplianceSetup& setup) {
+  const ComplianceState s = compliance_at(std::move(part), at, setup);
+  EXPECT_TRUE(s.done) << s.message;
+  return s.done ? s.compliance : std::nan("");
+}
+
 /// Richardson extrapolation (4 D(H/2) − D(H)) / 3 of the central differences D(h) =
 /// (value(h) − value(−h)) / 2h; `coarse` receives D(H).
 inline double richardson(const std::function<double(double)>& value, double H, double* coarse = nullptr) {

@@ -30,6 +30,7 @@
 #include "surface_mesh.h"
 #include "xfem/mass_properties.h"
 #include "xfem/nonlinear_xfem.h"
+#include "xfem/sparse_cholesky.h"
 
 namespace parafab::entry {
 
@@ -459,7 +460,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   S->extent = size.max - size.min;
   S->info.bbox_min = size.min, S->info.bbox_max = size.max, S->info.area = size.area, S->info.volume = size.volume;
   S->physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
-  S->limit_mb = 0.7 * S->physical_mb;
+  S->limit_mb = xfem::SparseCholesky::default_memory_limit_mb();  // 70% of physical_mb
   if (job.contains("memory_limit_mb")) {
     S->limit_mb = number(job["memory_limit_mb"], "memory_limit_mb");
     if (!(S->limit_mb > 0)) PARAFAB_INPUT_ERROR("memory_limit_mb must be positive (MB), got " << job["memory_limit_mb"].dump());

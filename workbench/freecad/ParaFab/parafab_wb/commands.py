@@ -166,7 +166,13 @@ FreeCADGui.addCommand("ParaFab_ExportCutSheets", ExportCutSheetsCommand())
 
 
 class PlotSelectedStripsCommand(object):
-    """Base of the plot commands: ``plot(obj)`` for each selected strip, errors reported."""
+    """Base of the plot commands: ``plot(obj)`` for each selected strip, errors reported; a
+    subclass gives its ICON, MENU and TOOLTIP."""
+
+    ICON = MENU = TOOLTIP = None
+
+    def GetResources(self):
+        return {"Pixmap": icon_path(self.ICON), "MenuText": self.MENU, "ToolTip": self.TOOLTIP}
 
     def plot(self, obj):
         raise NotImplementedError
@@ -187,13 +193,9 @@ class PlotSelectedStripsCommand(object):
 class PlotStripProfileCommand(PlotSelectedStripsCommand):
     """Plot K(s) and w(s) of the selected strips in FreeCAD's Plot module."""
 
-    def GetResources(self):
-        return {
-            "Pixmap": icon_path("ParaFab_PlotStripProfile.svg"),
-            "MenuText": "Plot strip profile",
-            "ToolTip": "Plot the stiffness profile K(s) and the width w(s) of each selected strip "
-                       "(a Plot tab per strip)",
-        }
+    ICON = "ParaFab_PlotStripProfile.svg"
+    MENU = "Plot strip profile"
+    TOOLTIP = "Plot the stiffness profile K(s) and the width w(s) of each selected strip (a Plot tab per strip)"
 
     def plot(self, obj):
         strip_feature.plot_profile(obj, show=True)
@@ -205,13 +207,10 @@ FreeCADGui.addCommand("ParaFab_PlotStripProfile", PlotStripProfileCommand())
 class PlotStripStabilityCommand(PlotSelectedStripsCommand):
     """Plot Z(s) of the selected strips (the Jacobi test, thesis 4.5) in FreeCAD's Plot module."""
 
-    def GetResources(self):
-        return {
-            "Pixmap": icon_path("ParaFab_PlotStripStability.svg"),
-            "MenuText": "Plot strip stability",
-            "ToolTip": "Plot the stability determinant Z(s) of each selected strip, its first conjugate "
-                       "point sigma marked when the strip is unstable (thesis 4.5; a Plot tab per strip)",
-        }
+    ICON = "ParaFab_PlotStripStability.svg"
+    MENU = "Plot strip stability"
+    TOOLTIP = ("Plot the stability determinant Z(s) of each selected strip, its first conjugate point sigma "
+               "marked when the strip is unstable (thesis 4.5; a Plot tab per strip)")
 
     def plot(self, obj):
         strip_feature.plot_stability(obj, show=True)
