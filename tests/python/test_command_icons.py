@@ -14,8 +14,8 @@ ICONS = os.path.join(REPO, "resources", "icons")
 
 
 def command_icons():
-    """{command name: icon file name} from the addCommand calls and the icon_path calls of
-    the command classes (inherited RESOURCES followed through the base classes)."""
+    """{command name: icon file name} from the addCommand calls and the icon_path calls or ICON
+    attributes of the command classes (inherited ones followed through the base classes)."""
     tree = ast.parse(open(COMMANDS).read())
     class_icon, bases = {}, {}
     for node in tree.body:
@@ -26,6 +26,10 @@ def command_icons():
                         and sub.func.id == "icon_path" and sub.args
                         and isinstance(sub.args[0], ast.Constant)):
                     class_icon[node.name] = sub.args[0].value
+            for stmt in node.body:  # a class attribute ICON = "..." (the plot commands)
+                if (isinstance(stmt, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "ICON" for t in stmt.targets)
+                        and isinstance(stmt.value, ast.Constant) and isinstance(stmt.value.value, str)):
+                    class_icon[node.name] = stmt.value.value
 
     def icon_of(cls):
         if cls in class_icon:
