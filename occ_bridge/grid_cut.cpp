@@ -500,7 +500,10 @@ bool shape_to_cut(const PartShape& part, const GridOptions& o, TopoDS_Shape& sol
 
 }  // namespace
 
-GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
+namespace {
+
+// One cut on the grid the options define (no shifted retries).
+GridCut cut_on_grid(const PartShape& part, const GridOptions& o) {
   PARAFAB_VERIFY(o.cells_longest >= 1, "grid: cells must be >= 1, got " << o.cells_longest);
   PARAFAB_VERIFY(o.cell_size >= 0, "grid: cell size must be >= 0, got " << o.cell_size);
   PARAFAB_VERIFY(o.segment_order == 1 || o.segment_order == 2,
@@ -525,6 +528,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
     g.grid.min[a] = std::min(lo, bb.min[a]);
     g.grid.max[a] = std::max(lo + span, bb.max[a]);
     g.cell_size[a] = h;
+    g.origin[a] = lo;
     g.planes[a] = grid_planes(lo, h, g.cells[a], avoid[a], o.perturbation, g.shifted_planes);
   }
   shift_off_rulings(part, avoid, o.perturbation, h, g.planes, g.shifted_planes);
@@ -557,8 +561,11 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
       f.done = true;
       return f;
     }
-    g.fallback_reason = f.message;
+    g.message = f.message;
+    g.method = CutMethod::FaceCut;
+    return g;
   }
+  g.method = CutMethod::Splitter;
   TopoDS_Shape solid;
   TopTools_DataMapOfShapeInteger source;
   if (!shape_to_cut(part, o, solid, source, g.message)) return g;
@@ -567,6 +574,37 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
   match_block_faces(g, 0);
   g.split_seconds = seconds_since(t0);  // splitting and extraction interleave per block
   g.done = true;
+  return g;
+}
+
+}  // namespace
+
+GridOptions shifted_grid(const GridCut& failed, const GridOptions& o, int k) {
+  GridOptions so = o;
+  const double h = failed.cell_size.maxCoeff();
+  so.anchored = true;
+  so.cell_size = h;
+  so.origin = failed.origin + (k * h) * xfem::Vec3(0.118, 0.141, 0.173);
+  so.shift_retries = 0;
+  return so;
+}
+
+GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
+  PARAFAB_VERIFY(o.shift_retries >= 0, "grid: shift_retries must be >= 0, got " << o.shift_retries);
+  GridCut g = cut_on_grid(part, o);
+  if (g.done || o.method != CutMethod::FaceCut || o.shift_retries == 0 || g.cell_size.maxCoeff() <= 0) return g;
+  const std::string reason = g.message;
+  for (int k = 1; k <= o.shift_retries; ++k) {
+    const GridOptions so = shifted_grid(g, o, k);
+    GridCut s = cut_on_grid(part, so);
+    if (s.done) {
+      s.retry_reason = reason;
+      s.grid_shift = so.origin - g.origin;
+      return s;
+    }
+  }
+  g.message = reason + " (and again on the grid shifted by up to " + std::to_string(o.shift_retries) +
+              " × (0.118, 0.141, 0.173) cells)";
   return g;
 }
 
@@ -940,6 +978,7 @@ GridCut recut_by_grid(const PartShape& part, const GridCut& old, const PartShape
     fo.anchored = true;
     fo.origin = old.grid.min;
     fo.cell_size = h;
+    fo.shift_retries = 0;  // the kept grid
     return cut_by_grid(part, fo);
   };
   if (((bb.min - old.grid.min).array() < -tol).any() || ((old.grid.max - bb.max).array() < -tol).any())

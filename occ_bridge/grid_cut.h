@@ -19,17 +19,22 @@ namespace parafab::occ {
 
 struct PartShape;  // occ_bridge/occt_shape.h
 
-/// How the part is cut. FaceCut: per face, plane ∩ surface curves in (u, v) (closed forms for
-/// planes and cylinders, traced for any other surface); if it fails, Splitter with the reason
-/// in GridCut::fallback_reason. Splitter: OCCT's Boolean splitter on the solid (the reference).
+/// How the part is cut. FaceCut (every entry's route): per face, plane ∩ surface curves in
+/// (u, v) (closed forms for planes and cylinders, traced for any other surface). Splitter:
+/// OCCT's Boolean splitter on the solid, kept only as the tests' and benchmarks' reference.
 enum class CutMethod { Splitter, FaceCut };
 
 struct GridOptions {
-  CutMethod method = CutMethod::Splitter;
+  CutMethod method = CutMethod::FaceCut;
   /// Face route: check that every subvolume's boundary closes (each boundary curve is run
-  /// through once in each direction by the subvolume's outward-oriented patches) and fall back
-  /// to the splitter if not. build_grid_model also checks the rules' volume against OCCT's.
+  /// through once in each direction by the subvolume's outward-oriented patches); the cut fails
+  /// if not. build_grid_model also checks the rules' volume against OCCT's.
   bool verify = true;
+  /// Face route: when the cut fails (a grid vertex on a surface, crossings that do not
+  /// alternate, an open boundary) or build_grid_model's volume check fails, the whole grid is
+  /// shifted by k·(0.118, 0.141, 0.173) cells, k = 1 … shift_retries, and cut again
+  /// (GridCut::retry_reason, grid_shift). 0: the grid must not move (re-cuts on a kept grid).
+  int shift_retries = 2;
   /// Face route: run the per-face work in parallel (oneTBB).
   bool face_parallel = true;
   int cells_longest = 8;    ///< cells along the longest side of the bounding box
@@ -135,17 +140,25 @@ struct GridCut {
   int patches = 0, segments = 0;
   double split_seconds = 0, extract_seconds = 0;
   int blocks_cut = 0;                             ///< blocks split at the second level
-  CutMethod method = CutMethod::Splitter;         ///< the route that produced this cut
-  std::string fallback_reason;                    ///< why the face route fell back to the splitter
+  CutMethod method = CutMethod::FaceCut;          ///< the route that produced this cut
+  xfem::Vec3 origin{0, 0, 0};                     ///< the unshifted grid's lowest planes (cell corner)
+  /// Why the face route failed on the requested grid, when it then cut a shifted one (empty:
+  /// cut as requested); grid_shift is that shift [model units].
+  std::string retry_reason;
+  xfem::Vec3 grid_shift{0, 0, 0};
   double verify_seconds = 0;                      ///< face route: the closure check
   int verify_open_edges = 0;                      ///< face route: unmatched boundary curves (check failed)
 
   xfem::Box3 cell_box(const std::array<int, 3>& ijk) const;
 };
 
-/// Cuts the part by the grid. Never throws for geometry the splitter cannot handle: that is
-/// `done == false` with a message. Throws parafab::Error for invalid options.
+/// Cuts the part by the grid. Never throws for geometry a route cannot handle: that is
+/// `done == false` with a message (on the face route after the grid shifts of shift_retries). Throws parafab::Error for invalid options.
 GridCut cut_by_grid(const PartShape& part, const GridOptions& options = {});
+
+/// The options of the k-th shifted retry of a face-route cut that failed (`failed` carries the
+/// grid's origin and cell size): anchored at origin + k·(0.118, 0.141, 0.173)·h, no further retries.
+GridOptions shifted_grid(const GridCut& failed, const GridOptions& options, int k);
 
 struct RecutReport {
   bool full = false;           ///< the whole part was cut again (reason in `message`)

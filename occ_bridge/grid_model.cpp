@@ -113,20 +113,29 @@ GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
   make_elements(m, o, [](int) -> const xfem::QuadratureRule3* { return nullptr; });
   if (m.cut->method == CutMethod::FaceCut) {
     // Safety net of the face route: the rules must hold OCCT's volume of the part; if not, the
-    // part is cut again by the splitter and the reason kept.
+    // grid is shifted and the part cut again (GridOptions::shift_retries), or the model fails.
     double volume = 0;
     for (const auto& e : m.elements)
       for (double w : e.rule.weights) volume += w;
     // Adaptive precision: BRepGProp's fixed rule is off by ~1e-5 on B-spline faces.
     const double occt_volume = occt_mass_properties(part, 1e-9).volume;
     if (std::abs(volume - occt_volume) > 1e-6 * std::abs(occt_volume)) {
-      GridModelOptions so = o;
-      so.grid.method = CutMethod::Splitter;
-      GridModel fallback = build_grid_model(part, so);
-      fallback.cut->fallback_reason = "the face route's rules hold volume " + std::to_string(volume) +
-                                      " against OCCT's " + std::to_string(occt_volume);
-      fallback.cut_seconds += m.cut_seconds;
-      return fallback;
+      const std::string reason = "the face route's rules hold volume " + std::to_string(volume) +
+                                 " against OCCT's " + std::to_string(occt_volume);
+      for (int k = 1; k <= o.grid.shift_retries; ++k) {
+        GridModelOptions so = o;
+        so.grid = shifted_grid(*m.cut, o.grid, k);
+        GridModel shifted = build_grid_model(part, so);
+        if (shifted.done) {
+          shifted.cut->retry_reason = reason;
+          shifted.cut->grid_shift = so.grid.origin - m.cut->origin;
+          shifted.cut_seconds += m.cut_seconds;
+          return shifted;
+        }
+      }
+      m.done = false;
+      m.message = reason + (o.grid.shift_retries > 0 ? " (also on the shifted grids)" : "");
+      return m;
     }
   }
   return m;
@@ -185,6 +194,7 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
     fo.grid.anchored = true;
     fo.grid.origin = old.cut->grid.min;
     fo.grid.cell_size = old.cut->cell_size.maxCoeff();
+    fo.grid.shift_retries = 0;  // the kept grid
     GridModel full = build_grid_model(part, fo);
     full.cut_seconds += m.cut_seconds;
     return full;

@@ -71,7 +71,7 @@ struct RunResult {
   double rule_seconds_per_cell = 0;  ///< moment-fitted rules only
   int cells = 0, segments = 0;
   bool done = false;
-  bool fell_back = false;  ///< face route asked, splitter used
+  bool fell_back = false;  ///< the face route cut a shifted grid (retry_reason)
   std::string reason;
 };
 RunResult run_rules(const occ::PartShape& part, const occ::IntegrationOptions& o,
@@ -82,8 +82,8 @@ RunResult run_rules(const occ::PartShape& part, const occ::IntegrationOptions& o
   const double t = now() - t0;
   if (!r.done) return rr;
   rr.done = true;
-  rr.fell_back = o.grid.method != r.cut.method;
-  rr.reason = r.cut.fallback_reason;
+  rr.fell_back = !r.cut.retry_reason.empty();
+  rr.reason = r.cut.retry_reason;
   rr.cells = static_cast<int>(r.cut.cut_cells.size());
   rr.segments = r.cut.segments;
   rr.seconds_per_cell = t / std::max(1, rr.cells);
@@ -168,7 +168,7 @@ int main(int argc, char** argv) {
       std::sort(rule_t.begin(), rule_t.end());
       const double tc = cut_t[cut_t.size() / 2], trl = rule_t[rule_t.size() / 2];
       const Stats s = stats(rr.errors);
-      const std::string note = rr.fell_back ? "fell back: " + rr.reason : "";
+      const std::string note = rr.fell_back ? "shifted grid: " + rr.reason : "";
       std::printf("%-11s %6d %-8s %10.2e %10.2e %9.3f %9.3f %9.3f %7.1fx %s\n", name.c_str(), rr.cells, route_name[route],
                   s.median, s.max, 1e3 * tc, 1e3 * trl, 1e3 * t_bool, t_bool / (tc + trl), note.c_str());
       entry[route_name[route]] = {{"cut_cells", rr.cells}, {"median", s.median}, {"p90", s.p90}, {"max", s.max},

@@ -50,7 +50,7 @@ def main():
             print("%-11s no support face found at the bottom of the bounding box" % name)
             continue
         s, g = d["seconds"], d["grid"]
-        route = g.get("method", "?") + (" (fell back: %s)" % g["fallback_reason"][:70] if g.get("fallback_reason") else "")
+        route = g.get("method", "?") + (" (shifted grid: %s)" % g["retry_reason"][:70] if g.get("retry_reason") else "")
         print("%-11s %-11s %5d %5d %7d %7.2f %7.2f %8.2f %7.2f %8.0f  %s" % (name, "x".join(map(str, g["cells"])), g["cut_cells"],
               g["subvolumes"], d["dofs"], s["cut"], s["rules"], s["assemble"], s["solve"], mb, route))
         rows.append({"part": name, "grid": g, "dofs": d["dofs"], "seconds": s, "peak_mb": mb})

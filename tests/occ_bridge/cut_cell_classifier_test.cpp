@@ -44,7 +44,7 @@ TEST(CutCellClassifier, AgreesWithOcctOnEveryPointAndMostlyWithoutIt) {
     o.grid.method = method;
     const GridModel m = build_grid_model(*part, o);
     ASSERT_TRUE(m.done) << name << ": " << m.message;
-    ASSERT_EQ(m.cut->method, method) << name << ": " << m.cut->fallback_reason;
+    ASSERT_EQ(m.cut->method, method) << name << ": " << m.cut->retry_reason;
     CutCellClassifier fast(*part, *m.cut, tol);
     PointClassifier occt(*part, tol);
     long points = 0, mismatches = 0, inside = 0, interior = 0, interior_by_crossings = 0;

@@ -26,11 +26,13 @@
 #include <map>
 #include <set>
 
+#include "face_lookup.h"
 #include "grid_cut.h"
 #include "grid_model.h"
 #include "occt_shape.h"
 #include "part_reader.h"
 #include "xfem/area_rules.h"
+#include "xfem/linear_xfem.h"
 #include "xfem/volume_rules.h"
 
 namespace parafab::occ {
@@ -223,12 +225,13 @@ struct Case {
 void expect_face_route_matches(const Case& c, double degrees, double shift, double moment_tol, GridOptions o = {}) {
   const auto part = posed(c.part, degrees, shift, c.solid);
   o.cells_longest = c.cells;
+  o.method = CutMethod::Splitter;  // the reference
   const GridCut ref = cut_by_grid(*part, o);
   o.method = CutMethod::FaceCut;
   const GridCut face = cut_by_grid(*part, o);
   const std::string what = std::string(c.part) + " at " + std::to_string(degrees) + "°";
   ASSERT_TRUE(ref.done && face.done) << what << ": " << ref.message << " / " << face.message;
-  ASSERT_EQ(face.method, CutMethod::FaceCut) << what << ": fell back: " << face.fallback_reason;
+  ASSERT_EQ(face.method, CutMethod::FaceCut) << what << ": retried: " << face.retry_reason;
   Compared cmp = compare_cuts(face, ref, what, moment_tol, part.get());
   for (const auto& c : face.interior_cells) cmp.face_volume += face.cell_box(c).volume();
   for (const auto& c : ref.interior_cells) cmp.ref_volume += ref.cell_box(c).volume();
@@ -332,10 +335,11 @@ TEST(FaceCut, ConeSliversTheSplitterMisses) {
   const auto part = posed("cone", 17, 0.013);
   GridOptions o;
   o.cells_longest = 6;
+  o.method = CutMethod::Splitter;  // the reference
   const GridCut ref = cut_by_grid(*part, o);
   o.method = CutMethod::FaceCut;
   const GridCut face = cut_by_grid(*part, o);
-  ASSERT_EQ(face.method, CutMethod::FaceCut) << face.fallback_reason;
+  ASSERT_EQ(face.method, CutMethod::FaceCut) << face.retry_reason;
   std::set<std::array<int, 3>> rk;
   for (const auto& c : ref.cut_cells) rk.insert(c.index);
   int only_face = 0;
@@ -353,36 +357,52 @@ TEST(FaceCut, ConeSliversTheSplitterMisses) {
 
 // The notched sphere on 6 cells: the grid is centred on the sphere and R = 3h, so grid vertices
 // at (±2, ±2, ±1)h from the centre lie on the sphere (2² + 2² + 1² = 3²). The face route
-// refuses (three planes meeting on the surface) and the part is cut by the splitter, with the reason.
-TEST(FaceCut, SphereFallsBackToTheSplitterWithTheReason) {
+// refuses that grid (three planes meeting on the surface); the whole grid is then shifted by
+// (0.118, 0.141, 0.173) cells and cut again, with the reason kept, and that cut matches the
+// splitter's on the shifted grid. A grid that must not move (shift_retries = 0) fails with the reason.
+TEST(FaceCut, SphereWithGridVerticesOnItIsCutOnAShiftedGrid) {
   const auto part = posed("sphere", 17, 0.013);
   GridOptions o;
   o.cells_longest = 6;
-  o.method = CutMethod::FaceCut;
   const GridCut g = cut_by_grid(*part, o);
   ASSERT_TRUE(g.done) << g.message;
-  EXPECT_EQ(g.method, CutMethod::Splitter);
-  EXPECT_NE(g.fallback_reason.find("a grid vertex on the surface"), std::string::npos) << g.fallback_reason;
+  EXPECT_EQ(g.method, CutMethod::FaceCut);
+  EXPECT_NE(g.retry_reason.find("a grid vertex on the surface"), std::string::npos) << g.retry_reason;
+  const double h = g.cell_size.maxCoeff();
+  EXPECT_LT((g.grid_shift - h * xfem::Vec3(0.118, 0.141, 0.173)).norm(), 1e-12 * h) << g.grid_shift.transpose();
+
+  GridOptions fixed = o;
+  fixed.shift_retries = 0;
+  const GridCut refused = cut_by_grid(*part, fixed);
+  EXPECT_FALSE(refused.done);
+  EXPECT_NE(refused.message.find("a grid vertex on the surface"), std::string::npos) << refused.message;
+
+  GridOptions shifted = shifted_grid(refused, o, 1);
+  shifted.method = CutMethod::Splitter;  // the reference, on the same shifted grid
+  const GridCut ref = cut_by_grid(*part, shifted);
+  ASSERT_TRUE(ref.done) << ref.message;
+  const Compared cmp = compare_cuts(g, ref, "sphere on the shifted grid", kSphere, part.get());
+  std::printf("sphere on the shifted grid: %d subvolumes, worst moment difference %.1e\n", cmp.subvolumes,
+              cmp.worst_moment);
 }
 
-// The safety net in the simulation path: a part the face route cannot cut (the notched
-// sphere with grid vertices on it, above) is cut by the splitter, the grid model says so, and its rules hold OCCT's volume.
-TEST(FaceCut, GridModelFallsBackToTheSplitterAndSaysWhy) {
+// The same in the simulation path: the grid model on the shifted grid says why, and its rules
+// hold OCCT's volume.
+TEST(FaceCut, GridModelOnAShiftedGridSaysWhyAndHoldsOcctsVolume) {
   const auto part = posed("sphere", 17, 0.013);
   GridModelOptions o;
   o.grid.cells_longest = 6;
-  o.grid.method = CutMethod::FaceCut;
   const GridModel m = build_grid_model(*part, o);
   ASSERT_TRUE(m.done) << m.message;
-  EXPECT_EQ(m.cut->method, CutMethod::Splitter);
-  EXPECT_NE(m.cut->fallback_reason.find("face route"), std::string::npos) << m.cut->fallback_reason;
+  EXPECT_EQ(m.cut->method, CutMethod::FaceCut);
+  EXPECT_NE(m.cut->retry_reason.find("face route"), std::string::npos) << m.cut->retry_reason;
   double v = 0;
   for (const auto& e : m.elements)
     for (double w : e.rule.weights) v += w;
   GProp_GProps props;
   BRepGProp::VolumeProperties(part->shape, props, 1e-13);
-  std::printf("sphere by the splitter: volume error %.1e\n", std::abs(v / props.Mass() - 1));
-  EXPECT_NEAR(v, props.Mass(), 1e-12 * props.Mass());  // measured 3.1e-13
+  std::printf("sphere on the shifted grid: volume error %.1e\n", std::abs(v / props.Mass() - 1));
+  EXPECT_NEAR(v, props.Mass(), 3e-12 * props.Mass());  // measured 1.9e-12
 }
 
 // The simulation path: a grid model on the face route has the splitter model's elements and
@@ -391,11 +411,12 @@ TEST(FaceCut, GridModelOnTheFaceRouteMatchesTheSplitterModel) {
   const auto part = posed("l_bracket", 17, 0.013);
   GridModelOptions o;
   o.grid.cells_longest = 8;
+  o.grid.method = CutMethod::Splitter;  // the reference
   const GridModel ref = build_grid_model(*part, o);
   o.grid.method = CutMethod::FaceCut;
   const GridModel face = build_grid_model(*part, o);
   ASSERT_TRUE(ref.done && face.done) << ref.message << face.message;
-  ASSERT_EQ(face.cut->method, CutMethod::FaceCut) << face.cut->fallback_reason;
+  ASSERT_EQ(face.cut->method, CutMethod::FaceCut) << face.cut->retry_reason;
   EXPECT_EQ(face.elements.size(), ref.elements.size());
   EXPECT_EQ(face.adjacent.size(), ref.adjacent.size());
   double v = 0;
@@ -406,6 +427,22 @@ TEST(FaceCut, GridModelOnTheFaceRouteMatchesTheSplitterModel) {
   EXPECT_NEAR(v, props.Mass(), 1e-11 * props.Mass());
   std::printf("grid model: %zu elements, %zu adjacent pairs, volume error %.1e\n", face.elements.size(),
               face.adjacent.size(), std::abs(v / props.Mass() - 1));
+  // The same solution: the upright's end face clamped (the sample job's support), the part
+  // under gravity, hex8 (the splitter's model is the reference of the simulation's own route).
+  const int clamped = face_at_point(*read_part(sample("l_bracket")), xfem::Vec3(0, 20, 30), 1e-6);
+  ASSERT_GE(clamped, 0);
+  const xfem::ElasticMaterial steel{210000, 0.3, 7.85e-9};
+  xfem::LinearXfemOptions lo;
+  lo.gravity = xfem::Vec3(0, 0, -9810);
+  const std::vector<xfem::DirichletCondition> clamp{{clamped, Eigen::Matrix3d::Zero(), xfem::Vec3::Zero()}};
+  const xfem::LinearXfemResult a = xfem::solve_linear(face.elements, face.adjacent, steel, clamp, {}, lo);
+  const xfem::LinearXfemResult b = xfem::solve_linear(ref.elements, ref.adjacent, steel, clamp, {}, lo);
+  ASSERT_TRUE(a.solved && b.solved) << a.message << b.message;
+  const double ua = a.u.cwiseAbs().maxCoeff(), ub = b.u.cwiseAbs().maxCoeff();
+  std::printf("face / splitter route: max |u| %.9e / %.9e (relative %.1e), |u| %.1e apart\n", ua, ub,
+              std::abs(ua / ub - 1), std::abs(a.u.norm() / b.u.norm() - 1));
+  EXPECT_LT(std::abs(ua / ub - 1), 2e-12);  // measured 4.9e-13
+  EXPECT_LT(std::abs(a.u.norm() / b.u.norm() - 1), 2e-12);  // measured 5.1e-13
 }
 
 }  // namespace

@@ -178,7 +178,7 @@ void check_recut(const Change& c) {
   if (c.options) o = *c.options;
   const GridModel old_model = build_grid_model(*c.before, o);
   ASSERT_TRUE(old_model.done) << old_model.message;
-  ASSERT_EQ(old_model.cut->method, CutMethod::FaceCut) << old_model.cut->fallback_reason;
+  ASSERT_EQ(old_model.cut->method, CutMethod::FaceCut) << old_model.cut->retry_reason;
   RecutReport r;
   const GridModel recut = rebuild_grid_model(*c.after, old_model, *c.before, o, &r);
   ASSERT_TRUE(recut.done) << recut.message;

@@ -46,8 +46,9 @@ TEST(GridFailureModes, TinyCutFractionsStayBoundedAndAccurate) {
     IntegrationOptions o;
     o.grid.cell_size = h;
     o.grid.anchored = true;
-    o.grid.origin = xfem::Vec3(10 - delta, 0, 0);  // a grid plane at x = R − δ
+    o.grid.origin = xfem::Vec3(10 - delta, 0.37, 0.21);  // a grid plane at x = R − δ (y, z planes off the seam)
     o.grid.perturbation = 0;                       // keep the sliver on purpose
+    o.grid.shift_retries = 0;                      // and this grid
     const IntegrationResult r = integrate_part(*part, o);
     ASSERT_TRUE(r.done) << r.message;
     // The sliver: subvolumes whose cell starts at x = R − δ.

@@ -192,6 +192,7 @@ TEST(GridBlocks, BlocksGiveTheCutOfOneGlobalSplit) {
       auto part = read_part(sample(name));
       GridOptions global, blocks;
       global.cells_longest = blocks.cells_longest = 12;
+      global.method = blocks.method = CutMethod::Splitter;  // the block route is the splitter's
       if (turned) {
         const PartInfo info = part_info(*part);
         part = rotated_part(*part, 0.5 * (info.bbox_min + info.bbox_max), xfem::Vec3(1, 0.5, 0.3), 13);
@@ -226,6 +227,7 @@ TEST(GridBlocks, BlocksGiveTheCutOfOneGlobalSplit) {
 TEST(GridBlocks, RecutOfAChangedHoleEqualsAFullCut) {
   const auto before = plate_with_hole(8), after = plate_with_hole(9.5);
   GridModelOptions o;
+  o.grid.method = CutMethod::Splitter;  // blocks: the splitter route
   o.grid.cells_longest = 20;
   o.grid.block_cells = 4;
   o.grid.perturbation = 0;  // identical planes for the old and the fresh cut of the new part
@@ -270,6 +272,7 @@ TEST(GridBlocks, SeparateChangesAreSeparateRegions) {
   };
   const auto before = plate(5), after = plate(6);
   GridModelOptions o;
+  o.grid.method = CutMethod::Splitter;  // blocks: the splitter route
   o.grid.cells_longest = 24;
   o.grid.block_cells = 4;
   o.grid.perturbation = 0;
@@ -295,6 +298,7 @@ TEST(GridBlocks, SeparateChangesAreSeparateRegions) {
 TEST(GridBlocks, AMissedChangeIsCaughtByTheVolumeCheck) {
   const auto r8 = plate_with_hole(8), r95 = plate_with_hole(9.5);
   GridModelOptions o;
+  o.grid.method = CutMethod::Splitter;  // blocks: the splitter route
   o.grid.cells_longest = 12;
   o.grid.block_cells = 4;
   o.grid.perturbation = 0;
@@ -313,6 +317,7 @@ TEST(GridBlocks, AMissedChangeIsCaughtByTheVolumeCheck) {
 TEST(GridBlocks, AnUnchangedPartIsNotCutAgain) {
   const auto part = plate_with_hole(8), same = plate_with_hole(8);
   GridOptions o;
+  o.method = CutMethod::Splitter;  // blocks: the splitter route
   o.cells_longest = 10;
   o.block_cells = 4;
   const GridCut old = cut_by_grid(*part, o);
@@ -333,6 +338,7 @@ TEST(GridBlocks, APartThatLeavesTheGridIsCutAgainWhole) {
                                   .Shape();
   const auto grown = make_part(longer, "longer plate");
   GridOptions o;
+  o.method = CutMethod::Splitter;  // blocks: the splitter route
   o.cells_longest = 10;
   const GridCut old = cut_by_grid(*part, o);
   RecutReport report;

@@ -124,7 +124,7 @@ TEST(GridCut, NurbsPatchesOnTheFaceRouteAreThePiecesOfTheFaceModelsNurbs) {
   o.grid.method = CutMethod::FaceCut;
   const IntegrationResult r = integrate_part(*part, o);
   ASSERT_TRUE(r.done) << r.message;
-  ASSERT_EQ(r.cut.method, CutMethod::FaceCut) << r.cut.fallback_reason;
+  ASSERT_EQ(r.cut.method, CutMethod::FaceCut) << r.cut.retry_reason;
   std::printf("face route on NURBS: volume error %.1e, inertia %.1e\n", r.errors.volume, r.errors.inertia);
   EXPECT_LT(r.errors.volume, 3e-9);  // measured 2.4e-9 (rational fillets, as on the splitter route)
   EXPECT_LT(r.errors.inertia, 4e-9);  // measured 3.3e-9
@@ -162,8 +162,8 @@ TEST(GridCut, NurbsOnTheFaceRouteForTheCurvedSamples) {
     const IntegrationResult r = integrate_part(*part, o);
     ASSERT_TRUE(r.done) << name << ": " << r.message;
     std::printf("%-10s %s, volume error %.1e %s\n", name.c_str(), r.cut.method == CutMethod::FaceCut ? "face" : "splitter",
-                r.errors.volume, r.cut.fallback_reason.c_str());
-    EXPECT_EQ(r.cut.method, CutMethod::FaceCut) << name << ": " << r.cut.fallback_reason;
+                r.errors.volume, r.cut.retry_reason.c_str());
+    EXPECT_EQ(r.cut.method, CutMethod::FaceCut) << name << ": " << r.cut.retry_reason;
     EXPECT_LT(r.errors.volume, tol) << name;
   }
 }

@@ -88,8 +88,10 @@ class Optimize(unittest.TestCase):
             seen.append(it)
             return it["iteration"] < 1
 
-        h = parafab.optimize(self.part, dict(JOB, max_iterations=5), out_dir=os.path.join(self.dir, "py"),
+        # "threads": 1 holds the run to one worker thread (the benchmarks' one-core figures).
+        h = parafab.optimize(self.part, dict(JOB, max_iterations=5, threads=1), out_dir=os.path.join(self.dir, "py"),
                              progress=progress)
+        self.assertEqual(h["threads"], 1)
         self.assertEqual(h["status"], "cancelled")
         self.assertEqual([it["iteration"] for it in seen], [0, 1])
         self.assertEqual(len(h["iterations"]), 2)
@@ -105,6 +107,9 @@ class Optimize(unittest.TestCase):
         code, err = run(self.part, dict(JOB, objective={"type": "compliance"}), os.path.join(self.dir, "z"))
         self.assertEqual(code, 2)
         self.assertIn("material", json.dumps(err))
+        code, err = run(self.part, dict(JOB, threads=-1), os.path.join(self.dir, "t"))
+        self.assertEqual(code, 2)
+        self.assertIn("threads must be an integer", json.dumps(err))
         code, err = run(self.part, dict(JOB, parameters=[{"face": 0, "parameter": "nonsense"}]),
                         os.path.join(self.dir, "y"))
         self.assertEqual(code, 2)

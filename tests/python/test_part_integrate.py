@@ -45,20 +45,23 @@ class Integrate(unittest.TestCase):
     def test_cut_by_face_on_both_entry_points(self):
         # Planes and cylinders (closed forms) and tori (traced): the face route.
         path = os.path.join(PARTS, "wrench.step")
-        code, out = cli(path, "--cells", "6", "--cut", "face")
+        code, out = cli(path, "--cells", "6")
         self.assertEqual(code, 0)
         self.assertEqual(out["grid"]["method"], "face")
-        self.assertEqual(out["grid"]["fallback_reason"], "")
+        self.assertEqual(out["grid"]["retry_reason"], "")
         self.assertLess(out["relative_errors"]["volume"], 1e-11)
-        mod = parafab.integrate_part(path, cells=6, cut="face")
+        mod = parafab.integrate_part(path, cells=6)
         self.assertEqual(out["rules"]["volume"], mod["rules"]["volume"])
         # A torus (the housing's boss fillet): the face route's traced level curves.
-        torus = parafab.integrate_part(os.path.join(PARTS, "housing.step"), cells=6, cut="face")
+        torus = parafab.integrate_part(os.path.join(PARTS, "housing.step"), cells=6)
         self.assertEqual(torus["grid"]["method"], "face")
-        self.assertEqual(torus["grid"]["fallback_reason"], "")
+        self.assertEqual(torus["grid"]["retry_reason"], "")
         self.assertLess(torus["relative_errors"]["volume"], 1e-11)
-        with self.assertRaises(Exception):
-            parafab.integrate_part(path, cut="boolean")
+        with self.assertRaises(TypeError):  # the splitter is no longer a user route
+            parafab.integrate_part(path, cut="splitter")
+        p = subprocess.run([CLI, "integrate", path, "--cut", "splitter"], capture_output=True, text=True, timeout=60)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--cut", p.stdout + p.stderr)
 
     def test_bad_input(self):
         with tempfile.TemporaryDirectory() as d:

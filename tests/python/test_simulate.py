@@ -66,26 +66,25 @@ class Simulate(unittest.TestCase):
         mod = parafab.simulate(BRACKET, job)
         self.assertAlmostEqual(mod["probes"][0]["displacement"][2], tip, delta=1e-12)
 
-    def test_cut_by_face_gives_the_splitter_solution(self):
-        # grid.method "face": the same tip deflection as the splitter's cut (measured 1.2e-12).
+    def test_the_job_cuts_by_face_and_refuses_the_splitter(self):
+        # The face route is the only route (its solution equals the splitter's to 4.9e-13:
+        # FaceCut.GridModelOnTheFaceRouteMatchesTheSplitterModel); the splitter and its blocks
+        # are refused with the reason.
         with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
             job = json.load(f)
-        tips = {}
-        for method in ["splitter", "face"]:
-            job.setdefault("grid", {})["method"] = method
-            r = parafab.simulate(BRACKET, job)
-            self.assertEqual(r["grid"]["method"], method)
-            tips[method] = r["probes"][0]["displacement"][2]
-        self.assertLess(abs(tips["face"] - tips["splitter"]), 1e-10 * abs(tips["splitter"]))
-        # Without grid.method the simulation cuts by face (and says so).
-        del job["grid"]["method"]
+        job["grid"] = {"cells": 8}
         r = parafab.simulate(BRACKET, job)
         self.assertEqual(r["grid"]["method"], "face")
-        self.assertEqual(r["grid"]["fallback_reason"], "")
-        self.assertEqual(r["probes"][0]["displacement"][2], tips["face"])
-        job["grid"]["method"] = "boolean"
-        with self.assertRaises(Exception):
-            parafab.simulate(BRACKET, job)
+        self.assertEqual(r["grid"]["retry_reason"], "")
+        self.assertEqual(r["grid"]["grid_shift"], [0.0, 0.0, 0.0])
+        job["grid"]["method"] = "face"
+        self.assertEqual(parafab.simulate(BRACKET, job)["probes"][0]["displacement"], r["probes"][0]["displacement"])
+        for bad, field in (({"method": "splitter"}, "grid.method"), ({"block_cells": 4}, "grid.block_cells")):
+            job["grid"] = dict({"cells": 8}, **bad)
+            with self.assertRaises(parafab.Error) as e:
+                parafab.simulate(BRACKET, job)
+            self.assertIn(field, str(e.exception))
+            self.assertIn("tests' reference", str(e.exception))
 
     def test_hyperelastic_job_runs_newton(self):
         with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:

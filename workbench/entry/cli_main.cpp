@@ -103,7 +103,6 @@ int main(int argc, char** argv) {
       "integrate", "Volume, centre of mass and inertia of a part by cut-cell quadrature on a grid, beside OCCT's (JSON)");
   parafab::entry::IntegrateOptions integrate_options;
   std::string segments = "parabolic";
-  std::string cut_method = "splitter";
   integrate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
   integrate->add_option("--cells", integrate_options.integration.grid.cells_longest,
                         "Cells along the longest side of the bounding box")->check(CLI::PositiveNumber);
@@ -111,10 +110,6 @@ int main(int argc, char** argv) {
                         "Cell size in model units (overrides --cells)")->check(CLI::NonNegativeNumber);
   integrate->add_option("--segments", segments, "Boundary curve segments: parabolic or linear")
       ->check(CLI::IsMember({"parabolic", "linear"}));
-  integrate->add_option("--cut", cut_method,
-                        "Grid cut: splitter (OCCT's Boolean splitter) or face (cut by face, any surface; if it "
-                        "fails, the splitter with the reason in grid.fallback_reason)")
-      ->check(CLI::IsMember({"splitter", "face"}));
   integrate->add_option("--solid", integrate_options.read.solid_index, "Index of the solid when the file holds several");
   integrate->add_flag("--non-negative", "Non-negative weights (NNLS fit) for the cut-cell rules");
   integrate->add_flag("--nurbs", integrate_options.integration.grid.nurbs,
@@ -202,8 +197,6 @@ int main(int argc, char** argv) {
     if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);
     if (*integrate) {
       integrate_options.integration.grid.segment_order = segments == "linear" ? 1 : 2;
-      integrate_options.integration.grid.method =
-          cut_method == "face" ? parafab::occ::CutMethod::FaceCut : parafab::occ::CutMethod::Splitter;
       if (integrate->count("--non-negative"))
         integrate_options.integration.rule.fit = parafab::xfem::WeightFit::NonNegative;
       return emit(parafab::entry::integrate_part_json(in_path, integrate_options), out_path);

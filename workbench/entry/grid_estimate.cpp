@@ -26,6 +26,17 @@ xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType de
   return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
 }
 
+void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options) {
+  if (grid.contains("method") && grid["method"] != "face")
+    PARAFAB_INPUT_ERROR("grid.method: the only route is \"face\" (cut by face); OCCT's Boolean splitter is kept "
+                        "only as the tests' reference, got "
+                        << grid["method"].dump());
+  if (grid.contains("block_cells"))
+    PARAFAB_INPUT_ERROR("grid.block_cells: blocks belonged to the splitter route, which is kept only as the tests' "
+                        "reference; the face route cuts and re-cuts by cell (remove the field)");
+  options.method = occ::CutMethod::FaceCut;
+}
+
 void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options, bool linear_model) {
   using Penalty = xfem::LinearXfemOptions::NitschePenalty;
   // The default where the job names no penalty: local where it was measured better (the linear

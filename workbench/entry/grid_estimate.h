@@ -31,6 +31,11 @@ nlohmann::json to_json(const GridEstimate& e);
 /// The job's "element" ("hex8" | "hex27"), or `default_element` when it names none.
 xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType default_element);
 
+/// The job's grid cut: the face route, the only one a job can ask for. `grid.method` may say
+/// "face"; "splitter" (OCCT's Boolean splitter, kept as the tests' reference) and
+/// `grid.block_cells` (its blocks) are refused with the reason.
+void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options);
+
 /// The job's Nitsche penalty into `options`: "nitsche_penalty" ("fixed" | "local"), with
 /// "nitsche_beta" (fixed only, > 0) or "nitsche_local_factor" (local only, > 1); a key that the
 /// chosen penalty would not use is refused; "nitsche_beta" alone means "fixed". Without either,

@@ -46,7 +46,7 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
                  {"curve_segments", g.segments},
                  {"segment_order", options.integration.grid.segment_order},
                  {"method", g.method == occ::CutMethod::FaceCut ? "face" : "splitter"},
-                 {"fallback_reason", g.fallback_reason}};
+                 {"retry_reason", g.retry_reason}, {"grid_shift", vec(g.grid_shift)}};
   out["rules"] = properties(r.by_rules);
   if (options.integration.occt_reference) {
     out["occt"] = properties(r.by_occt);

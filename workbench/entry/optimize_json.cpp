@@ -6,6 +6,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
+
+#include <tbb/global_control.h>
 
 #include "common/error.h"
 #include "face_lookup.h"
@@ -78,14 +81,9 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   if (grid.contains("target")) PARAFAB_INPUT_ERROR("objective compliance: grid.target is not supported (the grid stays fixed)");
   s->grid.grid.cells_longest = static_cast<int>(number(grid.value("cells", json(default_cells(s->solver.element))), "grid.cells"));
   s->grid.grid.cell_size = number(grid.value("cell_size", json(0.0)), "grid.cell_size");
-  s->grid.grid.block_cells = static_cast<int>(number(grid.value("block_cells", json(8)), "grid.block_cells"));
   if (s->grid.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
-  if (s->grid.grid.block_cells < 1) PARAFAB_INPUT_ERROR("objective compliance: grid.block_cells must be >= 1");
-  // Default: the face route. The Boolean splitter lost cell pieces of perturbed bracket models
-  // whose planes move (their rules missed OCCT's volume; such models are refused, not used).
-  const std::string method = grid.value("method", std::string("face"));
-  if (method != "splitter" && method != "face") PARAFAB_INPUT_ERROR("grid.method must be \"splitter\" or \"face\"");
-  s->grid.grid.method = method == "face" ? occ::CutMethod::FaceCut : occ::CutMethod::Splitter;
+  // The face route: perturbed models are re-cut by cell on the run's fixed grid.
+  cut_of_job(grid, s->grid.grid);
   s->grid = occ::rules_for_element(s->solver.element, s->grid);
   const json supports = job.value("supports", json::array());
   if (!supports.is_array() || supports.empty())
@@ -174,6 +172,12 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (job.contains("chart") && !job["chart"].is_boolean())
     PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
   const bool chart = job.value("chart", true);
+  // "threads": worker threads of the whole run (0 or absent: all cores), as in `parafab simulate`.
+  if (job.contains("threads") && (!job["threads"].is_number_integer() || job["threads"].get<int>() < 0))
+    PARAFAB_INPUT_ERROR("threads must be an integer >= 1 (or 0: all cores), got " << job["threads"].dump());
+  const int threads = job.value("threads", 0);
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
   const auto part = occ::read_part(part_path);
   occ::ShapeOptimizationOptions o;
 
@@ -375,6 +379,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   h["initial_volume"] = r.initial_volume;
   h["final_volume"] = r.final_volume;
   h["tangency_residual_max"] = r.tangency_residual_max;
+  h["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   h["gradient"] = r.gradient;
   if (r.exact_derivatives + r.semi_analytic_derivatives > 0) {
     h["exact_derivatives"] = r.exact_derivatives;

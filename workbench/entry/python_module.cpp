@@ -372,11 +372,8 @@ PYBIND11_MODULE(parafab, m) {
   m.def(
       "integrate_part",
       [](const std::string& path, int cells, double cell_size, const std::string& segments, int solid,
-         bool estimate_only, bool force, const std::string& cut) {
+         bool estimate_only, bool force) {
         parafab::entry::IntegrateOptions o;
-        if (cut != "splitter" && cut != "face")
-          throw parafab::Error("cut must be \"splitter\" or \"face\", got \"" + cut + "\"");
-        o.integration.grid.method = cut == "face" ? parafab::occ::CutMethod::FaceCut : parafab::occ::CutMethod::Splitter;
         o.read.solid_index = solid;
         o.estimate_only = estimate_only;
         o.force = force;
@@ -394,11 +391,10 @@ PYBIND11_MODULE(parafab, m) {
       },
       py::arg("path"), py::arg("cells") = 8, py::arg("cell_size") = 0.0, py::arg("segments") = "parabolic",
       py::arg("solid") = -1, py::arg("estimate_only") = false, py::arg("force") = false,
-      py::arg("cut") = "splitter",
-      "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`). "
+      "Mass properties of a part by cut-cell quadrature beside OCCT's (same JSON as `parafab integrate`), "
+      "the part cut face by face (a grid the cut fails on is shifted and cut again: grid.retry_reason). "
       "A grid estimated above 70% of the memory is refused (parafab.Error with the estimate) unless "
-      "force=True; estimate_only=True returns only {part, estimate}; cut=\"face\" cuts face by face "
-      "(planes and cylinders; other parts fall back to the splitter, reported).");
+      "force=True; estimate_only=True returns only {part, estimate}.");
   m.def(
       "simulate",
       [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress,

@@ -365,7 +365,6 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   const json grid_job = job.value("grid", json::object());
   go.grid.cells_longest = static_cast<int>(number(grid_job.value("cells", json(default_cells(S->fo.element))), "grid.cells"));
   go.grid.cell_size = number(grid_job.value("cell_size", json(0.0)), "grid.cell_size");
-  go.grid.block_cells = static_cast<int>(number(grid_job.value("block_cells", json(8)), "grid.block_cells"));
   if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
   if (grid_job.contains("origin")) {  // grid planes through this point (default: centred on the part)
     go.grid.anchored = true;
@@ -385,14 +384,9 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
     PARAFAB_INPUT_ERROR("quadrature.degree_boost must be in 0..12, got " << go.rule.flux_degree_boost);
   if (!(go.rule.flux_tolerance >= 0))
     PARAFAB_INPUT_ERROR("quadrature.flux_tolerance must be >= 0, got " << go.rule.flux_tolerance);
-  if (go.grid.block_cells < 0) PARAFAB_INPUT_ERROR("grid.block_cells must be >= 0");
-  // Cut by face by default (issue 11 §1); the splitter stays as its safety net: a face the
-  // face route cannot cut, or rules that miss OCCT's volume, cut the part by the splitter with
-  // the reason in the result's grid.fallback_reason.
-  const std::string cut_method = grid_job.value("method", std::string("face"));
-  if (cut_method != "splitter" && cut_method != "face")
-    PARAFAB_INPUT_ERROR("grid.method must be \"splitter\" or \"face\", got \"" << cut_method << "\"");
-  go.grid.method = cut_method == "face" ? occ::CutMethod::FaceCut : occ::CutMethod::Splitter;
+  // Cut by face (issue 11 §1); a grid the face route cannot cut is shifted and cut again
+  // (GridOptions::shift_retries), the reason in the result's grid.retry_reason.
+  cut_of_job(grid_job, go.grid);
   go = occ::rules_for_element(S->fo.element, go);
 
   const json supports = job.value("supports", json::array());
@@ -870,7 +864,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"cut_cells", grid.cut->cut_cells.size()}, {"subvolumes", grid.cut->subvolumes.size()},
                      {"interior_cells", grid.cut->interior_cells.size()},
                      {"method", grid.cut->method == occ::CutMethod::FaceCut ? "face" : "splitter"},
-                     {"fallback_reason", grid.cut->fallback_reason}}},
+                     {"retry_reason", grid.cut->retry_reason},
+                     {"grid_shift", {grid.cut->grid_shift.x(), grid.cut->grid_shift.y(), grid.cut->grid_shift.z()}}}},
            {"dofs", r.dofs},
            {"element", xfem::element_type_name(S.fo.element)},
            {"nitsche_penalty", S.fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed"},
