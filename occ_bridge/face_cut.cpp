@@ -55,6 +55,7 @@ constexpr NodeId kVertexNode = 0, kEdgePlaneNode = 1LL << 60, kFaceNode = 2LL <<
 
 struct FaceFailure {
   std::string why;
+  int axis = -1;  ///< the grid plane's axis when one plane is at fault (cut_by_grid shifts along it)
 };
 
 double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
@@ -259,24 +260,52 @@ struct FacePatch {
   Region loops;
 };
 
-// Roots of g on (a, b) (a < b), from sign changes on `n` samples, refined by bisection.
+// Roots of g on (a, b) (a < b), from sign changes on `n` samples, refined by bisection. A pair
+// of roots closer than the sampling (a plane within a hair of a circle's extreme point, e.g. a
+// grid plane shifted 1e-4 cells off a tangency) shows no sign change at the samples: where |g|
+// has a local minimum at a sample, the extremum of g is located by golden-section search, and if
+// g changes sign there it joins the samples, so both roots are bracketed.
 template <class G>
 std::vector<double> roots(const G& g, double a, double b, int n) {
+  std::vector<std::pair<double, double>> samples;  // (t, g(t))
+  samples.reserve(n + 4);
+  for (int k = 0; k <= n; ++k) {
+    const double t = k == n ? b : a + (b - a) * k / n;
+    samples.push_back({t, g(t)});
+  }
+  const size_t m = samples.size();
+  for (size_t k = 1; k + 1 < m; ++k) {
+    const double g0 = samples[k - 1].second, g1 = samples[k].second, g2 = samples[k + 1].second;
+    if (g1 == 0 || (g0 > 0) != (g1 > 0) || (g2 > 0) != (g1 > 0) || g0 == 0 || g2 == 0) continue;
+    if (!(std::abs(g1) < std::abs(g0) && std::abs(g1) <= std::abs(g2))) continue;
+    const double sgn = g1 > 0 ? 1 : -1;  // minimize sgn·g: towards zero
+    double lo = samples[k - 1].first, hi = samples[k + 1].first;
+    const double phi = 0.5 * (std::sqrt(5.0) - 1);
+    double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
+    double f1 = sgn * g(x1), f2 = sgn * g(x2);
+    for (int it = 0; it < 80 && hi - lo > 1e-15 * (1 + std::abs(lo)); ++it) {
+      if (f1 < f2) hi = x2, x2 = x1, f2 = f1, x1 = hi - phi * (hi - lo), f1 = sgn * g(x1);
+      else lo = x1, x1 = x2, f1 = f2, x2 = lo + phi * (hi - lo), f2 = sgn * g(x2);
+    }
+    const double t = f1 < f2 ? x1 : x2, gt = g(t);
+    if (sgn * gt < 0) samples.push_back({t, gt});
+  }
+  if (samples.size() > m)
+    std::sort(samples.begin(), samples.end(), [](const auto& p, const auto& q) { return p.first < q.first; });
   std::vector<double> r;
-  double ta = a, ga = g(a);
-  for (int k = 1; k <= n; ++k) {
-    const double tb = a + (b - a) * k / n;
-    const double gb = g(tb);
+  double ta = samples[0].first, ga = samples[0].second;
+  for (size_t k = 1; k < samples.size(); ++k) {
+    const double tb = samples[k].first, gb = samples[k].second;
     if (ga == 0 && k > 1) r.push_back(ta);
     else if ((ga < 0 && gb > 0) || (ga > 0 && gb < 0)) {
       double lo = ta, hi = tb, glo = ga;
       for (int it = 0; it < 200 && hi - lo > 0; ++it) {
-        const double m = 0.5 * (lo + hi);
-        if (m <= lo || m >= hi) break;
-        const double gm = g(m);
-        if (gm == 0) { lo = hi = m; break; }
-        if ((gm < 0) == (glo < 0)) lo = m, glo = gm;
-        else hi = m;
+        const double mid = 0.5 * (lo + hi);
+        if (mid <= lo || mid >= hi) break;
+        const double gm = g(mid);
+        if (gm == 0) { lo = hi = mid; break; }
+        if ((gm < 0) == (glo < 0)) lo = mid, glo = gm;
+        else hi = mid;
       }
       r.push_back(0.5 * (lo + hi));
     }
@@ -643,7 +672,7 @@ class FaceCutter {
         auto tr = trace(axis, q, uv);
         if (!tr)
           throw FaceFailure{"face " + std::to_string(index_) + ": tracing plane " + std::to_string(axis) + "/" +
-                            std::to_string(k) + " on its surface failed (singular or tangent)"};
+                            std::to_string(k) + " on its surface failed (singular or tangent)", axis};
         auto c = make();
         c->type = LevelCurve::Traced;
         c->traced = std::move(tr);
@@ -809,7 +838,7 @@ class FaceCutter {
       }
       if (best > 1e-6 * (1 + c.uv.norm()))
         throw FaceFailure{"face " + std::to_string(index_) + ": a crossing of plane " + std::to_string(axis) + "/" +
-                          std::to_string(k) + " is off its level curve by " + std::to_string(best)};
+                          std::to_string(k) + " is off its level curve by " + std::to_string(best), axis};
       const LevelCurve& L = *comps[c.component];
       const double ds = 1e-7 * (1 + std::abs(c.s));
       const Vec2 lt = L.at(c.s + ds) - L.at(c.s - ds);
@@ -822,7 +851,7 @@ class FaceCutter {
       std::sort(on.begin(), on.end(), [&](int a, int b) { return crossings[a].s < crossings[b].s; });
       if (on.size() % 2 != 0)
         throw FaceFailure{"face " + std::to_string(index_) + ": odd number of crossings (" + std::to_string(on.size()) +
-                          ") on a level curve of plane " + std::to_string(axis) + "/" + std::to_string(k)};
+                          ") on a level curve of plane " + std::to_string(axis) + "/" + std::to_string(k), axis};
       if (!on.empty() && comps[j]->closed() && !crossings[on[0]].enters) {  // start the pairs at an entry
         crossings[on[0]].s += comps[j]->period();
         std::rotate(on.begin(), on.begin() + 1, on.end());
@@ -832,7 +861,7 @@ class FaceCutter {
         const Crossing& c1 = crossings[on[m + 1]];
         if (!c0.enters || c1.enters)
           throw FaceFailure{"face " + std::to_string(index_) + ": level-curve crossings of plane " + std::to_string(axis) +
-                            "/" + std::to_string(k) + " do not alternate (tangent or ambiguous)"};
+                            "/" + std::to_string(k) + " do not alternate (tangent or ambiguous)", axis};
         const double sm = 0.5 * (c0.s + c1.s);
         const Vec2 lt = comps[j]->at(sm + 1e-7 * (c1.s - c0.s)) - comps[j]->at(sm - 1e-7 * (c1.s - c0.s));
         const bool neg_left = Vec2(-lt.y(), lt.x()).dot(level_gradient(comps[j]->at(sm), axis)) < 0;
@@ -856,7 +885,7 @@ class FaceCutter {
               if ((crossings[i].uv - crossings[j].uv).norm() <= 1e-9 * uv_scale_)
                 why = "grid plane " + std::to_string(axis) + "/" + std::to_string(k) +
                       " passes through a point where two other grid planes meet the face (a grid vertex on the surface)";
-          throw FaceFailure{"face " + std::to_string(index_) + ": " + why};
+          throw FaceFailure{"face " + std::to_string(index_) + ": " + why, axis};
         }
       std::vector<bool> used(runs[sd].size(), false);
       for (size_t e0 = 0; e0 < runs[sd].size(); ++e0) {
@@ -967,6 +996,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
   }
   std::vector<std::vector<FacePatch>> patches(nf);
   std::vector<std::string> failures(nf);
+  std::vector<int> failed_axis(nf, -1);
   std::vector<Handle(Geom_Surface)> surfaces(nf);
   auto cut_face = [&](int f) {
     if (!cut_this[f]) return;
@@ -976,6 +1006,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
       patches[f] = fc.cut();
     } catch (const FaceFailure& e) {
       failures[f] = e.why;
+      failed_axis[f] = e.axis;
     } catch (const Standard_Failure& e) {
       failures[f] = "face " + std::to_string(f) + ": OCCT: " + e.GetMessageString();
     }
@@ -986,6 +1017,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
   for (int f = 0; f < nf; ++f)
     if (!failures[f].empty()) {
       g.message = "face route: " + failures[f];
+      g.failed_axis = failed_axis[f];
       return false;
     }
 

@@ -562,6 +562,7 @@ GridCut cut_on_grid(const PartShape& part, const GridOptions& o) {
       return f;
     }
     g.message = f.message;
+    g.failed_axis = f.failed_axis;
     g.method = CutMethod::FaceCut;
     return g;
   }
@@ -584,7 +585,11 @@ GridOptions shifted_grid(const GridCut& failed, const GridOptions& o, int k) {
   const double h = failed.cell_size.maxCoeff();
   so.anchored = true;
   so.cell_size = h;
-  so.origin = failed.origin + (k * h) * xfem::Vec3(0.118, 0.141, 0.173);
+  xfem::Vec3 step(0.118, 0.141, 0.173);
+  if (failed.failed_axis >= 0 && k == 1)  // first along the failing plane's axis, then along all
+    for (int a = 0; a < 3; ++a)
+      if (a != failed.failed_axis) step[a] = 0;
+  so.origin = failed.origin + (k * h) * step;
   so.shift_retries = 0;
   return so;
 }
@@ -603,7 +608,7 @@ GridCut cut_by_grid(const PartShape& part, const GridOptions& o) {
       return s;
     }
   }
-  g.message = reason + " (and again on the grid shifted by up to " + std::to_string(o.shift_retries) +
+  g.message = reason + " (and again on grids shifted by up to " + std::to_string(o.shift_retries) +
               " × (0.118, 0.141, 0.173) cells)";
   return g;
 }

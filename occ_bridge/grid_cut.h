@@ -31,9 +31,12 @@ struct GridOptions {
   /// if not. build_grid_model also checks the rules' volume against OCCT's.
   bool verify = true;
   /// Face route: when the cut fails (a grid vertex on a surface, crossings that do not
-  /// alternate, an open boundary) or build_grid_model's volume check fails, the whole grid is
-  /// shifted by k·(0.118, 0.141, 0.173) cells, k = 1 … shift_retries, and cut again
-  /// (GridCut::retry_reason, grid_shift). 0: the grid must not move (re-cuts on a kept grid).
+  /// alternate, an open boundary) or build_grid_model's volume check fails, the grid is shifted
+  /// and cut again (GridCut::retry_reason, grid_shift): the first retry along the failing
+  /// plane's axis a only by s_a cells, s = (0.118, 0.141, 0.173), where one plane is at fault
+  /// (the others stay, e.g. on a clamped face); retry k = 2 … shift_retries (and a first retry
+  /// without a plane at fault) by k·s along all axes. 0: the grid must not move (re-cuts on a
+  /// kept grid).
   int shift_retries = 2;
   /// Face route: run the per-face work in parallel (oneTBB).
   bool face_parallel = true;
@@ -146,6 +149,7 @@ struct GridCut {
   /// cut as requested); grid_shift is that shift [model units].
   std::string retry_reason;
   xfem::Vec3 grid_shift{0, 0, 0};
+  int failed_axis = -1;  ///< face route, not done: the axis of the grid plane at fault (−1: none)
   double verify_seconds = 0;                      ///< face route: the closure check
   int verify_open_edges = 0;                      ///< face route: unmatched boundary curves (check failed)
 
@@ -157,7 +161,8 @@ struct GridCut {
 GridCut cut_by_grid(const PartShape& part, const GridOptions& options = {});
 
 /// The options of the k-th shifted retry of a face-route cut that failed (`failed` carries the
-/// grid's origin and cell size): anchored at origin + k·(0.118, 0.141, 0.173)·h, no further retries.
+/// grid's origin, cell size and failed_axis): anchored at origin + k·h·s, s = (0.118, 0.141,
+/// 0.173), along failed_axis only for k = 1 (all axes when it is −1 or k > 1); no further retries.
 GridOptions shifted_grid(const GridCut& failed, const GridOptions& options, int k);
 
 struct RecutReport {

@@ -82,10 +82,15 @@ TEST(GridFailureModes, GridPlanesThroughVerticesAndAlongFacesAreShifted) {
   EXPECT_GT(r.cut.shifted_planes, 0);
   EXPECT_NEAR(r.by_rules.volume, 750.0, 1e-9);
   EXPECT_LT(r.errors.inertia, 1e-12);
-  // Without the shift the splitter still works here, but the rules see zero-thickness slivers.
+  // Without the plane shift the face route fails on planes through vertices; the grid is then
+  // moved as a whole (first along the failing plane's axis, then along all three: the y = 5
+  // planes still pass through vertices after the x shift) and the volume is exact again.
   const IntegrationResult unshifted = integrate(*part, 2.5, 0.0);
   ASSERT_TRUE(unshifted.done) << unshifted.message;
   EXPECT_EQ(unshifted.cut.shifted_planes, 0);
+  EXPECT_FALSE(unshifted.cut.retry_reason.empty());
+  std::printf("no plane shift: %s; grid moved by (%g, %g, %g)\n", unshifted.cut.retry_reason.c_str(),
+              unshifted.cut.grid_shift.x(), unshifted.cut.grid_shift.y(), unshifted.cut.grid_shift.z());
   EXPECT_NEAR(unshifted.by_rules.volume, 750.0, 1e-9);
 }
 

@@ -107,6 +107,17 @@ class Optimize(unittest.TestCase):
         code, err = run(self.part, dict(JOB, objective={"type": "compliance"}), os.path.join(self.dir, "z"))
         self.assertEqual(code, 2)
         self.assertIn("material", json.dumps(err))
+        # Estimate first: an elasticity job whose grid would not fit is refused before anything is
+        # cut, with the estimate (the L-bracket on 3000 cells: about 1e9 unknowns).
+        bracket = os.path.join(SAMPLES, "parts", "l_bracket.step")
+        with open(os.path.join(SAMPLES, "simulations", "l_bracket.json")) as f:
+            elastic = json.load(f)
+        big = dict(elastic, objective={"type": "compliance"}, parameters="auto", max_iterations=1,
+                   grid={"cells": 3000})
+        code, err = run(bracket, big, os.path.join(self.dir, "big"))
+        self.assertEqual(code, 2, err)
+        self.assertIn("MB per evaluation", json.dumps(err))
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "big", "optimized.step")))
         code, err = run(self.part, dict(JOB, threads=-1), os.path.join(self.dir, "t"))
         self.assertEqual(code, 2)
         self.assertIn("threads must be an integer", json.dumps(err))

@@ -26,6 +26,21 @@ xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType de
   return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
 }
 
+SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element) {
+  const Eigen::Vector3d ext = part.bbox_max - part.bbox_min;
+  const bool quadratic = element == xfem::ElementType::Hex27;
+  const double m = quadratic ? 2 : 1;
+  const double box_nodes = (m * std::ceil(ext.x() / h) + 1) * (m * std::ceil(ext.y() / h) + 1) * (m * std::ceil(ext.z() / h) + 1);
+  const double nodes = m * m * m * part.volume / (h * h * h) + (quadratic ? 2.0 : 1.5) * m * m * part.area / (h * h);
+  SolveEstimate e;
+  e.dofs = 3 * std::min(box_nodes, nodes);
+  auto factor = [&](double C) { return 8.0 * C * e.dofs * std::cbrt(e.dofs) / 1e6; };
+  e.factor_mb = factor(26), e.factor_mb_min = factor(7);
+  const double rest = 50 + (quadratic ? 9e-3 : 5e-3) * e.dofs;
+  e.peak_mb = rest + e.factor_mb, e.peak_mb_min = rest + e.factor_mb_min;
+  return e;
+}
+
 void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options) {
   if (grid.contains("method") && grid["method"] != "face")
     PARAFAB_INPUT_ERROR("grid.method: the only route is \"face\" (cut by face); OCCT's Boolean splitter is kept "

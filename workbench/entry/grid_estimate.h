@@ -49,6 +49,16 @@ void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options,
 /// 8 hex27 cells along the part's longest side, nodes every half cell for hex27).
 int default_cells(xfem::ElementType element);
 
+/// Size of a linear solve on cells of size h (README "Estimate first"): unknowns
+/// 3 (m³V/h³ + b m²A/h²) (m = 2, b = 2 for hex27; m = 1, b = 1.5 for hex8) capped by the box's
+/// nodes; CHOLMOD's factor 8·C·n^{4/3} bytes with C = 26 (compact parts, factor_mb) and C = 7
+/// (thin-walled ones, factor_mb_min); the run's peak adds 5 (hex8) or 9 (hex27) kB per unknown
+/// and 50 MB. Calibrated on the sample parts (tests/bench/bench_estimate.py).
+struct SolveEstimate {
+  double dofs = 0, factor_mb = 0, factor_mb_min = 0, peak_mb = 0, peak_mb_min = 0;
+};
+SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element);
+
 /// Throws parafab::Error with the estimate and `override_hint` unless e.fits.
 void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint);
 

@@ -17,6 +17,7 @@
 #include "part_reader.h"
 #include "shape_modify.h"
 #include "shape_optimization.h"
+#include "xfem/sparse_cholesky.h"
 
 #ifndef PARAFAB_SCRIPTS_DIR
 #define PARAFAB_SCRIPTS_DIR ""
@@ -208,8 +209,26 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       o.objective.normalize = obj["normalize"].get<bool>();
     }
   }
+  json size_estimate;  // the elasticity jobs: estimated before anything is cut, as `parafab simulate` does
   if (needs_compliance) {
     o.compliance = compliance_setup(*part, job);
+    {
+      const occ::PartBoxArea size = occ::part_box_and_area(*part);
+      occ::PartInfo info;
+      info.bbox_min = size.min, info.bbox_max = size.max, info.area = size.area, info.volume = size.volume;
+      const occ::GridOptions& grid = o.compliance->grid.grid;
+      const double h = grid.cell_size > 0 ? grid.cell_size : (size.max - size.min).maxCoeff() / grid.cells_longest;
+      const SolveEstimate e = estimate_solve(info, h, o.compliance->solver.element);
+      const GridEstimate cut = estimate_grid(info, grid);
+      const double limit_mb = xfem::SparseCholesky::default_memory_limit_mb();
+      size_estimate = {{"unknowns", e.dofs}, {"peak_mb", e.peak_mb}, {"peak_mb_min", e.peak_mb_min},
+                       {"limit_mb", limit_mb}, {"cut", to_json(cut)}};
+      if (e.peak_mb_min > limit_mb)
+        PARAFAB_INPUT_ERROR("this grid needs at least about " << std::lround(e.peak_mb_min) << " MB per evaluation ("
+                            << std::lround(e.dofs) << " unknowns), more than the " << std::lround(limit_mb)
+                            << " MB allowed (70% of the memory): use fewer cells (grid.cells) or a larger grid.cell_size");
+      refuse_if_too_big(cut, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
+    }
     if (obj.contains("step")) o.compliance_step = number(obj["step"], "objective.step");
     if (!(o.compliance_step > 0)) PARAFAB_INPUT_ERROR("objective.step must be positive, got " << o.compliance_step);
     if (obj.contains("gradient")) {
@@ -381,6 +400,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   h["tangency_residual_max"] = r.tangency_residual_max;
   h["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   h["gradient"] = r.gradient;
+  if (!size_estimate.is_null()) h["estimate"] = size_estimate;
   if (r.exact_derivatives + r.semi_analytic_derivatives > 0) {
     h["exact_derivatives"] = r.exact_derivatives;
     h["semi_analytic_derivatives"] = r.semi_analytic_derivatives;

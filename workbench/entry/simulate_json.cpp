@@ -477,17 +477,9 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
 // A single run is refused here only when even the thin-walled figure exceeds the limit; between
 // the two, CHOLMOD's analysis decides exactly before the factorization (SparseCholesky).
 void SimulationSession::Setup::set_estimate() {
-  const Vec3& ext = extent;
-  const double h = go.grid.cell_size > 0 ? go.grid.cell_size : ext.maxCoeff() / go.grid.cells_longest;
-  const bool quadratic = fo.element == xfem::ElementType::Hex27;
-  const double m = quadratic ? 2 : 1;
-  const double box_nodes = (m * std::ceil(ext.x() / h) + 1) * (m * std::ceil(ext.y() / h) + 1) * (m * std::ceil(ext.z() / h) + 1);
-  const double nodes = m * m * m * info.volume / (h * h * h) + (quadratic ? 2.0 : 1.5) * m * m * info.area / (h * h);
-  dofs = 3 * std::min(box_nodes, nodes);
-  auto factor = [&](double C) { return 8.0 * C * dofs * std::cbrt(dofs) / 1e6; };
-  factor_mb = factor(26), factor_mb_min = factor(7);
-  const double rest = 50 + (quadratic ? 9e-3 : 5e-3) * dofs;
-  peak_mb = rest + factor_mb, peak_mb_min = rest + factor_mb_min;
+  const double h = go.grid.cell_size > 0 ? go.grid.cell_size : extent.maxCoeff() / go.grid.cells_longest;
+  const SolveEstimate e = estimate_solve(info, h, fo.element);
+  dofs = e.dofs, factor_mb = e.factor_mb, factor_mb_min = e.factor_mb_min, peak_mb = e.peak_mb, peak_mb_min = e.peak_mb_min;
   cut_estimate = estimate_grid(info, go.grid);
 }
 
