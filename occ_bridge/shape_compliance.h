@@ -1,9 +1,11 @@
 // Compliance objective of shape optimization (thesis §6.5.3): C = fᵀu of the linear XFEM solve
 // (§6.4) on a grid that stays fixed during the optimization, and its derivative with respect
-// to a design direction. The derivative is SEMI-ANALYTIC, not the exact rule derivative of
-// Eq. 6.30-6.31: compliance is self-adjoint (dC = 2uᵀdf − uᵀdK u, the kept factorization is the
-// adjoint), and dK, df are central differences of the element matrices of only the cells that
-// the perturbed model's re-cut changes (recut_by_grid with the grid fixed), contracted with u.
+// to a design direction. Compliance is self-adjoint (dC = 2uᵀdf − uᵀdK u, u from the solve).
+// Two routes: the exact rule derivative of Eq. 6.30-6.31 (compliance_gradient: boundary
+// integrals over the moving patches, all of p at once; the default), and the SEMI-ANALYTIC one
+// (compliance_derivative: dK, df as central differences of the element matrices of only the
+// cells the perturbed model's re-cut changes, contracted with u), for entries the exact route
+// does not cover (a support's or load's own motion, a cone or plane running tangent into one).
 #pragma once
 
 #include <functional>

@@ -3,9 +3,10 @@
 // (Eq. 6.25-6.26, Ipopt), writes the valid model back into the B-rep (shape_modify.h), and
 // evaluates a mass-property objective with exact Hadamard shape derivatives
 // (shape_derivatives.h) chained through dp⊥/dp̃ (Eq. 6.29); L-BFGS with bounds drives it.
-// Compliance (§6.5.3) runs the linear XFEM solve on a grid fixed for the whole run, with a
-// semi-analytic gradient (shape_compliance.h); "failure" (the stress metric of §6.2.3 Eq. 6.4)
-// on the same solve with an adjoint gradient (shape_failure.h).
+// Compliance (§6.5.3) runs the linear XFEM solve on a grid fixed for the whole run, with the
+// exact rule-derivative gradient, semi-analytic where that does not apply (shape_compliance.h);
+// "failure" (the stress metric of §6.2.3 Eq. 6.4) on the same solve with an adjoint gradient
+// whose changed-cell terms are differenced (shape_failure.h).
 #pragma once
 
 #include <Eigen/Core>
@@ -34,7 +35,7 @@ struct PartShape;
 ///  function of the moments: objective_from_moments gives 0 for it).
 ///  "failure": (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (or the bare integral when per_volume is false) of
 ///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, per_volume — JSON
-///  "normalize"); objective_from_moments gives 0 for it; not a term of a "sum" yet.
+///  "normalize"); objective_from_moments gives 0 for it; at most one failure term in a "sum".
 ///  "sum": Σ weightᵢ · fᵢ / scaleᵢ over `terms` (each of another type than "sum"); with
 ///  `normalize` optimize_shape sets every scaleᵢ to |fᵢ| at the start (terms of different units
 ///  then weigh by their relative change; a term that is 0 at the start keeps scale 1).

@@ -182,7 +182,7 @@ class OptimizeFeatureTest(unittest.TestCase):
         self.assertUnchanged(before)
 
     def test_bracket_compliance_beside_the_original(self):
-        """Compliance (semi-analytic gradient) on the L-bracket's two bolt-hole radii under a
+        """Compliance (exact gradient) on the L-bracket's two bolt-hole radii under a
         volume bound, as tests/python/test_optimize_compliance.py does through the CLI. The
         independent check: a fresh `parafab.simulate` of the new solid and of the original on a
         12-cell grid (not the optimizer's 8 cells) finds the new one stiffer (C = -2 potential),

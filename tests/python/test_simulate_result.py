@@ -34,6 +34,7 @@ CYLINDER = os.path.join(HERE, "..", "..", "samples", "parts", "cylinder.step")
 L, B, H = 100.0, 10.0, 10.0
 PULL = 0.1      # mm, prescribed on the face x = L; the face x = 0 is clamped
 MAX_TOL = 1e-3  # measured: ParaFab 0.09998; the old maximum over all rule points 0.10181
+VM_TOL = 1e-11  # measured: 1.4e-13 relative (a linear field: exact but for round-off)
 DEG, AXIS = 20.0, np.array([0.0, 1.0, 0.0])
 CENTER = np.array([L / 2, B / 2, H / 2])
 
@@ -84,6 +85,28 @@ class MaximaFromTheMaterial(unittest.TestCase):
         # the reported maximum: the pulled face's displacement (Nitsche: weakly, to MAX_TOL)
         self.assertLess(r["max_displacement"], (1 + MAX_TOL) * PULL)
         self.assertGreater(r["max_displacement"], (1 - MAX_TOL) * PULL)
+
+    def test_turned_bar_max_von_mises_is_the_uniaxial_stress(self):
+        # With nu = 0 the bar clamped at x = 0 and pulled by PULL at x = L is in uniform uniaxial
+        # stress sigma = E * PULL / L (closed form; no lateral contraction to restrain), which the
+        # trilinear field holds exactly: max_von_mises must be that stress to the Nitsche
+        # enforcement's accuracy.
+        with tempfile.TemporaryDirectory() as d:
+            step = cr.make_box_step(os.path.join(d, "bar.step"), (L, B, H))
+            R = rotation(AXIS, DEG)
+            turn = lambda p: (CENTER + R @ (np.array(p) - CENTER)).tolist()  # noqa: E731
+            E = 210000.0
+            job = {"material": {"E": E, "nu": 0.0}, "element": "hex8",
+                   "grid": {"cells": 10},
+                   "rotate": {"axis": AXIS.tolist(), "center": CENTER.tolist(), "degrees": DEG},
+                   "supports": [{"point": turn([0, B / 2, H / 2])},
+                                {"point": turn([L, B / 2, H / 2]), "displacement": (R @ [PULL, 0, 0]).tolist()}]}
+            r = parafab.simulate(step, job)
+        sigma = E * PULL / L
+        print("turned bar, nu = 0: max von Mises %.6f MPa, closed form %.6f MPa (relative %.1e)"
+              % (r["max_von_mises"], sigma, r["max_von_mises"] / sigma - 1))
+        self.assertGreater(r["grid"]["cut_cells"], 0)
+        self.assertAlmostEqual(r["max_von_mises"], sigma, delta=VM_TOL * sigma)
 
 
 class RuleFailuresAreReported(unittest.TestCase):

@@ -64,7 +64,7 @@ OBJECTIVES = [
     Objective("mass", "Mass", "ρV (density in kg/m³)", ("density",)),
     Objective("volume", "Volume", "V"),
     Objective("compliance", "Compliance (stiffness)",
-              "fᵀu of the linear XFEM solve on a fixed grid (semi-analytic gradient): lower is stiffer; "
+              "fᵀu of the linear XFEM solve on a fixed grid (exact gradient by the rule derivatives): lower is stiffer; "
               "combine with a volume bound", ("material", "supports", "loads")),
     Objective("failure", "Failure (von Mises stress)",
               "(1/V)∫exp(α(σ_vm/σ_y − 1))dV of the linear XFEM solve (thesis Eq. 6.4, adjoint gradient): a smooth "
