@@ -286,6 +286,14 @@ TEST(FaceCut, CurvedPartsMatchTheSplitter) {
     for (double deg : {0.0, 17.0, 31.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
 }
 
+// The sample parts added after the comparisons above: the flange (bolt holes round a boss) and
+// the plate with 40 holes (cylinders), and the bump block (a B-spline top face).
+TEST(FaceCut, LaterSamplePartsMatchTheSplitter) {
+  for (const Case c : {Case{"flange", 8}, Case{"plate_holes", 12}})
+    for (double deg : {0.0, 17.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
+  for (double deg : {0.0, 17.0}) expect_face_route_matches(Case{"bump_block", 6}, deg, deg == 0 ? 0 : 0.013, kBSpline);
+}
+
 // The un-turned L-bracket (60 x 40 x 50) at 18, 24 and 30 cells: the grid's box equals the
 // part's box in y, so the y = 0 and y = 40 faces lie on the grid's box and their level curves
 // run along cell-face sides, ending at cell-face corners. Before the corner snap in the closing
