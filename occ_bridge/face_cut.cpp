@@ -314,6 +314,17 @@ std::vector<double> roots(const G& g, double a, double b, int n) {
   return r;
 }
 
+// Parameters where the edge's 3D curve crosses the plane X_axis = q, ascending (the same for
+// both faces of the edge; a degenerated edge, a pole or apex, has none).
+std::vector<double> edge_plane_roots(const TopoDS_Edge& e, int axis, double q) {
+  if (BRep_Tool::Degenerated(e)) return {};
+  BRepAdaptor_Curve c(TopoDS::Edge(e.Oriented(TopAbs_FORWARD)));
+  double f, l;
+  BRep_Tool::Range(e, f, l);
+  const int n = c.GetType() == GeomAbs_Line ? 1 : 64;
+  return roots([&](double t) { return c.Value(t).Coord(axis + 1) - q; }, f, l, n);
+}
+
 Vec3 to_vec(const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); }
 
 // Signed area of a loop (polyline through samples of its pieces).
@@ -451,16 +462,7 @@ class FaceCutter {
     const auto key = std::array<int, 3>{edge, axis, k};
     auto it = edge_roots_.find(key);
     if (it != edge_roots_.end()) return it->second;
-    const TopoDS_Edge& e = edges_.at(edge);
-    if (BRep_Tool::Degenerated(e))  // a pole or apex: a vertex, which no grid plane passes through
-      return edge_roots_.emplace(key, std::vector<double>{}).first->second;
-    BRepAdaptor_Curve c(TopoDS::Edge(e.Oriented(TopAbs_FORWARD)));
-    double f, l;
-    BRep_Tool::Range(e, f, l);
-    const double q = plane_coord(axis, k);
-    const int n = c.GetType() == GeomAbs_Line ? 1 : 64;
-    auto r = roots([&](double t) { return c.Value(t).Coord(axis + 1) - q; }, f, l, n);
-    return edge_roots_.emplace(key, std::move(r)).first->second;
+    return edge_roots_.emplace(key, edge_plane_roots(edges_.at(edge), axis, plane_coord(axis, k))).first->second;
   }
 
   double level_value(const Vec2& uv, int axis, double q) const {
@@ -1485,7 +1487,12 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
         const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
         if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
           smp.kind = CutSample::EdgePlane;
-          smp.edge = static_cast<int>((node - kEdgePlaneNode) >> 28);
+          const NodeId code = node - kEdgePlaneNode;  // edge << 28 | axis << 26 | plane << 13 | root
+          smp.edge = static_cast<int>(code >> 28);
+          const int axis = static_cast<int>((code >> 26) & 3), plane = static_cast<int>((code >> 13) & 8191);
+          const std::vector<double> r = edge_plane_roots(part.edge(smp.edge), axis, g.planes[axis][plane - 1]);
+          const size_t root = static_cast<size_t>(code & 8191);
+          if (root < r.size()) smp.edge_param = r[root];
         } else if (node >= 0 && (node & (3LL << 60)) == kFaceNode) {
           smp.kind = CutSample::FacePlanePlane;
           for (int b = 0; b < 3; ++b) {
@@ -1494,6 +1501,8 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
             for (double x : pl)
               if (std::abs(X[b] - x) < 1e-9 * h) smp.on.push_back({-1 - b, Vec2(X[(b + 1) % 3], X[(b + 2) % 3])});
           }
+          // A face node on no second plane: where a closed level curve (an island) was opened.
+          if (smp.on.size() == 2) smp.kind = CutSample::FacePlane;
         }
         curve.samples.push_back(std::move(smp));
       }

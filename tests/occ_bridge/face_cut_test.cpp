@@ -17,6 +17,8 @@
 #include <BRepGProp.hxx>
 #include <GProp_GProps.hxx>
 #include <Bnd_Box.hxx>
+#include <TopoDS.hxx>
+#include <Geom_Curve.hxx>
 #include <gp_Ax1.hxx>
 #include <gp_Trsf.hxx>
 
@@ -214,6 +216,60 @@ void expect_samples_on_their_surfaces(const PartShape& part, const GridCut& g, c
   }
   EXPECT_GT(checked, 0) << what;
   EXPECT_LT(worst, 1e-9) << what;
+  // The class and the edge data (Fig. 6.12): a sample on a B-rep edge (EdgePlane, OnEdge) lies on
+  // the edge's 3D curve at edge_param; a Vertex sample is the vertex; a FacePlanePlane sample lies
+  // on two grid planes; faces and grid planes listed as the class says.
+  std::map<int, int> kinds;
+  double worst_edge = 0;
+  int vertices = 0;
+  for (const CutCurve& c : g.curves)
+    for (size_t i = 0; i < c.points.size(); ++i) {
+      const CutSample& smp = c.samples[i];
+      ++kinds[smp.kind];
+      int faces = 0, planes = 0;
+      for (const CutSample::On& on : smp.on) (on.source >= 0 ? faces : planes)++;
+      switch (smp.kind) {
+        case CutSample::FacePlane: EXPECT_EQ(faces, 1) << what; EXPECT_EQ(planes, 1) << what; break;
+        case CutSample::FacePlanePlane: {
+          EXPECT_EQ(faces, 1) << what;
+          double off = 1e300;  // distance to the nearest plane of an axis not listed
+          for (int b = 0; b < 3; ++b) {
+            bool listed = false;
+            for (const CutSample::On& on : smp.on) listed |= on.source == -1 - b;
+            if (!listed)
+              for (double q : g.planes[b]) off = std::min(off, std::abs(c.points[i][b] - q) / h);
+          }
+          EXPECT_EQ(planes, 2) << what << ": the nearest unlisted plane is " << off << " cells away";
+          break;
+        }
+        case CutSample::OnEdge: EXPECT_EQ(faces, 2) << what; EXPECT_EQ(planes, 0) << what; break;
+        case CutSample::EdgePlane: EXPECT_GE(faces, 1) << what; EXPECT_EQ(planes, 1) << what; break;
+        case CutSample::Vertex: break;
+        case CutSample::Tangent: ADD_FAILURE() << what << ": a Tangent sample (never produced)"; break;
+      }
+      if (smp.kind == CutSample::OnEdge || smp.kind == CutSample::EdgePlane) {
+        ASSERT_GE(smp.edge, 0) << what;
+        double f, l;
+        const Handle(Geom_Curve) curve = BRep_Tool::Curve(part.edge(smp.edge), f, l);
+        ASSERT_FALSE(curve.IsNull()) << what;
+        const gp_Pnt p = curve->Value(smp.edge_param);
+        // On an exact curve to 1e-9 h; an approximated intersection curve (the notched sphere's)
+        // holds its points within the edge's own tolerance.
+        const double d = (xfem::Vec3(p.X(), p.Y(), p.Z()) - c.points[i]).norm();
+        EXPECT_LE(d, std::max(1e-9 * h, BRep_Tool::Tolerance(part.edge(smp.edge)))) << what << ": a sample off its edge";
+        worst_edge = std::max(worst_edge, d / h);
+      } else if (smp.kind == CutSample::Vertex) {  // within the vertex's own tolerance
+        ASSERT_GE(smp.edge, 0) << what;
+        const TopoDS_Vertex& v = TopoDS::Vertex(part.vertices(smp.edge + 1));
+        const gp_Pnt p = BRep_Tool::Pnt(v);
+        EXPECT_LE((xfem::Vec3(p.X(), p.Y(), p.Z()) - c.points[i]).norm(), BRep_Tool::Tolerance(v)) << what;
+        ++vertices;
+      }
+    }
+  EXPECT_GT(kinds[CutSample::FacePlane], 0) << what;
+  EXPECT_GT(kinds[CutSample::EdgePlane], 0) << what;
+  if (worst_edge > 1e-9) std::printf("  %s: samples up to %.1e cells off approximated edges (within their tolerance)\n", what.c_str(), worst_edge);
+  EXPECT_EQ(vertices, kinds[CutSample::Vertex]) << what;
 }
 
 struct Case {
