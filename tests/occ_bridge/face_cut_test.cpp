@@ -345,8 +345,9 @@ TEST(FaceCut, CurvedPartsMatchTheSplitter) {
 // The sample parts added after the comparisons above: the flange (bolt holes round a boss) and
 // the plate with 40 holes (cylinders), and the bump block (a B-spline top face).
 TEST(FaceCut, LaterSamplePartsMatchTheSplitter) {
-  for (const Case c : {Case{"flange", 8}, Case{"plate_holes", 12}})
-    for (double deg : {0.0, 17.0}) expect_face_route_matches(c, deg, deg == 0 ? 0 : 0.013, kCurved);
+  for (double deg : {0.0, 17.0}) expect_face_route_matches(Case{"flange", 8}, deg, deg == 0 ? 0 : 0.013, kCurved);
+  // The plate's holes are cut by the closed forms on both routes: measured 8.3e-15 / 9.3e-13.
+  for (double deg : {0.0, 17.0}) expect_face_route_matches(Case{"plate_holes", 12}, deg, deg == 0 ? 0 : 0.013, 2e-12);
   for (double deg : {0.0, 17.0}) expect_face_route_matches(Case{"bump_block", 6}, deg, deg == 0 ? 0 : 0.013, kBSpline);
 }
 
@@ -437,7 +438,8 @@ TEST(FaceCut, PlaneNearlyTangentToACircleBetweenSamplesIsCutTwice) {
     o.method = CutMethod::Splitter;  // the reference
     const GridCut ref = cut_by_grid(*part, o);
     ASSERT_TRUE(ref.done) << ref.message;
-    const Compared cmp = compare_cuts(face, ref, "ring turned " + std::to_string(deg) + "° about z", kCurved, part.get());
+    // measured 4.3e-13 / 7.0e-13 of the cell
+    const Compared cmp = compare_cuts(face, ref, "ring turned " + std::to_string(deg) + "° about z", 2e-12, part.get());
     std::printf("ring turned %.1f° about z: %d subvolumes, worst moment difference %.1e\n", deg, cmp.subvolumes,
                 cmp.worst_moment);
   }

@@ -34,7 +34,7 @@ CYLINDER = os.path.join(HERE, "..", "..", "samples", "parts", "cylinder.step")
 L, B, H = 100.0, 10.0, 10.0
 PULL = 0.1      # mm, prescribed on the face x = L; the face x = 0 is clamped
 MAX_TOL = 1e-3  # measured: ParaFab 0.09998; the old maximum over all rule points 0.10181
-VM_TOL = 1e-11  # measured: 1.4e-13 relative (a linear field: exact but for round-off)
+VM_TOL = 1e-12  # measured: 1.4e-13 relative (a linear field: exact but for round-off)
 DEG, AXIS = 20.0, np.array([0.0, 1.0, 0.0])
 CENTER = np.array([L / 2, B / 2, H / 2])
 
