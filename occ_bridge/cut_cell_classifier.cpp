@@ -19,9 +19,10 @@ namespace {
 using xfem::Vec2;
 using xfem::Vec3;
 
-enum class Kind { Plane, Cylinder, Sphere };
+enum class Kind { Plane, Cylinder, Sphere, GridPlane };
 
-// One B-rep patch of the cell on an elementary surface: C + R, axis a (plane: normal).
+// One patch on an elementary surface: C + R, axis a (plane: normal). GridPlane: a grid face of
+// the face route (X_axis = C[axis], (u, v) = (X_{axis+1}, X_{axis+2})).
 struct Patch {
   Kind kind = Kind::Plane;
   gp_Pln plane;
@@ -31,6 +32,7 @@ struct Patch {
   double R = 0;
   const std::vector<xfem::BoundaryLoop>* loops = nullptr;
   double umin = 0, umax = 0;  ///< u range of the loops
+  int axis = -1;              ///< GridPlane
 };
 
 Vec3 vec(const gp_XYZ& p) { return Vec3(p.X(), p.Y(), p.Z()); }
@@ -40,6 +42,7 @@ double surface_distance(const Patch& p, const Vec3& X) {
   const Vec3 w = X - p.C;
   switch (p.kind) {
     case Kind::Plane:
+    case Kind::GridPlane:
       return std::abs(w.dot(p.a));
     case Kind::Cylinder:
       return std::abs((w - w.dot(p.a) * p.a).norm() - p.R);
@@ -55,7 +58,7 @@ bool line_hits(const Patch& p, const Vec3& Y, const Vec3& D, double roots[2], in
   count = 0;
   const Vec3 w = Y - p.C;
   double A, B, Cq;
-  if (p.kind == Kind::Plane) {
+  if (p.kind == Kind::Plane || p.kind == Kind::GridPlane) {
     const double dn = D.dot(p.a);
     if (dn == 0) return true;  // parallel: no crossing (a point on the plane was sent to OCCT before)
     roots[count++] = -w.dot(p.a) / dn;
@@ -80,7 +83,7 @@ bool line_hits(const Patch& p, const Vec3& Y, const Vec3& D, double roots[2], in
 // Unit normal of the surface at a point P on it.
 Vec3 normal_at(const Patch& p, const Vec3& P) {
   const Vec3 w = P - p.C;
-  if (p.kind == Kind::Plane) return p.a;
+  if (p.kind == Kind::Plane || p.kind == Kind::GridPlane) return p.a;
   if (p.kind == Kind::Cylinder) return (w - w.dot(p.a) * p.a).normalized();
   return w.normalized();
 }
@@ -119,6 +122,105 @@ Where in_loops(const std::vector<xfem::BoundaryLoop>& loops, const Vec2& q, doub
   return winding != 0 ? Where::Inside : Where::Outside;
 }
 
+// `cp` as a Patch; false when its surface is not a plane, cylinder or sphere.
+bool elementary_patch(const xfem::CutPatch& cp, Patch& p) {
+  const auto* map = dynamic_cast<const detail::OcctSurfaceMap*>(cp.surface.get());
+  if (!map) {
+    if (cp.grid_axis < 0) return false;
+    // A grid face of the face route: (u, v) = (X_{a+1}, X_{a+2}) on X_a = const.
+    Vec3 X, Xu, Xv;
+    cp.surface->evaluate(0, 0, X, Xu, Xv);
+    p.kind = Kind::GridPlane, p.axis = cp.grid_axis;
+    p.C = X, p.a = Vec3::Unit(cp.grid_axis);
+  } else {
+    const Handle(Geom_Surface)& s = map->surface();
+    if (auto pl = Handle(Geom_Plane)::DownCast(s)) {
+      p.kind = Kind::Plane, p.plane = pl->Pln();
+      p.C = vec(p.plane.Location().XYZ()), p.a = vec(p.plane.Axis().Direction().XYZ());
+    } else if (auto cy = Handle(Geom_CylindricalSurface)::DownCast(s)) {
+      p.kind = Kind::Cylinder, p.cylinder = cy->Cylinder();
+      p.C = vec(p.cylinder.Location().XYZ()), p.a = vec(p.cylinder.Axis().Direction().XYZ()), p.R = p.cylinder.Radius();
+    } else if (auto sp = Handle(Geom_SphericalSurface)::DownCast(s)) {
+      p.kind = Kind::Sphere, p.sphere = sp->Sphere();
+      p.C = vec(p.sphere.Location().XYZ()), p.R = p.sphere.Radius();
+    } else {
+      return false;
+    }
+  }
+  p.loops = &cp.loops;
+  p.umin = 1e300, p.umax = -1e300;
+  for (const auto& loop : cp.loops)
+    for (const Vec2& q : loop.points) p.umin = std::min(p.umin, q.x()), p.umax = std::max(p.umax, q.x());
+  return true;
+}
+
+// Where the point P of the patch's surface lies in its loops (Near also close to a sphere's pole,
+// where (u, v) degenerate).
+Where where_on_patch(const Patch& p, const Vec3& P, double near) {
+  double u = 0, v = 0;
+  const gp_Pnt G(P.x(), P.y(), P.z());
+  double su = 1, sv = 1;  // (u, v) → lengths
+  switch (p.kind) {
+    case Kind::Plane:
+      ElSLib::Parameters(p.plane, G, u, v);
+      break;
+    case Kind::GridPlane:
+      u = P[(p.axis + 1) % 3], v = P[(p.axis + 2) % 3];
+      break;
+    case Kind::Cylinder:
+      ElSLib::Parameters(p.cylinder, G, u, v);
+      su = p.R;
+      break;
+    case Kind::Sphere:
+      ElSLib::Parameters(p.sphere, G, u, v);
+      su = p.R * std::cos(v), sv = p.R;
+      if (std::abs(std::cos(v)) < 1e-3) return Where::Near;
+      break;
+  }
+  const bool periodic = p.kind == Kind::Cylinder || p.kind == Kind::Sphere;
+  const double m = (near + 1e-12) / std::max(std::abs(su), 1e-300);  // the near band, in u
+  bool inside = false;
+  for (int shift = periodic ? -2 : 0; shift <= (periodic ? 2 : 0); ++shift) {
+    const double us = u + 2 * M_PI * shift;
+    if (us < p.umin - m || us > p.umax + m) continue;
+    const Where w = in_loops(*p.loops, Vec2(us, v), std::abs(su), sv, near);
+    if (w == Where::Near) return Where::Near;
+    inside |= w == Where::Inside;
+  }
+  return inside ? Where::Inside : Where::Outside;
+}
+
+// How often the segment Y → Y + D crosses the patches (inside their loops). −1: undecided (the
+// end X = Y + D within `near` of a patch surface, a tangent line, a grazing hit, a hit near a
+// loop or near a sphere's pole). Y must be farther than `near` from every patch surface.
+// `touching`: patches whose surface passes within `near` of X but whose loops do not hold X:
+// they do not make the count undecided, and their hits at X are not crossings.
+int crossings(const std::vector<Patch>& patches, const Vec3& Y, const Vec3& D, double near,
+              const std::vector<bool>* touching = nullptr) {
+  const Vec3 X = Y + D;
+  const double length = D.norm();
+  int count_in = 0;
+  for (size_t k = 0; k < patches.size(); ++k) {
+    const Patch& p = patches[k];
+    const bool touches = touching && (*touching)[k];
+    if (!touches && surface_distance(p, X) <= near) return -1;
+    double roots[2];
+    int count = 0;
+    if (!line_hits(p, Y, D, roots, count)) return -1;
+    for (int r = 0; r < count; ++r) {
+      const double t = roots[r];
+      if (t <= 0 || t >= 1) continue;  // both ends are farther than `near` from the surface
+      if (touches && (1 - t) * length <= 2 * near) continue;  // the hit at X, outside the loops
+      const Vec3 P = Y + t * D;
+      if (std::abs(normal_at(p, P).dot(D) / length) < 1e-3) return -1;  // grazing
+      const Where w = where_on_patch(p, P, near);
+      if (w == Where::Near) return -1;
+      count_in += w == Where::Inside;
+    }
+  }
+  return count_in;
+}
+
 }  // namespace
 
 struct CutCellClassifier::Cell {
@@ -148,30 +250,11 @@ const CutCellClassifier::Cell& CutCellClassifier::cell_data(const std::array<int
   for (size_t s = 0; usable && s < cut_.cut_cells[cc->second].subvolumes.size(); ++s) {
     for (const xfem::CutPatch& cp : cut_.subvolumes[cut_.cut_cells[cc->second].subvolumes[s]].patches) {
       if (cp.source_face < 0) continue;  // a grid face: not the part's boundary
-      const auto* map = dynamic_cast<const detail::OcctSurfaceMap*>(cp.surface.get());
-      if (!map) {
-        usable = false;
-        break;
-      }
       Patch p;
-      const Handle(Geom_Surface)& s = map->surface();
-      if (auto pl = Handle(Geom_Plane)::DownCast(s)) {
-        p.kind = Kind::Plane, p.plane = pl->Pln();
-        p.C = vec(p.plane.Location().XYZ()), p.a = vec(p.plane.Axis().Direction().XYZ());
-      } else if (auto cy = Handle(Geom_CylindricalSurface)::DownCast(s)) {
-        p.kind = Kind::Cylinder, p.cylinder = cy->Cylinder();
-        p.C = vec(p.cylinder.Location().XYZ()), p.a = vec(p.cylinder.Axis().Direction().XYZ()), p.R = p.cylinder.Radius();
-      } else if (auto sp = Handle(Geom_SphericalSurface)::DownCast(s)) {
-        p.kind = Kind::Sphere, p.sphere = sp->Sphere();
-        p.C = vec(p.sphere.Location().XYZ()), p.R = p.sphere.Radius();
-      } else {
+      if (!elementary_patch(cp, p)) {
         usable = false;
         break;
       }
-      p.loops = &cp.loops;
-      p.umin = 1e300, p.umax = -1e300;
-      for (const auto& loop : cp.loops)
-        for (const Vec2& q : loop.points) p.umin = std::min(p.umin, q.x()), p.umax = std::max(p.umax, q.x());
       cell->patches.push_back(p);
     }
   }
@@ -204,52 +287,38 @@ bool CutCellClassifier::in_material(const std::array<int, 3>& ijk, const Vec3& X
   };
   if (!cell.usable) return by_occt();
   const Vec3 D = X - cell.reference;
-  const double length = D.norm();
   const double near = 100 * tolerance_;  // closer than this to a surface: OCCT decides (its ON band is `tolerance`)
-  if (length <= near) return by_occt();
-  int crossings = 0;
-  for (const Patch& p : cell.patches) {
-    if (surface_distance(p, X) <= near) return by_occt();
-    double roots[2];
-    int count = 0;
-    if (!line_hits(p, cell.reference, D, roots, count)) return by_occt();
-    for (int r = 0; r < count; ++r) {
-      const double t = roots[r];
-      if (t <= 0 || t >= 1) continue;  // both ends are farther than `near` from the surface
-      const Vec3 P = cell.reference + t * D;
-      if (std::abs(normal_at(p, P).dot(D) / length) < 1e-3) return by_occt();  // grazing
-      double u = 0, v = 0;
-      const gp_Pnt G(P.x(), P.y(), P.z());
-      double su = 1, sv = 1;  // (u, v) → lengths
-      switch (p.kind) {
-        case Kind::Plane:
-          ElSLib::Parameters(p.plane, G, u, v);
-          break;
-        case Kind::Cylinder:
-          ElSLib::Parameters(p.cylinder, G, u, v);
-          su = p.R;
-          break;
-        case Kind::Sphere:
-          ElSLib::Parameters(p.sphere, G, u, v);
-          su = p.R * std::cos(v), sv = p.R;
-          if (std::abs(std::cos(v)) < 1e-3) return by_occt();  // near a pole
-          break;
-      }
-      const bool periodic = p.kind != Kind::Plane;
-      const double m = (near + 1e-12) / std::max(std::abs(su), 1e-300);  // the near band, in u
-      bool inside = false;
-      for (int shift = periodic ? -2 : 0; shift <= (periodic ? 2 : 0); ++shift) {
-        const double us = u + 2 * M_PI * shift;
-        if (us < p.umin - m || us > p.umax + m) continue;
-        const Where w = in_loops(*p.loops, Vec2(us, v), std::abs(su), sv, near);
-        if (w == Where::Near) return by_occt();
-        inside |= w == Where::Inside;
-      }
-      crossings += inside;
-    }
-  }
+  if (D.norm() <= near) return by_occt();
+  const int crossed = crossings(cell.patches, cell.reference, D, near);
+  if (crossed < 0) return by_occt();
   ++counts_.by_crossings;
-  return cell.reference_in != (crossings % 2 == 1);
+  return cell.reference_in != (crossed % 2 == 1);
+}
+
+SubvolumeTest point_in_subvolume(const xfem::Subvolume& subvolume, const Vec3& X, double near) {
+  std::vector<Patch> patches(subvolume.patches.size());
+  for (size_t k = 0; k < patches.size(); ++k)
+    if (!elementary_patch(subvolume.patches[k], patches[k])) return SubvolumeTest::Undecided;
+  // X on a patch (a surface vertex of the part, a point on a cell face): on the boundary.
+  std::vector<bool> touching(patches.size(), false);
+  for (size_t k = 0; k < patches.size(); ++k) {
+    if (surface_distance(patches[k], X) > near) continue;
+    const Where w = where_on_patch(patches[k], X, near);  // (u, v) of X's projection
+    if (w == Where::Inside) return SubvolumeTest::OnBoundary;
+    if (w == Where::Near) return SubvolumeTest::Undecided;  // on a loop: an edge of the piece, or just off it
+    touching[k] = true;
+  }
+  // Rays from X that leave the cell (twice its diagonal long); another direction when one grazes
+  // a patch or passes near a loop.
+  static const double directions[][3] = {{0.5377, 0.3127, 0.7834}, {-0.4121, 0.8219, -0.3931}, {0.6913, -0.5546, -0.4632}};
+  const double length = 2 * subvolume.cell.size().norm();
+  for (const auto& d : directions) {
+    const Vec3 D = length * Vec3(d[0], d[1], d[2]).normalized();
+    // The segment runs from its far end (clear of the cell) back to X.
+    const int crossed = crossings(patches, X + D, -D, near, &touching);
+    if (crossed >= 0) return crossed % 2 == 1 ? SubvolumeTest::Inside : SubvolumeTest::Outside;
+  }
+  return SubvolumeTest::Undecided;
 }
 
 }  // namespace parafab::occ

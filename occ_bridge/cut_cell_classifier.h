@@ -48,4 +48,13 @@ class CutCellClassifier {
   mutable Counts counts_;
 };
 
+/// Is X inside `subvolume` (the piece of a cut cell bounded by its patches)? OnBoundary when X
+/// lies within `near` of a patch, inside its loops; else the parity of the crossings of a ray
+/// from X with the patches: closed forms for planes, cylinders, spheres and grid faces, the
+/// hit's (u, v) tested in the patch loops. Undecided when a patch lies on another surface, X
+/// lies within `near` of a patch's loop, or three rays each graze a patch or pass within `near`
+/// of a loop. Which piece of a cell holds a probe or a surface vertex (ElementLocator).
+enum class SubvolumeTest { Inside, Outside, OnBoundary, Undecided };
+SubvolumeTest point_in_subvolume(const xfem::Subvolume& subvolume, const xfem::Vec3& X, double near);
+
 }  // namespace parafab::occ

@@ -13,6 +13,7 @@
 #include <GProp_GProps.hxx>
 
 #include "common/error.h"
+#include "cut_cell_classifier.h"
 #include "occt_mass_properties.h"
 #include "occt_shape.h"
 
@@ -200,6 +201,65 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
     return full;
   }
   return m;
+}
+
+ElementLocator::ElementLocator(const GridModel& grid) : grid_(grid), cells_(grid.cut->cells) {
+  const size_t n = static_cast<size_t>(cells_[0]) * cells_[1] * cells_[2];
+  first_.assign(n + 1, 0);
+  for (const auto& el : grid.elements) ++first_[id(el.cell) + 1];
+  for (size_t c = 0; c < n; ++c) first_[c + 1] += first_[c];
+  list_.resize(grid.elements.size());
+  std::vector<int> fill(first_.begin(), first_.end() - 1);
+  for (size_t e = 0; e < grid.elements.size(); ++e) list_[fill[id(grid.elements[e].cell)]++] = static_cast<int>(e);
+  near_ = 1e-6 * grid.cut->cell_size.norm();
+}
+
+int ElementLocator::find(const xfem::Vec3& X) const {
+  const auto& cut = *grid_.cut;
+  std::array<int, 3> c{};
+  for (int a = 0; a < 3; ++a) {
+    const auto& pl = cut.planes[a];
+    c[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), X[a]) - pl.begin());
+  }
+  // Candidates: elements whose box holds X, with the distance of their nearest rule point.
+  std::vector<std::pair<int, double>> candidates;
+  for (int di = -1; di <= 1; ++di)
+    for (int dj = -1; dj <= 1; ++dj)
+      for (int dk = -1; dk <= 1; ++dk) {
+        const std::array<int, 3> n{c[0] + di, c[1] + dj, c[2] + dk};
+        if (n[0] < 0 || n[1] < 0 || n[2] < 0 || n[0] >= cells_[0] || n[1] >= cells_[1] || n[2] >= cells_[2]) continue;
+        for (int i = first_[id(n)]; i < first_[id(n) + 1]; ++i) {
+          const int e = list_[i];
+          const auto& el = grid_.elements[e];
+          const xfem::Vec3 slack = 1e-6 * el.box.size();
+          if (((X - el.box.min + slack).array() < 0).any() || ((el.box.max + slack - X).array() < 0).any()) continue;
+          double d = 1e300;
+          for (const xfem::Vec3& P : el.rule.points) d = std::min(d, (P - X).norm());
+          candidates.emplace_back(e, d);
+        }
+      }
+  if (candidates.empty()) return -1;
+  if (candidates.size() == 1) return candidates[0].first;
+  auto nearest = [](const std::vector<std::pair<int, double>>& list) {
+    return std::min_element(list.begin(), list.end(), [](const auto& a, const auto& b) { return a.second < b.second; })->first;
+  };
+  // Elements that hold X, else those not known to miss it (undecided), else all candidates.
+  std::vector<std::pair<int, double>> holding, maybe;
+  for (const auto& cd : candidates) {
+    const xfem::Subvolume* sv = grid_.elements[cd.first].subvolume;
+    const SubvolumeTest test = sv ? point_in_subvolume(*sv, X, near_) : SubvolumeTest::Inside;
+    if (test == SubvolumeTest::Inside || test == SubvolumeTest::OnBoundary) holding.push_back(cd);
+    else if (test == SubvolumeTest::Undecided) maybe.push_back(cd);
+  }
+  if (!holding.empty()) return nearest(holding);
+  ++fallbacks_;
+  return nearest(maybe.empty() ? candidates : maybe);
+}
+
+int ElementLocator::find_on_surface(const xfem::Vec3& X, const xfem::Vec3& n) const {
+  const double delta = 1e-3 * grid_.cut->cell_size.minCoeff();
+  const double length = n.norm();
+  return find(length > 0 ? xfem::Vec3(X - delta / length * n) : X);
 }
 
 }  // namespace parafab::occ

@@ -3,6 +3,7 @@
 // through a grid face, ready for xfem::solve_linear.
 #pragma once
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,5 +59,35 @@ GridModelOptions rules_for_element(xfem::ElementType element, GridModelOptions o
 /// changed faces are cut again and get new rules; the rest are reused (recut_by_grid).
 GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const PartShape& old_part,
                              const GridModelOptions& options = {}, RecutReport* report = nullptr);
+
+/// The element of `grid` holding a point X (probes, surface vertices of the result), found
+/// through the grid: the elements of X's cell and of its 26 neighbours whose box holds X (slack
+/// 1e-6 of the box; X may lie on a cell face or, after plane shifts, just outside its cell).
+/// Of those, the ones that hold X: an uncut cell, or a cut subvolume by point_in_subvolume
+/// (cut_cell_classifier.h), which tells the pieces of a cell apart (the two sides of a slot
+/// thinner than a cell); the one with the rule point nearest to X among them. When no piece
+/// test decides (a patch on a surface other than a plane, cylinder or sphere, X on a patch),
+/// the nearest rule point of all candidates, which can pick the wrong side of a turned slot
+/// (tests/occ_bridge/element_locator_test.cpp); nearest_rule_point_fallbacks() counts these.
+/// −1 when no element's box holds X. Safe to call from several threads.
+class ElementLocator {
+ public:
+  explicit ElementLocator(const GridModel& grid);
+  int find(const xfem::Vec3& X) const;
+  /// X on the part's surface with outward normal n: the element holding X − δ n, δ = 1e-3 of
+  /// the smallest cell side (inside the material, clear of the patch X lies on).
+  int find_on_surface(const xfem::Vec3& X, const xfem::Vec3& n) const;
+  long nearest_rule_point_fallbacks() const { return fallbacks_.load(); }
+
+ private:
+  size_t id(const std::array<int, 3>& c) const {
+    return (static_cast<size_t>(c[0]) * cells_[1] + c[1]) * cells_[2] + c[2];
+  }
+  const GridModel& grid_;
+  std::array<int, 3> cells_;
+  std::vector<int> first_, list_;  ///< elements by dense cell index (CSR: first_[c] .. first_[c + 1])
+  double near_ = 0;                ///< point_in_subvolume's band: 1e-6 of the cell diagonal
+  mutable std::atomic<long> fallbacks_{0};
+};
 
 }  // namespace parafab::occ

@@ -35,6 +35,7 @@ L, B, H = 100.0, 10.0, 10.0
 PULL = 0.1      # mm, prescribed on the face x = L; the face x = 0 is clamped
 MAX_TOL = 1e-3  # measured: ParaFab 0.09998; the old maximum over all rule points 0.10181
 VM_TOL = 1e-12  # measured: 1.4e-13 relative (a linear field: exact but for round-off)
+SURFACE_TOL = 2e-6  # surface.vtu against the closed form, relative to PULL; measured 9.3e-7: the file's 6 digits
 DEG, AXIS = 20.0, np.array([0.0, 1.0, 0.0])
 CENTER = np.array([L / 2, B / 2, H / 2])
 
@@ -56,6 +57,15 @@ def vtu_arrays(path):
     n_hex = sum(t == 12 for t in types)
     vertex_points = conn[8 * n_hex:]
     return disp, vertex_points
+
+
+def read_vtu_point_arrays(path, name):
+    """Points and the point array `name` (3 components) of a VTU file written by simulate."""
+    with open(path) as f:
+        text = f.read()
+    field = np.array(re.search(r'Name="%s"[^>]*>([^<]*)<' % name, text).group(1).split(), float).reshape(-1, 3)
+    points = np.array(re.search(r'<Points><DataArray[^>]*>([^<]*)<', text).group(1).split(), float).reshape(-1, 3)
+    return points, field
 
 
 @unittest.skipUnless(shutil.which("gmsh"), "gmsh not installed")
@@ -107,6 +117,76 @@ class MaximaFromTheMaterial(unittest.TestCase):
               % (r["max_von_mises"], sigma, r["max_von_mises"] / sigma - 1))
         self.assertGreater(r["grid"]["cut_cells"], 0)
         self.assertAlmostEqual(r["max_von_mises"], sigma, delta=VM_TOL * sigma)
+
+
+    def test_turned_bar_surface_vertices_carry_the_closed_form_displacement(self):
+        # The same bar and job, written out: every vertex of surface.vtu (the B-rep triangulated,
+        # each vertex located in its element through the grid, ElementLocator) must carry the
+        # closed-form field u = PULL * x' / L along the bar (x': the coordinate along the unturned
+        # bar), which the trilinear field holds exactly.
+        with tempfile.TemporaryDirectory() as d:
+            step = cr.make_box_step(os.path.join(d, "bar.step"), (L, B, H))
+            R = rotation(AXIS, DEG)
+            turn = lambda p: (CENTER + R @ (np.array(p) - CENTER)).tolist()  # noqa: E731
+            job = {"material": {"E": 210000.0, "nu": 0.0}, "element": "hex8",
+                   "grid": {"cells": 10},
+                   "rotate": {"axis": AXIS.tolist(), "center": CENTER.tolist(), "degrees": DEG},
+                   "supports": [{"point": turn([0, B / 2, H / 2])},
+                                {"point": turn([L, B / 2, H / 2]), "displacement": (R @ [PULL, 0, 0]).tolist()}]}
+            r = parafab.simulate(step, job, os.path.join(d, "out"))
+            points, disp = read_vtu_point_arrays(os.path.join(d, "out", "surface.vtu"), "displacement")
+        x_bar = (points - CENTER) @ R[:, 0] + CENTER[0]  # R^T (X - C) + C, first component
+        exact = np.outer(PULL * x_bar / L, R[:, 0])
+        err = np.abs(disp - exact).max() / PULL
+        print("turned bar: %d surface vertices, max |u - u_exact| / PULL = %.1e; %d located by the nearest rule point"
+              % (len(points), err, r["points_located_by_nearest_rule_point"]))
+        self.assertEqual(r["surface_vertices"], len(points))
+        self.assertGreater(len(points), 1000)
+        self.assertEqual(r["points_located_by_nearest_rule_point"], 0)
+        self.assertLess(err, SURFACE_TOL)
+
+
+@unittest.skipUnless(shutil.which("gmsh"), "gmsh not installed")
+class SlotWallsMoveWithTheirSide(unittest.TestCase):
+    # A 10 mm cube with a 0.2 mm slot x in [4.9, 5.1] from z = 3 up (two prongs), turned 30 deg
+    # about z inside a grid of 2.5 mm cells: the cells the slot crosses hold both prongs, as two
+    # pieces. Clamped at the bottom, the prongs pulled apart by opposite forces on their outer
+    # faces: every surface vertex of the left wall must move to -x' and of the right wall to +x'
+    # (the slot frame). Locating them by the nearest rule point alone (the rule until
+    # 2026-11-28) gave 126 of these 222 vertices the other prong's field.
+    def test_wall_vertices_take_their_own_prongs_displacement(self):
+        with tempfile.TemporaryDirectory() as d:
+            step = os.path.join(d, "slotted.step")
+            with open(os.path.join(d, "slotted.geo"), "w") as f:
+                f.write('SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 10, 10, 10};\n'
+                        'Box(2) = {4.9, -1, 3, 0.2, 12, 8};\n'
+                        'BooleanDifference{ Volume{1}; Delete; }{ Volume{2}; Delete; }\n')
+            subprocess.run([cr.GMSH, os.path.join(d, "slotted.geo"), "-0", "-format", "step", "-o", step],
+                           capture_output=True, text=True, timeout=120, check=True)
+            axis, center, deg = np.array([0.0, 0.0, 1.0]), np.array([5.0, 5.0, 5.0]), 30.0
+            R = rotation(axis, deg)
+            turn = lambda p: (center + R @ (np.array(p) - center)).tolist()  # noqa: E731
+            job = {"material": {"E": 210000.0, "nu": 0.3}, "element": "hex8", "grid": {"cells": 6},
+                   "rotate": {"axis": axis.tolist(), "center": center.tolist(), "degrees": deg},
+                   "supports": [{"point": turn([5, 5, 0])}],
+                   "loads": [{"point": turn([0, 5, 7]), "force": (R @ [-1000.0, 0, 0]).tolist()},
+                             {"point": turn([10, 5, 7]), "force": (R @ [1000.0, 0, 0]).tolist()}]}
+            r = parafab.simulate(step, job, os.path.join(d, "out"))
+            points, disp = read_vtu_point_arrays(os.path.join(d, "out", "surface.vtu"), "displacement")
+        local = (points - center) @ R + center  # R^T (X - c) + c: the slot frame
+        ux = disp @ R[:, 0]                     # displacement along x'
+        upper = local[:, 2] > 6.0               # clear of the slot's floor, where the prongs join
+        left = upper & (np.abs(local[:, 0] - 4.9) < 1e-4)  # the file holds 6 digits
+        right = upper & (np.abs(local[:, 0] - 5.1) < 1e-4)
+        wrong = int((ux[left] >= 0).sum() + (ux[right] <= 0).sum())
+        print("slotted cube turned 30 deg: %d cut cells, %d left and %d right wall vertices above z' = 6, %d moving "
+              "with the other prong; u_x' from %.3g to %.3g (left), %.3g to %.3g (right); %d located by the "
+              "nearest rule point" % (r["grid"]["cut_cells"], left.sum(), right.sum(), wrong, ux[left].min(),
+                                      ux[left].max(), ux[right].min(), ux[right].max(),
+                                      r["points_located_by_nearest_rule_point"]))
+        self.assertGreater(left.sum(), 50)
+        self.assertGreater(right.sum(), 50)
+        self.assertEqual(wrong, 0)
 
 
 class RuleFailuresAreReported(unittest.TestCase):

@@ -158,53 +158,6 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
 }
 
 
-// The element holding point X: among the elements of X's grid cell (and of the neighbouring
-// cells when X lies on a cell face), the one with the rule point nearest to X.
-class ElementLocator {
- public:
-  // Elements by dense cell index (CSR: first_[c] .. first_[c + 1] in list_).
-  explicit ElementLocator(const occ::GridModel& grid) : grid_(grid), cells_(grid.cut->cells) {
-    const size_t n = static_cast<size_t>(cells_[0]) * cells_[1] * cells_[2];
-    first_.assign(n + 1, 0);
-    for (const auto& el : grid.elements) ++first_[id(el.cell) + 1];
-    for (size_t c = 0; c < n; ++c) first_[c + 1] += first_[c];
-    list_.resize(grid.elements.size());
-    std::vector<int> fill(first_.begin(), first_.end() - 1);
-    for (size_t e = 0; e < grid.elements.size(); ++e) list_[fill[id(grid.elements[e].cell)]++] = static_cast<int>(e);
-  }
-  int find(const Vec3& X) const {
-    const auto& cut = *grid_.cut;
-    std::array<int, 3> c{};
-    for (int a = 0; a < 3; ++a) {
-      const auto& pl = cut.planes[a];
-      c[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), X[a]) - pl.begin());
-    }
-    int best = -1;
-    double best_d = 1e300;
-    for (int di = -1; di <= 1; ++di)
-      for (int dj = -1; dj <= 1; ++dj)
-        for (int dk = -1; dk <= 1; ++dk) {
-          const std::array<int, 3> n{c[0] + di, c[1] + dj, c[2] + dk};
-          if (n[0] < 0 || n[1] < 0 || n[2] < 0 || n[0] >= cells_[0] || n[1] >= cells_[1] || n[2] >= cells_[2]) continue;
-          for (int i = first_[id(n)]; i < first_[id(n) + 1]; ++i) {
-            const int e = list_[i];
-            const auto& el = grid_.elements[e];
-            const Vec3 slack = 1e-6 * el.box.size();
-            if (((X - el.box.min + slack).array() < 0).any() || ((el.box.max + slack - X).array() < 0).any()) continue;
-            for (const Vec3& P : el.rule.points)
-              if ((P - X).norm() < best_d) best_d = (P - X).norm(), best = e;
-          }
-        }
-    return best;
-  }
-
- private:
-  size_t id(const std::array<int, 3>& c) const { return (static_cast<size_t>(c[0]) * cells_[1] + c[1]) * cells_[2] + c[2]; }
-  const occ::GridModel& grid_;
-  std::array<int, 3> cells_;
-  std::vector<int> first_, list_;
-};
-
 // The part's B-rep faces triangulated, each vertex with its displacement and von Mises stress
 // (what FreeCAD shows as the deformed, coloured part; ParaView reads it as well).
 void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, const std::vector<Vec3>& disp,
@@ -834,7 +787,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   long occt_calls = 0;  // OCCT classifications, the cells' reference corners included
   for (const auto& mine : classifiers)
     if (mine) occt_calls += mine->counts().by_occt;
-  const ElementLocator locator(grid);
+  const occ::ElementLocator locator(grid);
   json probes = json::array();
   if (job_.contains("probes"))
     for (size_t i = 0; i < job_["probes"].size(); ++i) {
@@ -901,6 +854,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                                         {"scatter", r.scatter_seconds}, {"aggregate", r.aggregate_seconds}};
     out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"pcg_setup", si.pcg_setup_seconds}, {"factorize", si.factorize_seconds}};
   }
+  // Probes (and below surface vertices) in no element known to hold them (ElementLocator).
+  out["points_located_by_nearest_rule_point"] = locator.nearest_rule_point_fallbacks();
   if (!out_dir.empty()) {
     const auto t_write = std::chrono::steady_clock::now();
     std::filesystem::create_directories(out_dir);
@@ -912,9 +867,16 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     const occ::SurfaceMesh mesh = occ::triangulate_part(*part_, 0.1 * cell, 0.5 * cell, out["threads"].get<int>() > 1);
     std::vector<Vec3> sdisp(mesh.points.size(), Vec3::Zero());
     std::vector<double> svm(mesh.points.size(), 0.0);
+    // Outward vertex normals (a face's triangles run counter-clockwise seen from outside; vertices
+    // are not shared between faces): the locator looks just inside, where the material is.
+    std::vector<Vec3> normal(mesh.points.size(), Vec3::Zero());
+    for (const auto& t : mesh.triangles) {
+      const Vec3 n = (mesh.points[t[1]] - mesh.points[t[0]]).cross(mesh.points[t[2]] - mesh.points[t[0]]);
+      for (int k : t) normal[k] += n;
+    }
     tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.points.size(), 256), [&](const tbb::blocked_range<size_t>& b) {
       for (size_t i = b.begin(); i != b.end(); ++i) {
-        const int e = locator.find(mesh.points[i]);
+        const int e = locator.find_on_surface(mesh.points[i], normal[i]);
         if (e < 0) continue;  // cannot happen for points of the part; keep zero rather than fail
         sdisp[i] = r.displacement(grid.elements, e, mesh.points[i]);
         svm[i] = xfem::von_mises(stress(e, mesh.points[i]));
@@ -922,6 +884,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     });
     write_surface_vtu(out_dir + "/surface.vtu", mesh, sdisp, svm);
     out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu", out_dir + "/surface.vtu"};
+    out["surface_vertices"] = mesh.points.size();
+    out["points_located_by_nearest_rule_point"] = locator.nearest_rule_point_fallbacks();
     out["seconds"]["write"] = seconds_since(t_write);
     std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
   }
