@@ -27,6 +27,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import bench_xfem_vs_calculix as base  # noqa: E402  (the CalculiX route and paths)
+import calculix_limit  # noqa: E402
 
 REPO = base.REPO
 sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", os.path.join(REPO, "build", "workbench", "entry")))
@@ -72,26 +73,9 @@ def loglog_interp(x, xs, ys):
 
 def extrapolated_limit(reference, cx):
     """The probe's value as h → 0 from the three finest conforming runs (the reference and the
-    two next sizes): observed order p of u(h) = u0 + c h^p, then u0. None when the sizes do not
-    allow it (fewer than three, or a non-monotone sequence)."""
-    runs = sorted([(reference["resolution"], reference["u_probe"])] + [(c["resolution"], c["u_probe"]) for c in cx])
-    if len(runs) < 3:
-        return None
-    (h1, u1), (h2, u2), (h3, u3) = runs[:3]
-    if not (h1 < h2 < h3) or (u3 - u2) * (u2 - u1) <= 0:
-        return None
-    ratio = (u3 - u2) / (u2 - u1)
-    f = lambda p: (h3 ** p - h2 ** p) / (h2 ** p - h1 ** p) - ratio
-    lo, hi = 0.2, 4.0
-    if f(lo) * f(hi) > 0:
-        return None
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if f(lo) * f(mid) <= 0 else (mid, hi)
-    p = 0.5 * (lo + hi)
-    u0 = u1 - (u2 - u1) / ((h2 / h1) ** p - 1)
-    return {"order": p, "u_probe": u0, "sizes": [h1, h2, h3],
-            "reference_error": abs(u1 - u0) / abs(u0)}
+    two next sizes): tests/bench/calculix_limit.py. None when the sizes do not allow it."""
+    return calculix_limit.extrapolated_limit([(reference["resolution"], reference["u_probe"])] +
+                                             [(c["resolution"], c["u_probe"]) for c in cx])
 
 
 def speedups(xf, cx, key):
@@ -152,7 +136,7 @@ def analyse(data, out_dir):
     if limit:
         print("Extrapolated limit of the probe (order %.2f from the tet10 runs at h = %s mm): u_z = %.6f; the reference "
               "(h = %g mm) is %.2f %% from it" % (limit["order"], " / ".join("%g" % h for h in limit["sizes"]),
-                                                  limit["u_probe"], reference["resolution"], 100 * limit["reference_error"]))
+                                                  limit["u_probe"], reference["resolution"], 100 * limit["finest_error"]))
         for r, (t, sp) in zip(xf, speedups(xf, cx, "error_extrapolated")):
             r["speedup_vs_remesh_extrapolated"] = sp
             print("%s %s grid %d: error %.2e against the limit; Gmsh + CalculiX at equal error %s" % (
