@@ -52,6 +52,10 @@ class AccuracyTarget(unittest.TestCase):
         self.assertEqual(cells[:3], first_levels)  # refined by 1.5 from half the default grid
         self.assertEqual(r["grid"]["cells"][0], cells[-1])  # the result is the finest grid's
         self.assertLessEqual(true_error, a["estimated_error"])
+        # One symbolic analysis per level (each grid has its own pattern), none repeated.
+        self.assertEqual(r["solver"]["analyses"], len(cells))
+        self.assertTrue(all(lv["analyze_seconds"] > 0 for lv in a["levels"]))
+        self.assertAlmostEqual(sum(lv["analyze_seconds"] for lv in a["levels"]), r["solver"]["analyze_seconds"], delta=1e-9)
         return r, true_error, abs(tip - CCX_TIP_1_5) / abs(CCX_TIP_1_5)
 
     def test_target_picks_the_grid_and_bounds_the_true_error(self):
