@@ -244,6 +244,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   Bound bounds[2];
   if (options.volume_max_ratio > 0) bounds[0] = {true, options.volume_max_ratio, 1, 0, options.penalty};
   if (options.volume_min_ratio > 0) bounds[1] = {true, options.volume_min_ratio, -1, 0, options.penalty};
+  // Absolute bounds (volume_max / volume_min, e.g. a mass bound over the density) become ratios
+  // once V0 is known (the first evaluation); with a ratio on the same side the tighter holds.
+  if (options.volume_max > 0) bounds[0].on = true, bounds[0].sign = 1, bounds[0].rho = options.penalty;
+  if (options.volume_min > 0) bounds[1].on = true, bounds[1].sign = -1, bounds[1].rho = options.penalty;
   const bool bounded = bounds[0].on || bounds[1].on;
   bool volume_only = false;  // the restoration: V and dV/dx only (no compliance solve)
   auto signed_violation = [&](double V, double V0v) {
@@ -359,7 +363,14 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;
     // Volume bounds: the augmented-Lagrangian term (see Bound above).
     const double V = md.moments[0];
-    if (V0 == 0) V0 = V, f_scale = std::max(std::abs(f), 1e-300);
+    if (V0 == 0) {
+      V0 = V, f_scale = std::max(std::abs(f), 1e-300);
+      if (options.volume_max > 0)
+        bounds[0].ratio = options.volume_max_ratio > 0 ? std::min(options.volume_max_ratio, options.volume_max / V0)
+                                                       : options.volume_max / V0;
+      if (options.volume_min > 0)
+        bounds[1].ratio = std::max(options.volume_min_ratio, options.volume_min / V0);
+    }
     double violation = 0, dpsi_dV = 0;
     F = f;
     for (const Bound& b : bounds) {

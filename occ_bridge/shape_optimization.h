@@ -79,6 +79,9 @@ struct ShapeOptimizationOptions {
   /// Volume bounds by an augmented Lagrangian (Powell–Hestenes–Rockafellar, see optimize_shape):
   double volume_max_ratio = 0;     ///< V ≤ ratio·V0 (0: no bound)
   double volume_min_ratio = 0;     ///< V ≥ ratio·V0 (0: no bound)
+  /// Absolute volume bounds [model units³] (0: none), e.g. a mass bound divided by the density;
+  /// with a ratio on the same side, the tighter of the two holds.
+  double volume_max = 0, volume_min = 0;
   double penalty = 1e4;            ///< initial penalty weight ρ, relative to max(|f0|, tiny)
   int max_outer = 8;               ///< multiplier updates (outer iterations) at most
   /// A run ends feasible when the relative violation (V/V0 − ratio) is at most this; if the

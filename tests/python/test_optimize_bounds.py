@@ -56,6 +56,60 @@ class Bounds(unittest.TestCase):
             self.assertLess(c1, c0)
             self.assertAlmostEqual(c1 / c0 - 1, -0.0319, delta=0.003)  # measured 8.628 -> 8.353
 
+    def test_a_mass_bound_holds_on_the_written_part(self):
+        # Aluminium (2.7e-9 t/mm^3); the fins may take 2 % less mass than they have
+        # ({"type": "mass", "max": M}, m = density * V): the bound is active at the end, and
+        # OCCT's volume of the written STEP times the density is the reported final mass.
+        rho = 2.7e-9
+        m0 = rho * parafab.inspect_part(HOUSING)["volume"]
+        j = job(iterations=4)
+        j["material"] = dict(SIM["material"], density=rho)
+        j["constraints"] = [{"type": "mass", "max": 0.98 * m0}]
+        with tempfile.TemporaryDirectory() as d:
+            h = parafab.optimize(HOUSING, j, out_dir=d)
+            m_occt = rho * parafab.inspect_part(h["optimized_step"])["volume"]
+        print("mass bound 0.98 m0: status %s, C %.4f -> %.4f, mass %.6g -> %.6g (bound %.6g; OCCT on the written "
+              "part %.6g)" % (h["status"], h["initial_objective"], h["final_objective"], h["initial_mass"],
+                              h["final_mass"], 0.98 * m0, m_occt))
+        print("relative: initial mass vs OCCT %.1e, final vs bound %.1e, OCCT of the written part vs final %.1e"
+              % (h["initial_mass"] / m0 - 1, h["final_mass"] / (0.98 * m0) - 1, m_occt / h["final_mass"] - 1))
+        self.assertEqual(h["density"], rho)
+        # measured 2026-11-28: -2.7e-13, -5.1e-8 (the bound is active), -2.5e-13
+        self.assertAlmostEqual(h["initial_mass"] / m0, 1, delta=3e-12)  # the rules' volume against OCCT's
+        self.assertLessEqual(h["final_mass"], 0.98 * m0 * (1 + 1e-7))  # volume_tolerance
+        self.assertGreater(h["final_mass"], 0.98 * m0 * (1 - 5e-7))   # active
+        self.assertAlmostEqual(m_occt / h["final_mass"], 1, delta=3e-12)
+        # The same bound as a volume ratio (V <= 0.98 V0, V0 the rules' volume, OCCT's to 1e-9)
+        # takes the same path.
+        j["constraints"] = [{"type": "volume", "max_ratio": 0.98}]
+        with tempfile.TemporaryDirectory() as d:
+            hv = parafab.optimize(HOUSING, j, out_dir=d)
+        diff = max(abs(a["final"] - b["final"]) for a, b in zip(h["parameters"], hv["parameters"]))
+        print("as a volume ratio: C %.6f -> %.6f; parameters differ by %.1e" % (hv["initial_objective"], hv["final_objective"], diff))
+        self.assertAlmostEqual(h["final_objective"] / hv["final_objective"], 1, delta=1e-10)
+        self.assertLess(diff, 5e-11)  # measured 4.8e-12
+
+    def test_bad_mass_bounds_name_the_entry(self):
+        j = job(iterations=0)
+        with tempfile.TemporaryDirectory() as d:
+            j["constraints"] = [{"type": "volume", "max_ratio": 1.0}, {"type": "mass", "max": 1e-6}]
+            with self.assertRaises(ValueError) as e:
+                parafab.optimize(HOUSING, j, out_dir=d)
+            self.assertIn("constraints[1]: a mass bound needs a positive density (constraints[1].density or "
+                          "material.density), got 0", str(e.exception))
+            j["constraints"] = [{"type": "mass", "density": 2.7e-9}]
+            with self.assertRaises(ValueError) as e:
+                parafab.optimize(HOUSING, j, out_dir=d)
+            self.assertIn("constraints[0]: give max and/or min (mass)", str(e.exception))
+            j["constraints"] = [{"type": "mass", "density": 2.7e-9, "min": 2e-6, "max": 1e-6}]
+            with self.assertRaises(ValueError) as e:
+                parafab.optimize(HOUSING, j, out_dir=d)
+            self.assertIn("constraints[0]: min 2e-06 must be below max 1e-06", str(e.exception))
+            j["constraints"] = [{"type": "stress"}]
+            with self.assertRaises(ValueError) as e:
+                parafab.optimize(HOUSING, j, out_dir=d)
+            self.assertIn("constraints[0].type \"stress\" is not supported (volume, mass)", str(e.exception))
+
     def test_bad_bounds_name_the_entry(self):
         bad = job(iterations=0)
         bad["parameters"][2].update({"min": 25.0, "max": 24.0})

@@ -341,12 +341,39 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   }
 
   const json constraints = job.value("constraints", json::array());
+  double mass_density = 0;  // of a mass constraint (0: none)
   for (size_t i = 0; i < constraints.size(); ++i) {
     const std::string path = "constraints[" + std::to_string(i) + "]";
-    const json& t = fields::require(constraints[i], "type", path);
-    if (t != "volume") PARAFAB_INPUT_ERROR(path << ".type " << t.dump() << " is not supported (volume)");
-    if (constraints[i].contains("max_ratio")) o.volume_max_ratio = number(constraints[i]["max_ratio"], path + ".max_ratio");
-    if (constraints[i].contains("min_ratio")) o.volume_min_ratio = number(constraints[i]["min_ratio"], path + ".min_ratio");
+    const json& c = constraints[i];
+    const json& t = fields::require(c, "type", path);
+    if (t == "volume") {
+      if (c.contains("max_ratio")) o.volume_max_ratio = number(c["max_ratio"], path + ".max_ratio");
+      if (c.contains("min_ratio")) o.volume_min_ratio = number(c["min_ratio"], path + ".min_ratio");
+    } else if (t == "mass") {
+      // m = ρV: bounds on the mass are bounds on the volume, ρ from the entry or material.density.
+      const json material = job.value("material", json::object());
+      mass_density = c.contains("density") ? number(c["density"], path + ".density")
+                                           : number(material.value("density", json(0.0)), "material.density");
+      if (!(mass_density > 0))
+        PARAFAB_INPUT_ERROR(path << ": a mass bound needs a positive density (" << path
+                                 << ".density or material.density), got " << mass_density);
+      if (!c.contains("max") && !c.contains("min")) PARAFAB_INPUT_ERROR(path << ": give max and/or min (mass)");
+      if (c.contains("max")) {
+        const double m = number(c["max"], path + ".max");
+        if (!(m > 0)) PARAFAB_INPUT_ERROR(path << ".max must be positive, got " << m);
+        o.volume_max = m / mass_density;
+      }
+      if (c.contains("min")) {
+        const double m = number(c["min"], path + ".min");
+        if (!(m > 0)) PARAFAB_INPUT_ERROR(path << ".min must be positive, got " << m);
+        o.volume_min = m / mass_density;
+      }
+      if (o.volume_max > 0 && o.volume_min > 0 && !(o.volume_min < o.volume_max))
+        PARAFAB_INPUT_ERROR(path << ": min " << o.volume_min * mass_density << " must be below max "
+                                 << o.volume_max * mass_density);
+    } else {
+      PARAFAB_INPUT_ERROR(path << ".type " << t.dump() << " is not supported (volume, mass)");
+    }
   }
   if (job.contains("max_iterations")) {
     if (!job["max_iterations"].is_number_integer() || job["max_iterations"].get<int>() < 0)
@@ -397,6 +424,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   }
   h["initial_volume"] = r.initial_volume;
   h["final_volume"] = r.final_volume;
+  if (mass_density > 0) {
+    h["density"] = mass_density;
+    h["initial_mass"] = mass_density * r.initial_volume;
+    h["final_mass"] = mass_density * r.final_volume;
+  }
   h["tangency_residual_max"] = r.tangency_residual_max;
   h["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   h["gradient"] = r.gradient;
