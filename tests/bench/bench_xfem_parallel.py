@@ -13,8 +13,8 @@ time and peak memory grow with the unknowns.
     exponents of time against unknowns (least squares in log–log over the sizes with at
     least --fit-min-dofs unknowns) say whether cut, rules and assembly grow linearly.
 
-Writes DIR/xfem_parallel.json and DIR/xfem_parallel.png.
-Usage: /usr/bin/python3 tests/bench/bench_xfem_parallel.py [--quick] [--out DIR] [--cli PATH]
+Writes DIR/xfem_parallel.json and DIR/xfem_parallel.png (--element hex27: xfem_parallel_hex27.*).
+Usage: /usr/bin/python3 tests/bench/bench_xfem_parallel.py [--quick] [--element hex8|hex27] [--out DIR] [--cli PATH]
 """
 import argparse
 import json
@@ -38,12 +38,15 @@ def median(v):
     return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
+ELEMENT = "hex8"  # --element; hex8 is the element of the README's first figures (the default is hex27 since 2026-11-27)
+
+
 def run_child(cli, cells, threads, out_dir):
     """One CLI run in a child process: (result JSON, wall seconds, peak RSS in MB); the
     child's CPU time (user + system) is added to the result as "cpu_seconds"."""
     job = json.load(open(JOB))
     job["grid"] = {"cells": cells}
-    job["element"] = "hex8"  # the element of the README's figures (the default is hex27 since 2026-11-27)
+    job["element"] = ELEMENT
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(job, f)
     try:
@@ -160,7 +163,7 @@ def plot(data, path):
     a.set_xticks([k + 0.4 - width / 2 for k in range(len(PHASES) + 1)])
     a.set_xticklabels(PHASES + ["wall"])
     a.set_ylabel("speed-up 1 → 2 threads (median)")
-    a.set_title("Threads: speed-up per phase")
+    a.set_title("Threads: speed-up per phase (%s)" % data.get("element", "hex8"))
     a.legend(fontsize=8)
     rows = data["scale"]["rows"]
     dofs = [r["dofs"] for r in rows]
@@ -204,19 +207,24 @@ def main():
     ap.add_argument("--max-seconds", type=float, default=180, help="stop the scale sweep after a run this long")
     ap.add_argument("--fit-min-dofs", type=float, default=5000)
     ap.add_argument("--scale-threads", type=int, default=0, help="threads of the scale runs (0: all cores)")
+    ap.add_argument("--element", default="hex8", choices=["hex8", "hex27"],
+                    help="element of every run; hex27 writes xfem_parallel_hex27.json / .png")
     args = ap.parse_args()
+    global ELEMENT
+    ELEMENT = args.element
+    name = "xfem_parallel" + ("" if args.element == "hex8" else "_" + args.element)
     if args.quick:
         args.repeats, args.speedup_grids, args.scale_grids, args.fit_min_dofs = 1, "6", "4,6,8", 0
     os.makedirs(args.out, exist_ok=True)
     grids = [int(x) for x in args.speedup_grids.split(",")]
-    data = {"machine": {"cpus": os.cpu_count()}, "date": time.strftime("%Y-%m-%d %H:%M"),
+    data = {"machine": {"cpus": os.cpu_count()}, "date": time.strftime("%Y-%m-%d %H:%M"), "element": args.element,
             "speedup": speedup(args.cli, grids, args.repeats),
             "scale": scale(args.cli, [int(x) for x in args.scale_grids.split(",")], args.max_seconds,
                            args.fit_min_dofs, args.scale_threads)}
     print("exponents:", json.dumps(data["scale"]["exponents"]))
-    with open(os.path.join(args.out, "xfem_parallel.json"), "w") as f:
+    with open(os.path.join(args.out, name + ".json"), "w") as f:
         json.dump(data, f, indent=2)
-    plot(data, os.path.join(args.out, "xfem_parallel.png"))
+    plot(data, os.path.join(args.out, name + ".png"))
 
 
 if __name__ == "__main__":
