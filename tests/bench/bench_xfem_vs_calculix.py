@@ -143,6 +143,36 @@ def calculix(size):
             "parts": {"mesh": d["mesh_seconds"], "solve": d["solve_seconds"]}}
 
 
+def plot(data, path):
+    """Error against wall time per route (the chart of a run, or of a kept JSON with --replot)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rows, limit = data["rows"], data.get("limit")
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    labels = {"xfem_hex8": "XFEM hex8, β = 100", "xfem_hex27": "XFEM hex27, β = 100",
+              "xfem_hex8_local": "XFEM hex8, local Nitsche penalty", "xfem_hex27_local": "XFEM hex27, local Nitsche penalty",
+              "calculix_tet10": "Gmsh + CalculiX tet10 (mesh + solve)"}
+    for route, style in [("xfem_hex8", "o-"), ("xfem_hex27", "^-"), ("xfem_hex8_local", "o:"), ("xfem_hex27_local", "^:"),
+                         ("calculix_tet10", "s--")]:
+        rr = [r for r in rows if r["route"] == route]
+        if not rr:
+            continue
+        ax.loglog([r["seconds"] for r in rr], [max(r["error"], 1e-6) for r in rr], style, label=labels[route])
+        for r in rr:
+            ax.annotate(str(r["resolution"]), (r["seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    ax.set_xlabel("wall time [s] (XFEM: cut + rules + solve + output)")
+    ax.set_ylabel("relative error of the probe displacement")
+    ax.set_title("%s; reference: %s" % (
+        data["case"], "tet10 limit h → 0 (from h = %s)" % " / ".join("%g" % h for h in limit["sizes"]) if limit
+        else "tet10, h = %g" % data["reference"]["resolution"]), fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print("wrote", path)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
@@ -150,8 +180,12 @@ def main():
     ap.add_argument("--elements", default="hex8,hex27", help="XFEM elements to run, comma-separated")
     ap.add_argument("--nitsche", default="fixed,local", help="Nitsche penalties to run (fixed, local), comma-separated")
     ap.add_argument("--out", default=os.path.join(REPO, "out", "bench"))
+    ap.add_argument("--replot", metavar="JSON", help="chart an earlier run's JSON again into --out (nothing is run)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
+    if a.replot:
+        plot(json.load(open(a.replot)), os.path.join(a.out, os.path.basename(a.replot)[:-len(".json")] + ".png"))
+        return 0
     global TURN
     elements = [e for e in a.elements.split(",") if e]
     penalties = [p for p in a.nitsche.split(",") if p]
@@ -203,36 +237,24 @@ def main():
         r["error_vs_finest"] = abs(r["u_probe"] - reference["u_probe"]) / abs(reference["u_probe"])
         print("%-17s %5s  %7d unknowns  %7.2f s  probe u_z %.5f  error %.2e (against h = %g mm: %.2e)" % (
             r["route"], r["resolution"], r["unknowns"], r["seconds"], r["u_probe"], r["error"], ref_size, r["error_vs_finest"]))
+    # Each XFEM run against Gmsh + CalculiX at the same error (log–log interpolation of the tet10
+    # runs' time over their errors; none outside their range).
+    cx = [r for r in rows if r["route"] == "calculix_tet10"]
+    for r in rows:
+        if r["route"] == "calculix_tet10":
+            continue
+        t = calculix_limit.loglog_interp(r["error"], [c["error"] for c in cx], [c["seconds"] for c in cx])
+        r["calculix_seconds_at_equal_error"] = t
+        r["speedup"] = t / r["seconds"] if t else None
+        print("%-17s %5s  error %.2e in %.2f s; Gmsh + CalculiX at that error %s" % (
+            r["route"], r["resolution"], r["error"], r["seconds"],
+            "%.2f s: %.2f× %s" % (t, t / r["seconds"] if t > r["seconds"] else r["seconds"] / t,
+                                  "faster" if t > r["seconds"] else "slower") if t else "outside its runs"))
     data = {"case": a.case, "part": PART, "job": json.load(open(JOB)), "turn": TURN, "reference": reference,
             "limit": limit, "rows": rows}
     name = "xfem_vs_calculix" if a.case == "l_bracket" else "xfem_vs_calculix_" + a.case
     json.dump(data, open(os.path.join(a.out, name + ".json"), "w"), indent=2)
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    labels = {"xfem_hex8": "XFEM hex8 (cut + rules + solve)", "xfem_hex27": "XFEM hex27 (cut + rules + solve)",
-              "xfem_hex8_local": "XFEM hex8, local Nitsche penalty", "xfem_hex27_local": "XFEM hex27, local Nitsche penalty",
-              "calculix_tet10": "Gmsh + CalculiX tet10 (mesh + solve)"}
-    for route, style in [("xfem_hex8", "o-"), ("xfem_hex27", "^-"), ("xfem_hex8_local", "o:"), ("xfem_hex27_local", "^:"),
-                         ("calculix_tet10", "s--")]:
-        rr = [r for r in rows if r["route"] == route]
-        if not rr:
-            continue
-        ax.loglog([r["seconds"] for r in rr], [max(r["error"], 1e-6) for r in rr], style, label=labels[route])
-        for r in rr:
-            ax.annotate(str(r["resolution"]), (r["seconds"], r["error"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    ax.set_xlabel("wall time [s]")
-    ax.set_ylabel("relative error of the probe displacement")
-    ax.set_title("%s: XFEM vs conforming FEM (reference: %s)" % (
-        a.case, "tet10 extrapolated to h -> 0 from h = %s mm" % " / ".join("%g" % h for h in limit["sizes"]) if limit
-        else "tet10, h = %g mm" % ref_size), fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(os.path.join(a.out, name + ".png"), dpi=110)
-    print("wrote", os.path.join(a.out, name + ".png"))
-
+    plot(data, os.path.join(a.out, name + ".png"))
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -6,6 +6,7 @@ u(h) = u0 + c h^p: the observed order p from the three values (bisection on
 whose distance from u0 is a rough measure of the extrapolation's uncertainty.
 """
 import json
+import math
 import os
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -51,3 +52,13 @@ def kept_runs(case, size, u_fresh, tolerance=1e-6):
     if abs(same[0]["u_probe"] - u_fresh) > tolerance * abs(u_fresh):
         return None, "the kept h = %g run (%.8g) differs from this run's (%.8g)" % (size, same[0]["u_probe"], u_fresh)
     return [(r["size"], r["u_probe"]) for r in entry["runs"]], None
+
+
+def loglog_interp(x, xs, ys):
+    """y at x on the piecewise log–log line through (xs, ys) sorted by xs; None outside."""
+    pts = sorted(zip(xs, ys))
+    for (x0, y0), (x1, y1) in zip(pts, pts[1:]):
+        if min(x0, x1) <= x <= max(x0, x1) and x0 != x1:
+            t = (math.log(x) - math.log(x0)) / (math.log(x1) - math.log(x0))
+            return math.exp(math.log(y0) + t * (math.log(y1) - math.log(y0)))
+    return None
