@@ -43,7 +43,8 @@ def kept_runs(case, size, u_fresh, tolerance=1e-6):
     size `size` agrees with a fresh run's `u_fresh` (same part, job and tools); else None and why."""
     if not os.path.exists(LIMITS):
         return None, "no " + LIMITS
-    entry = json.load(open(LIMITS)).get(case)
+    with open(LIMITS) as f:
+        entry = json.load(f).get(case)
     if not entry:
         return None, "no entry for " + case
     same = [r for r in entry["runs"] if r["size"] == size]
