@@ -106,10 +106,27 @@ class OptimizeFeatureTest(unittest.TestCase):
         bracket.Shape = Part.read(os.path.join(_REPO, "samples", "parts", "l_bracket.step"))
         m = optimize_feature.face_model(bracket)
         self.assertEqual(m["relations"], 4)
-        cylinders = {"Face%d" % (i + 1) for i, f in enumerate(bracket.Shape.Faces)
-                     if isinstance(f.Surface, Part.Cylinder)}
+        faces = {"Face%d" % (i + 1): f for i, f in enumerate(bracket.Shape.Faces)}
+        cylinders = {n for n, f in faces.items() if isinstance(f.Surface, Part.Cylinder)}
+        # Two groups, one per fillet (r = 12 and r = 5; the bolt holes are sharp): the fillet and
+        # the two planes it blends, each sharing an edge with it along which FreeCAD's normals of
+        # both faces agree (tangent, checked here on the geometry, not by the face model).
+        self.assertEqual(len(m["groups"]), 2, m["groups"])
+        radii = []
         for group in m["groups"]:
-            self.assertTrue(set(group) & cylinders, group)  # every group holds a fillet/round
+            self.assertEqual(len(group), 3, group)
+            fillet = [n for n in group if n in cylinders]
+            self.assertEqual(len(fillet), 1, group)
+            radii.append(faces[fillet[0]].Surface.Radius)
+            for other in set(group) - set(fillet):
+                self.assertIsInstance(faces[other].Surface, Part.Plane)
+                shared = [e for e in faces[fillet[0]].Edges
+                          if any(e.isSame(o) for o in faces[other].Edges)]
+                self.assertEqual(len(shared), 1, (fillet, other))
+                mid = shared[0].valueAt(0.5 * (shared[0].FirstParameter + shared[0].LastParameter))
+                n = [faces[x].normalAt(*faces[x].Surface.parameter(mid)) for x in (fillet[0], other)]
+                self.assertAlmostEqual(abs(n[0].dot(n[1])), 1.0, delta=1e-9)
+        self.assertEqual(sorted(radii), [5.0, 12.0])
         self.assertIn("radius", m["faces"][2]["parameters"])
 
     def test_wheel_balanced_beside_the_original(self):
