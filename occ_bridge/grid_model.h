@@ -65,11 +65,13 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
 /// 1e-6 of the box; X may lie on a cell face or, after plane shifts, just outside its cell).
 /// Of those, the ones that hold X: an uncut cell, or a cut subvolume by point_in_subvolume
 /// (cut_cell_classifier.h), which tells the pieces of a cell apart (the two sides of a slot
-/// thinner than a cell); the one with the rule point nearest to X among them. When no piece
-/// test decides (a patch on a surface other than a plane, cylinder or sphere, X on a patch),
-/// the nearest rule point of all candidates, which can pick the wrong side of a turned slot
-/// (tests/occ_bridge/element_locator_test.cpp); nearest_rule_point_fallbacks() counts these.
-/// −1 when no element's box holds X. Safe to call from several threads.
+/// thinner than a cell); the one with the rule point nearest to X among them. When no piece is
+/// known to hold X (a patch on a surface other than a plane, cylinder or sphere, X within the
+/// test's band of a patch's loop, i.e. of an edge of the piece), the nearest rule point among
+/// the candidates not known to miss X (else among all), which can pick the wrong side of a
+/// turned slot (tests/occ_bridge/element_locator_test.cpp); nearest_rule_point_fallbacks()
+/// counts these. A single candidate is returned untested. −1 when no element's box holds X.
+/// Safe to call from several threads.
 class ElementLocator {
  public:
   explicit ElementLocator(const GridModel& grid);

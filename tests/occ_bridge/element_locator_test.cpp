@@ -1,6 +1,7 @@
 // occ::ElementLocator (grid_model.h): the element holding a probe or a surface vertex, found
-// through the grid. Checked against a search of every element with the same rule, against
-// OCCT's point classifier, and in a cell that holds two pieces of material.
+// through the grid. Checked against a search of every element with the same rule (the grid
+// lookup), its piece test (point_in_subvolume) against OCCT's point classifier, and in cells
+// that hold two pieces of material (the two sides of a slot, told apart by their wall patches).
 #include <gtest/gtest.h>
 
 #include <BRepAlgoAPI_Cut.hxx>
@@ -95,7 +96,7 @@ TEST(ElementLocator, FindsWhatASearchOfEveryElementFindsOnTheTurnedBracket) {
   points.insert(points.end(), mesh.points.begin(), mesh.points.end());
 
   BRepClass3d_SolidClassifier classifier(part->shape);
-  int same = 0, ties = 0, inside = 0, surface_found = 0;
+  int same = 0, ties = 0, inside = 0, surface_found = 0, pieces_inside = 0, pieces_outside = 0, undecided = 0;
   for (size_t i = 0; i < points.size(); ++i) {
     const Vec3& X = points[i];
     double d_search = 0;
@@ -114,19 +115,44 @@ TEST(ElementLocator, FindsWhatASearchOfEveryElementFindsOnTheTurnedBracket) {
       surface_found += e >= 0;
       continue;
     }
-    // OCCT says X is inside: the locator finds an element, and its cell holds X.
+    // The piece test against OCCT's classifier. OCCT says X is inside: the locator finds an
+    // element whose box holds X, and if it is a cut piece, the piece test does not say Outside.
+    // OCCT says X is outside: no piece whose box holds X says it holds X.
     classifier.Perform(gp_Pnt(X.x(), X.y(), X.z()), 1e-7);
+    const double near = 1e-6 * grid.cut->cell_size.norm();
+    if (classifier.State() == TopAbs_OUT) {
+      for (size_t k = 0; k < grid.elements.size(); ++k) {
+        const auto& el = grid.elements[k];
+        const Vec3 slack = 1e-6 * el.box.size();
+        if (!el.subvolume || ((X - el.box.min + slack).array() < 0).any() || ((el.box.max + slack - X).array() < 0).any())
+          continue;
+        const SubvolumeTest t = point_in_subvolume(*el.subvolume, X, near);
+        EXPECT_TRUE(t == SubvolumeTest::Outside || t == SubvolumeTest::Undecided) << "outside point " << X.transpose();
+        ++pieces_outside;
+        undecided += t == SubvolumeTest::Undecided;
+      }
+      continue;
+    }
     if (classifier.State() != TopAbs_IN) continue;
     ++inside;
     ASSERT_GE(e, 0) << "point " << X.transpose() << " is inside the part";
     const auto& box = grid.elements[e].box;
     const Vec3 slack = 1e-6 * box.size();
     EXPECT_TRUE(((X - box.min + slack).array() >= 0).all() && ((box.max + slack - X).array() >= 0).all());
+    if (const xfem::Subvolume* sv = grid.elements[e].subvolume) {
+      const SubvolumeTest t = point_in_subvolume(*sv, X, near);
+      EXPECT_NE(t, SubvolumeTest::Outside) << "inside point " << X.transpose();
+      ++pieces_inside;
+      undecided += t == SubvolumeTest::Undecided;
+    }
   }
-  std::printf("%zu points (%zu surface vertices), %d inside by OCCT: %d same element as the search, %d ties\n",
-              points.size(), mesh.points.size(), inside, same, ties);
+  std::printf("%zu points (%zu surface vertices), %d inside by OCCT: %d same element as the search, %d ties; "
+              "piece test against OCCT on %d inside and %d outside (point, piece) pairs, %d undecided\n",
+              points.size(), mesh.points.size(), inside, same, ties, pieces_inside, pieces_outside, undecided);
   EXPECT_EQ(same + ties, static_cast<int>(points.size()));
   EXPECT_GT(inside, 800);
+  EXPECT_GT(pieces_inside, 100);
+  EXPECT_GT(pieces_outside, 100);
   EXPECT_EQ(surface_found, static_cast<int>(mesh.points.size()));
 }
 

@@ -401,7 +401,9 @@ TEST(ShapeOptimization, InertiaAlignmentAgreesWithOcctsPrincipalAxes) {
       worst_on_axis = std::max(worst_on_axis, on_axis);
     }
   std::printf("worst relative difference %.1e, worst value along a principal axis %.1e\n", worst, worst_on_axis);
-  EXPECT_LT(worst, 5e-10);         // measured 8.0e-11 (the housing as it is, 4.1e-6)
+  // Relative to OCCT's value, floored at 1e-12: the wheel and wrench as they are are aligned
+  // (both values below 1e-28). Measured 8.0e-11, at the housing as it is (value 4.1e-6).
+  EXPECT_LT(worst, 5e-10);
   EXPECT_LT(worst_on_axis, 3e-24);  // measured 2.4e-25: round-off of the off-axis inertia, squared
 }
 

@@ -76,7 +76,7 @@ class Bounds(unittest.TestCase):
         self.assertEqual(h["density"], rho)
         # measured 2026-11-28: -2.7e-13, -5.1e-8 (the bound is active), -2.5e-13
         self.assertAlmostEqual(h["initial_mass"] / m0, 1, delta=3e-12)  # the rules' volume against OCCT's
-        self.assertLessEqual(h["final_mass"], 0.98 * m0 * (1 + 1e-7))  # volume_tolerance
+        self.assertLessEqual(h["final_mass"], 0.98 * m0 + 1e-7 * m0)  # volume_tolerance (relative to V0)
         self.assertGreater(h["final_mass"], 0.98 * m0 * (1 - 5e-7))   # active
         self.assertAlmostEqual(m_occt / h["final_mass"], 1, delta=3e-12)
         # The same bound as a volume ratio (V <= 0.98 V0, V0 the rules' volume, OCCT's to 1e-9)
@@ -105,6 +105,11 @@ class Bounds(unittest.TestCase):
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, j, out_dir=d)
             self.assertIn("constraints[0]: min 2e-06 must be below max 1e-06", str(e.exception))
+            j["constraints"] = [{"type": "volume", "min_ratio": 0.99}, {"type": "mass", "density": 2.7e-9, "max": 1e-6}]
+            with self.assertRaises(ValueError) as e:
+                parafab.optimize(HOUSING, j, out_dir=d)
+            self.assertIn("constraints: the lower volume bound (0.99 of the part's volume", str(e.exception))
+            self.assertIn("is not below the upper one (0.0", str(e.exception))
             j["constraints"] = [{"type": "stress"}]
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, j, out_dir=d)

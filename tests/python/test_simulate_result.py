@@ -149,7 +149,7 @@ class MaximaFromTheMaterial(unittest.TestCase):
 @unittest.skipUnless(shutil.which("gmsh"), "gmsh not installed")
 class SlotWallsMoveWithTheirSide(unittest.TestCase):
     # A 10 mm cube with a 0.2 mm slot x in [4.9, 5.1] from z = 3 up (two prongs), turned 30 deg
-    # about z inside a grid of 2.5 mm cells: the cells the slot crosses hold both prongs, as two
+    # about z inside a grid of 6 cells (about 2.3 mm): the cells the slot crosses hold both prongs, as two
     # pieces. Clamped at the bottom, the prongs pulled apart by opposite forces on their outer
     # faces: every surface vertex of the left wall must move to -x' and of the right wall to +x'
     # (the slot frame). Locating them by the nearest rule point alone (the rule until

@@ -55,7 +55,6 @@ class AccuracyTarget(unittest.TestCase):
         # One symbolic analysis per level (each grid has its own pattern), none repeated.
         self.assertEqual(r["solver"]["analyses"], len(cells))
         self.assertTrue(all(lv["analyze_seconds"] > 0 for lv in a["levels"]))
-        self.assertAlmostEqual(sum(lv["analyze_seconds"] for lv in a["levels"]), r["solver"]["analyze_seconds"], delta=1e-9)
         return r, true_error, abs(tip - CCX_TIP_1_5) / abs(CCX_TIP_1_5)
 
     def test_target_picks_the_grid_and_bounds_the_true_error(self):
