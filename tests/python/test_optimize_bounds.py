@@ -109,7 +109,7 @@ class Bounds(unittest.TestCase):
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, j, out_dir=d)
             self.assertIn("constraints: the lower volume bound (0.99 of the part's volume", str(e.exception))
-            self.assertIn("is not below the upper one (0.0", str(e.exception))
+            self.assertIn("is above the upper one (0.0", str(e.exception))
             j["constraints"] = [{"type": "stress"}]
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, j, out_dir=d)

@@ -375,7 +375,8 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_INPUT_ERROR(path << ".type " << t.dump() << " is not supported (volume, mass)");
     }
   }
-  // Lower and upper bounds (ratios, masses, or one of each) must leave room between them; the
+  // Lower and upper bounds (ratios, masses, or one of each) must not cross (equal bounds keep the
+  // volume, as the wheel benchmark does with min_ratio = max_ratio = 1); the
   // optimizer turns masses into ratios of the start's volume (its rules' volume, OCCT's to
   // ~1e-12), so OCCT's volume of the part decides here.
   const bool has_min = o.volume_min_ratio > 0 || o.volume_min > 0, has_max = o.volume_max_ratio > 0 || o.volume_max > 0;
@@ -384,9 +385,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     const double lo = std::max(o.volume_min_ratio, o.volume_min / V);
     const double hi = std::min(o.volume_max_ratio > 0 ? o.volume_max_ratio : INFINITY,
                                o.volume_max > 0 ? o.volume_max / V : INFINITY);
-    if (!(lo < hi))
+    if (!(lo <= hi))
       PARAFAB_INPUT_ERROR("constraints: the lower volume bound (" << lo << " of the part's volume " << V
-                                                                   << ") is not below the upper one (" << hi << ")");
+                                                                   << ") is above the upper one (" << hi << ")");
   }
   if (job.contains("max_iterations")) {
     if (!job["max_iterations"].is_number_integer() || job["max_iterations"].get<int>() < 0)
