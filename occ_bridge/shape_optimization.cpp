@@ -54,7 +54,7 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
     if (gradient) *gradient = g;
     return f;
   }
-  if (spec.type == "compliance" || spec.type == "failure") {  // not functions of the moments (optimize_shape adds them)
+  if (spec.type == "compliance" || spec.type == "failure" || spec.type == "target") {  // not functions of the moments (optimize_shape adds them)
     if (gradient) gradient->setZero();
     return 0;
   }
@@ -67,7 +67,7 @@ double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen
   else
     PARAFAB_INPUT_ERROR("objective.type '" << spec.type
                                            << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance, "
-                                              "compliance, failure, sum)");
+                                              "compliance, failure, target, sum)");
   if (gradient) *gradient = f.g;
   return f.v;
 }
@@ -81,23 +81,32 @@ double term_weight(const ObjectiveSpec& spec, const std::string& type) {
   return w;
 }
 
-const ObjectiveSpec* failure_term(const ObjectiveSpec& spec) {
-  if (spec.type == "failure") return &spec;
+namespace {
+
+// `spec` itself if of `type`, else the one term of that type of a "sum" (a second is an error).
+const ObjectiveSpec* single_term(const ObjectiveSpec& spec, const std::string& type) {
+  if (spec.type == type) return &spec;
   const ObjectiveSpec* found = nullptr;
   if (spec.type == "sum")
     for (size_t i = 0; i < spec.terms.size(); ++i)
-      if (spec.terms[i].type == "failure") {
-        if (found) PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum takes one 'failure' term at most");
+      if (spec.terms[i].type == type) {
+        if (found) PARAFAB_INPUT_ERROR("objective.terms[" << i << "]: a sum takes one '" << type << "' term at most");
         found = &spec.terms[i];
       }
   return found;
 }
+
+}  // namespace
+
+const ObjectiveSpec* failure_term(const ObjectiveSpec& spec) { return single_term(spec, "failure"); }
+const ObjectiveSpec* target_term(const ObjectiveSpec& spec) { return single_term(spec, "target"); }
 
 namespace {
 
 struct Evaluation {
   bool ok = false;
   double objective = 0, penalized = 0, violation = 0, volume = 0, tangency = 0, max_von_mises = 0;
+  double target_rms = 0, target_max = 0;  ///< "target": √J and max |d| of the matched face
   Eigen::VectorXd p, lambda, volume_gradient;  ///< volume_gradient: dV/dx (design entries)
   std::shared_ptr<const PartShape> part;
 };
@@ -117,7 +126,18 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   // elasticity job once per evaluation.
   const ObjectiveSpec* failure_spec = failure_term(spec);
   const bool failure = failure_spec != nullptr;
-  const bool compliance = spec.type == "compliance" || failure ||
+  const ObjectiveSpec* target_spec = target_term(spec);
+  const bool matching = target_spec != nullptr;
+  TargetOptions target_options;
+  if (matching) {
+    target_options.face = target_spec->face;
+    PARAFAB_VERIFY(target_options.face >= 0 && target_options.face < static_cast<int>(model.faces.size()),
+                   "objective 'target': face " << target_options.face << " outside 0.." << model.faces.size() - 1);
+    target_options.target = target_spec->has_target ? target_spec->target : target_of_face(model, target_options.face);
+    check_target_surface(target_options.target);
+    result.target = target_options.target;
+  }
+  const bool compliance = spec.type == "compliance" || failure || matching ||
                           (spec.type == "sum" && std::any_of(spec.terms.begin(), spec.terms.end(), [](const ObjectiveSpec& t) {
                              return t.type == "compliance";
                            }));
@@ -149,11 +169,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   }
   // "normalize": every term of a sum divided by its value at the first evaluation (the start).
   bool scales_set = !(spec.type == "sum" && spec.normalize);
-  const auto normalize_terms = [&](const Moments& m, double compliance_value, double failure_value) {
+  const auto normalize_terms = [&](const Moments& m, double compliance_value, double failure_value, double target_value) {
     if (scales_set) return;
     for (ObjectiveSpec& t : spec.terms) {
       const double v = t.type == "compliance" ? compliance_value
                        : t.type == "failure"  ? failure_value
+                       : t.type == "target"   ? target_value
                                               : objective_from_moments(t, m, nullptr);
       t.scale = std::abs(v) > 0 && std::isfinite(v) ? std::abs(v) : 1.0;
     }
@@ -308,9 +329,22 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         last.max_von_mises = fv.max_von_mises;
         adjoint = failure_adjoint(*state, fv);
       }
-      normalize_terms(md.moments, state->compliance, fv.objective);
-      const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure");
-      f = cw * state->compliance + fw * fv.objective + objective_from_moments(spec, md.moments, &dfdm);
+      TargetValue tv;
+      Eigen::VectorXd target_adjoint_u;
+      if (matching) {
+        // J of the matched face and its adjoint λ = −K⁻¹∂J/∂u, as for the failure metric.
+        tv = target_value(*state, *options.compliance, target_options, true);
+        if (!tv.done) {
+          if (result.invalid_models++ == 0) result.notes.push_back("first failed target evaluation: " + tv.message);
+          return false;
+        }
+        last.target_rms = std::sqrt(tv.objective);
+        last.target_max = tv.max_distance;
+        target_adjoint_u = target_adjoint(*state, tv);
+      }
+      normalize_terms(md.moments, state->compliance, fv.objective, tv.objective);
+      const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure"), tw = term_weight(spec, "target");
+      f = cw * state->compliance + fw * fv.objective + tw * tv.objective + objective_from_moments(spec, md.moments, &dfdm);
       compliance_gradient.resize(nd);
       // The exact route for every design entry whose direction dp⊥/dp̃ moves no face next to a
       // support or load (compliance_gradient's `incomplete`); the others are differenced.
@@ -324,7 +358,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           difference_compliance = false;
           ++result.exact_derivatives;
         }
-        if (!difference_compliance && fw == 0) continue;
+        if (!difference_compliance && fw == 0 && tw == 0) continue;
         const double h = options.compliance_step * (is_direction(design[k]) ? 1.0 : part_size);
         std::shared_ptr<const PartShape> sides[2];
         for (int side = 0; side < 2; ++side) {
@@ -335,20 +369,25 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           const ModifyResult mk = modify_part(part, model, sp, pk.p);
           if (mk.done) sides[side] = mk.part;
         }
-        // dC/dx_k and dJ/dx_k from the same two perturbed models (each re-cuts them on the grid).
-        for (const bool of_failure : {false, true}) {
-          if (of_failure ? fw == 0 : !difference_compliance) continue;
+        // dC/dx_k, dJ/dx_k of the failure metric and of the target from the same two perturbed
+        // models (each derivative re-cuts them on the grid).
+        enum Term { Compliance, Failure, Target };
+        for (const Term term : {Compliance, Failure, Target}) {
+          const double weight = term == Compliance ? (difference_compliance ? cw : 0) : term == Failure ? fw : tw;
+          if (weight == 0) continue;
           ++result.semi_analytic_derivatives;
           const ComplianceDerivative cd =
-              of_failure ? failure_derivative(*state, fv, adjoint, sides[0], sides[1], h, *options.compliance, failure_options)
-                         : compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
+              term == Failure  ? failure_derivative(*state, fv, adjoint, sides[0], sides[1], h, *options.compliance, failure_options)
+              : term == Target ? target_derivative(*state, tv, target_adjoint_u, sides[0], sides[1], h, *options.compliance,
+                                                   target_options)
+                               : compliance_derivative(*state, sides[0], sides[1], h, *options.compliance);
           if (!cd.done) {
             if (result.invalid_models++ == 0)
-              result.notes.push_back(std::string(of_failure ? "failure" : "compliance") + " gradient of '" +
-                                     sp.names[design[k]] + "': " + cd.message);
+              result.notes.push_back(std::string(term == Failure ? "failure" : term == Target ? "target" : "compliance") +
+                                     " gradient of '" + sp.names[design[k]] + "': " + cd.message);
             return false;
           }
-          compliance_gradient[k] += (of_failure ? fw : cw) * cd.derivative;
+          compliance_gradient[k] += weight * cd.derivative;
           result.topology_switches += cd.topology_switches;
           result.gradient_cells += cd.cells_changed;
         }
@@ -357,7 +396,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
                         : result.exact_derivatives == 0      ? "semi-analytic"
                                                              : "exact + semi-analytic";
     } else if (!compliance) {
-      normalize_terms(md.moments, 0.0, 0.0);
+      normalize_terms(md.moments, 0.0, 0.0, 0.0);
       f = objective_from_moments(spec, md.moments, &dfdm);
     }
     Eigen::VectorXd dfdp = md.gradient.transpose() * dfdm;
@@ -408,7 +447,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     accepted = last;
     // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
     if (it.iteration == 0 && outer_index > 0) return true;
-    if (iteration_count == 0) result.initial_max_von_mises = accepted.max_von_mises;
+    if (iteration_count == 0) {
+      result.initial_max_von_mises = accepted.max_von_mises;
+      result.initial_target_rms = accepted.target_rms, result.initial_target_max = accepted.target_max;
+    }
     ShapeIterate s;
     s.iteration = iteration_count++;
     s.outer = outer_index;
@@ -510,6 +552,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   result.initial_objective = result.iterations.front().objective;
   result.final_objective = accepted.objective;
   result.final_max_von_mises = accepted.max_von_mises;
+  result.final_target_rms = accepted.target_rms, result.final_target_max = accepted.target_max;
   result.initial_volume = V0;
   result.final_volume = accepted.volume;
   result.p_initial = start.p;

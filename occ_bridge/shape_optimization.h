@@ -6,7 +6,8 @@
 // Compliance (§6.5.3) runs the linear XFEM solve on a grid fixed for the whole run, with the
 // exact rule-derivative gradient, semi-analytic where that does not apply (shape_compliance.h);
 // "failure" (the stress metric of §6.2.3 Eq. 6.4) on the same solve with an adjoint gradient
-// whose changed-cell terms are differenced (shape_failure.h).
+// whose changed-cell terms are differenced (shape_failure.h); "target" (a face's deformed shape
+// matched to a target surface, §6.2.3 Eq. 6.6) the same way (shape_target.h).
 #pragma once
 
 #include <Eigen/Core>
@@ -22,6 +23,7 @@
 #include "shape_derivatives.h"
 #include "shape_failure.h"
 #include "shape_parameters.h"
+#include "shape_target.h"
 
 namespace parafab::occ {
 
@@ -36,6 +38,9 @@ struct PartShape;
 ///  "failure": (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (or the bare integral when per_volume is false) of
 ///  the same solve (thesis §6.2.3 Eq. 6.4; fields yield_stress σ_y, exponent α, per_volume — JSON
 ///  "normalize"); objective_from_moments gives 0 for it; at most one failure term in a "sum".
+///  "target": (1/A)∫_F d(X + u(X))² dA of the same solve, face F = `face` deformed, d its
+///  distance from `target` (thesis §6.2.3 Eq. 6.6; shape_target.h); without a target, F's own
+///  surface as read (plane, cylinder, sphere, torus); at most one target term in a "sum".
 ///  "sum": Σ weightᵢ · fᵢ / scaleᵢ over `terms` (each of another type than "sum"); with
 ///  `normalize` optimize_shape sets every scaleᵢ to |fᵢ| at the start (terms of different units
 ///  then weigh by their relative change; a term that is 0 at the start keeps scale 1).
@@ -48,19 +53,24 @@ struct ObjectiveSpec {
   double yield_stress = 0;  ///< σ_y of "failure" (required > 0)
   double exponent = 0;      ///< α of "failure" (required > 0)
   bool per_volume = true;   ///< "failure": divide the integral by the volume (JSON objective.normalize)
+  int face = -1;            ///< "target": the matched face
+  bool has_target = false;  ///< "target": `target` given (else the face's own surface as read)
+  TargetSurface target;     ///< "target": the surface the deformed face should lie on
   double weight = 1;        ///< as a term of a "sum"
   double scale = 1;         ///< as a term of a "sum" (divides the term)
   std::vector<ObjectiveSpec> terms;  ///< of a "sum"
   bool normalize = false;            ///< of a "sum": scales from the start values
 };
 
-/// The factor of the objective `type` ("compliance", "failure": the ones optimize_shape adds
+/// The factor of the objective `type` ("compliance", "failure", "target": the ones optimize_shape adds
 /// beside the moments) in `spec`: 1 when spec is of that type, Σ weight/scale of such terms of a
 /// "sum", 0 otherwise.
 double term_weight(const ObjectiveSpec& spec, const std::string& type);
 /// The spec that defines the failure metric: `spec` itself for "failure", the failure term of a
 /// "sum" (one at most: a second is an input error naming it), null otherwise.
 const ObjectiveSpec* failure_term(const ObjectiveSpec& spec);
+/// As failure_term for "target".
+const ObjectiveSpec* target_term(const ObjectiveSpec& spec);
 
 /// The objective value and d value / d moments.
 double objective_from_moments(const ObjectiveSpec& spec, const Moments& m, Eigen::Matrix<double, 10, 1>* gradient);
@@ -164,6 +174,9 @@ struct ShapeOptimizationResult {
   int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
   /// "failure": max σ_vm over the material quadrature points at the start and at the end.
   double initial_max_von_mises = 0, final_max_von_mises = 0;
+  /// "target": the matched face's RMS distance √J and max |d| at its rule points, start and end.
+  double initial_target_rms = 0, final_target_rms = 0, initial_target_max = 0, final_target_max = 0;
+  TargetSurface target;  ///< "target": the surface used (given, or the face's own as read)
   std::vector<AugmentedLagrangianStep> outer;  ///< empty without a volume bound
   bool volume_restored = false;        ///< the final volume-only restoration moved the design
   double final_violation = 0;          ///< relative, ≥ 0

@@ -120,9 +120,64 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   return s;
 }
 
+// The surface of a "target" objective: {"plane": {"point", "normal"}}, {"sphere": {"center",
+// "radius"}}, {"cylinder": {"point", "axis", "radius"}} or {"torus": {"center", "axis",
+// "major_radius", "minor_radius"}}.
+occ::TargetSurface target_surface(const json& t, const std::string& path) {
+  if (!t.is_object() || t.size() != 1)
+    PARAFAB_INPUT_ERROR(path << " must be one of {\"plane\": {point, normal}}, {\"sphere\": {center, radius}}, "
+                                "{\"cylinder\": {point, axis, radius}}, {\"torus\": {center, axis, major_radius, minor_radius}}");
+  const std::string kind = t.begin().key();
+  const json& f = t.begin().value();
+  const std::string fp = path + "." + kind;
+  occ::TargetSurface s;
+  if (kind == "plane") {
+    fields::only(f, fp, {"point", "normal"});
+    s.type = occ::SurfaceType::plane;
+    s.point = vec3(fields::require(f, "point", fp), fp + ".point");
+    s.axis = vec3(fields::require(f, "normal", fp), fp + ".normal");
+  } else if (kind == "sphere") {
+    fields::only(f, fp, {"center", "radius"});
+    s.type = occ::SurfaceType::sphere;
+    s.point = vec3(fields::require(f, "center", fp), fp + ".center");
+    s.radius = number(fields::require(f, "radius", fp), fp + ".radius");
+  } else if (kind == "cylinder") {
+    fields::only(f, fp, {"point", "axis", "radius"});
+    s.type = occ::SurfaceType::cylinder;
+    s.point = vec3(fields::require(f, "point", fp), fp + ".point");
+    s.axis = vec3(fields::require(f, "axis", fp), fp + ".axis");
+    s.radius = number(fields::require(f, "radius", fp), fp + ".radius");
+  } else if (kind == "torus") {
+    fields::only(f, fp, {"center", "axis", "major_radius", "minor_radius"});
+    s.type = occ::SurfaceType::torus;
+    s.point = vec3(fields::require(f, "center", fp), fp + ".center");
+    s.axis = vec3(fields::require(f, "axis", fp), fp + ".axis");
+    s.major_radius = number(fields::require(f, "major_radius", fp), fp + ".major_radius");
+    s.radius = number(fields::require(f, "minor_radius", fp), fp + ".minor_radius");
+  } else {
+    PARAFAB_INPUT_ERROR(path << ": '" << kind << "' is not a target surface (plane, sphere, cylinder, torus)");
+  }
+  occ::check_target_surface(s, fp);
+  return s;
+}
+
+json target_surface_json(const occ::TargetSurface& s) {
+  const auto v = [](const Eigen::Vector3d& x) { return std::vector<double>{x.x(), x.y(), x.z()}; };
+  switch (s.type) {
+    case occ::SurfaceType::plane: return {{"plane", {{"point", v(s.point)}, {"normal", v(s.axis.normalized())}}}};
+    case occ::SurfaceType::sphere: return {{"sphere", {{"center", v(s.point)}, {"radius", s.radius}}}};
+    case occ::SurfaceType::cylinder:
+      return {{"cylinder", {{"point", v(s.point)}, {"axis", v(s.axis.normalized())}, {"radius", s.radius}}}};
+    default:
+      return {{"torus", {{"center", v(s.point)}, {"axis", v(s.axis.normalized())}, {"major_radius", s.major_radius},
+                         {"minor_radius", s.radius}}}};
+  }
+}
+
 // One objective (not its terms): type and the fields of the moment objectives; `path` names it
 // in errors ("objective", "objective.terms[2]").
-occ::ObjectiveSpec objective_spec(const json& obj, const std::string& path, bool& needs_compliance) {
+occ::ObjectiveSpec objective_spec(const occ::PartShape& part, const json& obj, const std::string& path,
+                                  bool& needs_compliance) {
   if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be an object with a \"type\"");
   occ::ObjectiveSpec spec;
   const json& type = fields::require(obj, "type", path);
@@ -130,14 +185,25 @@ occ::ObjectiveSpec objective_spec(const json& obj, const std::string& path, bool
   spec.type = type.get<std::string>();
   if (spec.type == "stress")
     PARAFAB_INPUT_ERROR(path << ".type 'stress' is called 'failure' (yield_stress, exponent, normalize); available: "
-                                "mass, volume, center_of_mass, inertia_alignment, balance, compliance, failure, sum");
-  static const char* known[] = {"mass",       "volume",  "center_of_mass", "inertia_alignment",
-                                "balance",    "compliance", "failure",     "sum"};
+                                "mass, volume, center_of_mass, inertia_alignment, balance, compliance, failure, target, sum");
+  static const char* known[] = {"mass",    "volume",     "center_of_mass", "inertia_alignment", "balance",
+                                "compliance", "failure", "target",         "sum"};
   if (std::find(std::begin(known), std::end(known), spec.type) == std::end(known))
     PARAFAB_INPUT_ERROR(path << ".type '" << spec.type
                              << "' is unknown (mass, volume, center_of_mass, inertia_alignment, balance, compliance, "
-                                "failure, sum)");
-  needs_compliance |= spec.type == "compliance" || spec.type == "failure";
+                                "failure, target, sum)");
+  needs_compliance |= spec.type == "compliance" || spec.type == "failure" || spec.type == "target";
+  if (spec.type == "target") {
+    // The deformed face (by "face" index or a "point" on it) matched to "target" (default: the
+    // face's own surface as read): thesis §6.2.3 Eq. 6.6.
+    if (!obj.contains("face") && !obj.contains("point"))
+      PARAFAB_INPUT_ERROR(path << ": the target objective needs the matched face (\"face\": index or \"point\": [x, y, z] on it)");
+    spec.face = face_index(part, obj, path);
+    if (obj.contains("target")) {
+      spec.target = target_surface(obj["target"], path + ".target");
+      spec.has_target = true;
+    }
+  }
   if (spec.type == "failure") {
     // (1/V)∫ exp(α(σ_vm/σ_y − 1)) dV (thesis §6.2.3 Eq. 6.4); the fields are required.
     spec.yield_stress = number(fields::require(obj, "yield_stress", path), path + ".yield_stress");
@@ -185,14 +251,14 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   // Objective: one type, or "sum" of weighted terms of the other types.
   const json& obj = fields::require(job, "objective", "job");
   bool needs_compliance = false;
-  o.objective = objective_spec(obj, "objective", needs_compliance);
+  o.objective = objective_spec(*part, obj, "objective", needs_compliance);
   if (o.objective.type == "sum") {
     const json& terms = fields::require(obj, "terms", "objective");
     if (!terms.is_array() || terms.empty())
       PARAFAB_INPUT_ERROR("objective.terms must be a non-empty list of {\"type\", \"weight\", ...}");
     for (size_t i = 0; i < terms.size(); ++i) {
       const std::string path = "objective.terms[" + std::to_string(i) + "]";
-      occ::ObjectiveSpec t = objective_spec(terms[i], path, needs_compliance);
+      occ::ObjectiveSpec t = objective_spec(*part, terms[i], path, needs_compliance);
       if (t.type == "sum") PARAFAB_INPUT_ERROR(path << ".type: a sum cannot be a term of a sum");
       for (const char* key : {"gradient", "step"})
         if (terms[i].contains(key))
@@ -200,6 +266,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       if (t.type == "failure" && std::any_of(o.objective.terms.begin(), o.objective.terms.end(),
                                              [](const occ::ObjectiveSpec& u) { return u.type == "failure"; }))
         PARAFAB_INPUT_ERROR(path << ".type: a sum takes one 'failure' term at most");
+      if (t.type == "target" && std::any_of(o.objective.terms.begin(), o.objective.terms.end(),
+                                            [](const occ::ObjectiveSpec& u) { return u.type == "target"; }))
+        PARAFAB_INPUT_ERROR(path << ".type: a sum takes one 'target' term at most");
       t.weight = terms[i].contains("weight") ? number(terms[i]["weight"], path + ".weight") : 1.0;
       if (!std::isfinite(t.weight)) PARAFAB_INPUT_ERROR(path << ".weight must be finite, got " << t.weight);
       o.objective.terms.push_back(t);
@@ -464,6 +533,15 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["yield_stress"] = failure_term->yield_stress;
     h["exponent"] = failure_term->exponent;
     h["normalize"] = failure_term->per_volume;
+  }
+  if (const occ::ObjectiveSpec* target_term = occ::target_term(o.objective)) {
+    h["target_face"] = target_term->face;
+    h["target"] = target_surface_json(r.target);
+    h["target_given"] = target_term->has_target;  // false: the face's own surface as read
+    h["initial_target_rms"] = r.initial_target_rms;
+    h["final_target_rms"] = r.final_target_rms;
+    h["initial_target_max"] = r.initial_target_max;
+    h["final_target_max"] = r.final_target_max;
   }
   h["final_violation"] = r.final_violation;
   if (!r.outer.empty()) {

@@ -1,0 +1,119 @@
+// Target surfaces of the target-shape objective (thesis §6.2.3 Eq. 6.6, shape_target.h): the
+// signed distances against points placed at a known distance, their gradients against central
+// differences, the face's own surface read from the sample parts, and input errors.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <string>
+
+#include "common/error.h"
+#include "face_model.h"
+#include "part_reader.h"
+#include "shape_target.h"
+
+namespace parafab::occ {
+namespace {
+
+#ifndef PARAFAB_SAMPLES_DIR
+#define PARAFAB_SAMPLES_DIR "samples"
+#endif
+
+// Every surface type: a point built at distance `d` from the surface along its outward normal
+// (from a foot point on the surface) reports d; ∇d equals central differences and the normal.
+TEST(ShapeTarget, SignedDistancesOfPointsPlacedAtAKnownDistance) {
+  const Vec3 c(1.5, -2.0, 0.7);
+  const Vec3 a = Vec3(0.3, -0.4, 0.86).normalized();
+  const Vec3 e1 = a.unitOrthogonal(), e2 = a.cross(e1);
+  struct Case {
+    TargetSurface t;
+    Vec3 foot, normal;
+  };
+  std::vector<Case> cases;
+  const double R = 7.0, r = 2.5, th = 0.9, ph = 2.1;
+  {
+    TargetSurface t{SurfaceType::plane, c, 3.0 * a, 0, 0};  // normal not unit: normalized
+    cases.push_back({t, c + 4.0 * e1 - 2.0 * e2, a});
+  }
+  {
+    TargetSurface t{SurfaceType::sphere, c, a, r, 0};
+    const Vec3 n = (std::cos(th) * e1 + std::sin(th) * (std::cos(ph) * e2 + std::sin(ph) * a)).normalized();
+    cases.push_back({t, c + r * n, n});
+  }
+  {
+    TargetSurface t{SurfaceType::cylinder, c, -2.0 * a, r, 0};
+    const Vec3 n = std::cos(ph) * e1 + std::sin(ph) * e2;
+    cases.push_back({t, c + 3.3 * a + r * n, n});
+  }
+  {
+    TargetSurface t{SurfaceType::torus, c, a, r, R};
+    const Vec3 radial = std::cos(ph) * e1 + std::sin(ph) * e2;
+    const Vec3 n = std::cos(th) * radial + std::sin(th) * a;
+    cases.push_back({t, c + R * radial + r * n, n});
+  }
+  for (const Case& k : cases) {
+    SCOPED_TRACE(to_string(k.t.type));
+    for (double d : {-1.2, -0.01, 0.0, 0.3, 1.7}) {
+      const Vec3 x = k.foot + d * k.normal;
+      Vec3 g;
+      EXPECT_NEAR(signed_distance(k.t, x, &g), d, 1e-13);
+      EXPECT_NEAR((g - k.normal).norm(), 0, 1e-13);
+      const double h = 1e-5;
+      for (int i = 0; i < 3; ++i) {
+        const Vec3 dx = h * Vec3::Unit(i);
+        const double fd = (signed_distance(k.t, x + dx) - signed_distance(k.t, x - dx)) / (2 * h);
+        EXPECT_NEAR(g[i], fd, 1e-9);
+      }
+    }
+  }
+}
+
+TEST(ShapeTarget, AFacesOwnSurfaceIsItsTarget) {
+  const auto cylinder = read_part(std::string(PARAFAB_SAMPLES_DIR) + "/parts/cylinder.step");
+  const FaceModel cm = build_face_model(*cylinder);
+  int lateral = -1;
+  for (size_t f = 0; f < cm.faces.size(); ++f)
+    if (cm.faces[f].primitive.type == SurfaceType::cylinder) lateral = static_cast<int>(f);
+  ASSERT_GE(lateral, 0);
+  const TargetSurface t = target_of_face(cm, lateral);
+  EXPECT_EQ(t.type, SurfaceType::cylinder);
+  // make_parts.py: Part.makeCylinder(15, 40) (radius 15, axis z through the origin).
+  EXPECT_NEAR(t.radius, 15, 1e-12);
+  EXPECT_NEAR(std::abs(t.axis.normalized().z()), 1, 1e-12);
+  EXPECT_NEAR(signed_distance(t, Vec3(15 * std::cos(0.4), 15 * std::sin(0.4), 12)), 0, 1e-12);
+
+  const auto torus = read_part(std::string(PARAFAB_SAMPLES_DIR) + "/parts/half_torus.step");
+  const FaceModel tm = build_face_model(*torus);
+  int toroidal = -1;
+  for (size_t f = 0; f < tm.faces.size(); ++f)
+    if (tm.faces[f].primitive.type == SurfaceType::torus) toroidal = static_cast<int>(f);
+  ASSERT_GE(toroidal, 0);
+  const TargetSurface tt = target_of_face(tm, toroidal);
+  EXPECT_EQ(tt.type, SurfaceType::torus);
+  EXPECT_GT(tt.major_radius, tt.radius);
+}
+
+TEST(ShapeTarget, BadSurfacesAreNamed) {
+  auto message = [](const TargetSurface& t) {
+    try {
+      check_target_surface(t, "objective.target.x");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(message({SurfaceType::plane, Vec3::Zero(), Vec3::Zero(), 0, 0}).find("objective.target.x: the normal is zero"),
+            std::string::npos);
+  EXPECT_NE(message({SurfaceType::cylinder, Vec3::Zero(), Vec3::UnitZ(), 0, 0}).find("radius must be positive, got 0"),
+            std::string::npos);
+  EXPECT_NE(message({SurfaceType::torus, Vec3::Zero(), Vec3::UnitZ(), 3, 2}).find("major_radius must exceed radius (3)"),
+            std::string::npos);
+  EXPECT_NE(message({SurfaceType::cone, Vec3::Zero(), Vec3::UnitZ(), 3, 0}).find("a plane, sphere, cylinder or torus"),
+            std::string::npos);
+  EXPECT_EQ(message({SurfaceType::sphere, Vec3(1, 2, 3), Vec3::Zero(), 3, 0}), "");
+  // No direction on a cylinder's axis: an error, never NaN.
+  EXPECT_THROW(signed_distance({SurfaceType::cylinder, Vec3::Zero(), Vec3::UnitZ(), 1, 0}, Vec3(0, 0, 5)), Error);
+}
+
+}  // namespace
+}  // namespace parafab::occ
