@@ -104,7 +104,7 @@ class Bounds(unittest.TestCase):
             j["constraints"] = [{"type": "mass", "density": 2.7e-9, "min": 2e-6, "max": 1e-6}]
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, j, out_dir=d)
-            self.assertIn("constraints[0]: min 2e-06 must be below max 1e-06", str(e.exception))
+            self.assertIn("constraints[0]: min 2e-06 must not exceed max 1e-06", str(e.exception))
             j["constraints"] = [{"type": "volume", "min_ratio": 0.99}, {"type": "mass", "density": 2.7e-9, "max": 1e-6}]
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, j, out_dir=d)

@@ -437,8 +437,8 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
         if (!(m > 0)) PARAFAB_INPUT_ERROR(path << ".min must be positive, got " << m);
         o.volume_min = m / mass_density;
       }
-      if (o.volume_max > 0 && o.volume_min > 0 && !(o.volume_min < o.volume_max))
-        PARAFAB_INPUT_ERROR(path << ": min " << o.volume_min * mass_density << " must be below max "
+      if (o.volume_max > 0 && o.volume_min > 0 && !(o.volume_min <= o.volume_max))  // equal: keep the mass
+        PARAFAB_INPUT_ERROR(path << ": min " << o.volume_min * mass_density << " must not exceed max "
                                  << o.volume_max * mass_density);
     } else {
       PARAFAB_INPUT_ERROR(path << ".type " << t.dump() << " is not supported (volume, mass)");

@@ -9,6 +9,10 @@ Non-GUI core of the "Optimize shape" command (the task panel is :mod:`parafab_wb
 * :func:`optimize_shape` -- export the solid, run ``parafab.optimize`` in-process and add the
   optimized solid as a NEW ``Part::Feature`` beside the original (:func:`add_result`).
 
+Bounds: a volume ratio (``max_volume_ratio``) and masses in kg (``max_mass`` / ``min_mass``,
+:func:`mass_constraint`: density [kg/m³] × 1e-9 × volume [mm³]); a run with a mass bound gives
+its result ``InitialMass`` / ``FinalMass`` (history.json's ``initial_mass`` / ``final_mass``).
+
 The original is never changed. Every error (not a solid, bad face, engine error, invalid
 result, cancel) raises :class:`OptimizeError` before anything is added to the document.
 The shape is optimized in the object's local coordinates (exported as BREP, which keeps the
@@ -224,6 +228,8 @@ def default_options():
         "normalize": True,                    # "failure": divide the integral by the volume
         "max_iterations": 20,
         "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
+        "max_mass": None,                     # kg (density × volume, see mass_constraint); None or 0: no bound
+        "min_mass": None,                     # kg; None or 0: no bound
         "cells": None,                        # grid cells along the longest side (compliance; None: engine default)
         "nitsche_penalty": "fixed",           # clamp on cut cells: "fixed" (100 E/h) or "local" (per cell)
         "bound": 0.3,
@@ -313,6 +319,54 @@ def mirror_pairs(shape, opts, placement=None):
         pairs.append({"faces": [i, centres[match[0]][0]],
                       "plane": {"normal": [nl.x, nl.y, nl.z], "offset": offset}})
     return pairs
+
+
+#: kg/m³ (the panel's density) → kg/mm³: a mass bound's job entry carries the density in kg/mm³,
+#: so that with the part's volume in mm³ the engine's masses (the bounds, history.json's
+#: ``initial_mass`` / ``final_mass``) are in kg. (``material.density`` is in t/mm³ for the solver:
+#: the entry's own density takes precedence for the bound.)
+MASS_DENSITY_SCALE = 1e-9
+
+
+def mass_constraint(options):
+    """The job's ``{"type": "mass", "density", "max", "min"}`` entry for the options'
+    ``max_mass`` / ``min_mass`` [kg] (None or 0: no bound; only the bounds set are sent), or None
+    when neither is set. Its density is the options' ``density`` [kg/m³] × 1e-9 (kg/mm³), so the
+    masses are density × FreeCAD's ``Shape.Volume`` [mm³] in kg. Raises :class:`OptimizeError`
+    for a bound that is not a positive number, a min above the max (equal bounds keep the
+    mass) or a bound without a positive density."""
+    opts = default_options()
+    opts.update(options or {})
+    entry = {"type": "mass"}
+    for key in ("max", "min"):
+        value = opts.get(key + "_mass")
+        if value is None or value == "" or value == 0:
+            continue
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise OptimizeError("mass bound: %s must be a number of kg, got %r" % (key, value))
+        if not (math.isfinite(value) and value > 0):
+            raise OptimizeError("mass bound: %s must be a positive mass in kg (0: none), got %r" % (key, value))
+        entry[key] = value
+    if len(entry) == 1:
+        return None
+    if "min" in entry and "max" in entry and not entry["min"] <= entry["max"]:  # equal: keep the mass
+        raise OptimizeError("mass bound: min %g kg must not exceed max %g kg" % (entry["min"], entry["max"]))
+    try:
+        density = float(opts.get("density") or 0.0)
+    except (TypeError, ValueError):
+        density = float("nan")
+    if not (math.isfinite(density) and density > 0):
+        raise OptimizeError("a mass bound needs a positive density (kg/m³), got %r" % (opts.get("density"),))
+    entry["density"] = density * MASS_DENSITY_SCALE
+    return entry
+
+
+def start_mass(shape, density):
+    """Mass [kg] of ``shape`` at ``density`` [kg/m³]: density × 1e-9 × ``shape.Volume`` [mm³],
+    the figure a mass bound of :func:`mass_constraint` is compared with at the start."""
+    return float(density) * MASS_DENSITY_SCALE * shape.Volume
 
 
 def build_job(shape, options, placement=None):
@@ -429,8 +483,14 @@ def build_job(shape, options, placement=None):
         if penalty not in ("fixed", "local"):
             raise OptimizeError("clamp penalty must be 'fixed' or 'local', got %r" % (penalty,))
         job["nitsche_penalty"] = penalty  # explicit: the engine's default depends on the element
+    constraints = []
     if opts.get("max_volume_ratio"):
-        job["constraints"] = [{"type": "volume", "max_ratio": float(opts["max_volume_ratio"])}]
+        constraints.append({"type": "volume", "max_ratio": float(opts["max_volume_ratio"])})
+    mass = mass_constraint(opts)
+    if mass is not None:
+        constraints.append(mass)
+    if constraints:
+        job["constraints"] = constraints
     return job
 
 
@@ -480,6 +540,34 @@ _RESULT_PROPERTIES = (
     ("App::PropertyPath", "BeforeAfterChart", "before_after.png: design parameters and objective before and after",
      None),
 )
+
+#: Added after :data:`_RESULT_PROPERTIES` only for a run with a mass bound (history.json has
+#: ``initial_mass``): results of other runs, and of documents saved before mass bounds, have none
+#: (read them with ``getattr``, see :func:`mass_summary`). Masses in kg (the job's unit, see
+#: :data:`MASS_DENSITY_SCALE`).
+_MASS_PROPERTIES = (
+    ("App::PropertyFloat", "MaxMass", "Upper mass bound of the run [kg] (0: none)", None),
+    ("App::PropertyFloat", "MinMass", "Lower mass bound of the run [kg] (0: none)", None),
+    ("App::PropertyFloat", "Density", "Density of the mass bound [kg/m³] (history.json's density is in kg/mm³: × 1e-9)",
+     None),
+    ("App::PropertyFloat", "InitialMass", "Mass of the original [kg]: density [kg/mm³] × volume [mm³]", "initial_mass"),
+    ("App::PropertyFloat", "FinalMass", "Mass of the optimized solid [kg]: density [kg/mm³] × volume [mm³]",
+     "final_mass"),
+)
+
+
+def _job_mass_bounds(out_dir):
+    """``(max, min)`` [kg, 0: none] of the mass entry of ``out_dir/job.json`` (written by
+    :func:`prepare` for both the in-process and the CLI route); ``(0, 0)`` when there is none."""
+    try:
+        with open(os.path.join(out_dir, "job.json")) as f:
+            constraints = json.load(f).get("constraints", [])
+    except (OSError, ValueError, AttributeError):
+        return 0.0, 0.0
+    for c in constraints:
+        if isinstance(c, dict) and c.get("type") == "mass":
+            return float(c.get("max", 0.0)), float(c.get("min", 0.0))
+    return 0.0, 0.0
 
 
 def add_result(obj, history, out_dir, placement=None):
@@ -531,7 +619,12 @@ def add_result(obj, history, out_dir, placement=None):
             "HistoryChart": history.get("chart") or "",
             "BeforeAfterChart": before_after,
         }
-        for prop_type, name, tip, key in _RESULT_PROPERTIES:
+        properties = _RESULT_PROPERTIES
+        if history.get("initial_mass") is not None:
+            properties += _MASS_PROPERTIES
+            values["MaxMass"], values["MinMass"] = _job_mass_bounds(out_dir)
+            values["Density"] = float(history.get("density") or 0.0) / MASS_DENSITY_SCALE
+        for prop_type, name, tip, key in properties:
             new.addProperty(prop_type, name, "Optimization", tip)
             value = values[name] if key is None else history.get(key)
             if value is not None:
@@ -560,6 +653,17 @@ def summary(history):
         history.get("objective", ""), history.get("initial_objective", float("nan")),
         history.get("final_objective", float("nan")), max(len(history.get("iterations", [])) - 1, 0),
         history.get("status", ""))
+
+
+def mass_summary(result):
+    """``"mass 0.1497 -> 0.1495 kg (max 0.1495 kg)"`` of a result object of a run with a mass
+    bound; ``""`` for any other (no mass properties, e.g. from a document saved before them)."""
+    initial, final = getattr(result, "InitialMass", None), getattr(result, "FinalMass", None)
+    if initial is None or final is None:
+        return ""
+    bounds = ["%s %.6g kg" % (k, v) for k, v in (("min", getattr(result, "MinMass", 0.0)),
+                                                 ("max", getattr(result, "MaxMass", 0.0))) if v]
+    return "mass %.6g -> %.6g kg%s" % (initial, final, " (%s)" % ", ".join(bounds) if bounds else "")
 
 
 def optimize_shape(obj, job_options, out_dir=None, progress=None):

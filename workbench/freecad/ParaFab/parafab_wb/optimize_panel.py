@@ -5,7 +5,9 @@ together: a moved plane drags its fillet along) with each face's parameters (off
 radius, axis, ...), checkable as design parameters with optional Min / Max bounds (double-click
 a cell), or "all parameters" (``"auto"``); the
 objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density); supports and
-loads (their faces stay fixed); iterations and a volume bound. **Run** runs ``parafab optimize``
+loads (their faces stay fixed); iterations, a volume bound and mass bounds (max / min in kg, the
+start mass density × ``Shape.Volume`` shown beside them, crossing bounds or a bound without a
+density named in the panel). **Run** runs ``parafab optimize``
 in a QProcess (:class:`optimize_runner.OptimizeRun`): the progress bar follows its iterates,
 **Cancel run** kills it and leaves the document as it was. A finished run adds
 ``<Label>_optimized`` beside the original and shows the objective before → after, the parameter
@@ -164,6 +166,26 @@ class OptimizeTaskPanel(object):
         self.volume_ratio.setSpecialValueText("no bound")
         self.volume_ratio.setToolTip("Volume at most this times the original's (0: no bound)")
         grid.addRow("Max volume ratio", self.volume_ratio)
+        mass_tip = ("%s mass of the optimized solid in kg: density (above, kg/m³) × 1e-9 × volume (mm³); "
+                    "0: no bound. Sent as the job's {\"type\": \"mass\"} constraint with the density in kg/mm³")
+        self.max_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
+        self.max_mass.setSpecialValueText("no bound")
+        self.max_mass.setToolTip(mass_tip % "Largest")
+        grid.addRow("Max mass", self.max_mass)
+        self.min_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
+        self.min_mass.setSpecialValueText("no bound")
+        self.min_mass.setToolTip(mass_tip % "Smallest")
+        grid.addRow("Min mass", self.min_mass)
+        self.start_mass = QtGui.QLabel()
+        self.start_mass.setWordWrap(True)
+        self.start_mass.setToolTip("The original's mass: what the mass bounds are compared with at the start")
+        grid.addRow("Start mass", self.start_mass)
+        self.mass_message = QtGui.QLabel()
+        self.mass_message.setWordWrap(True)
+        self.mass_message.setStyleSheet("color: #b00000")
+        grid.addRow("", self.mass_message)
+        for box in (self.density, self.max_mass, self.min_mass):
+            box.valueChanged.connect(self._mass_changed)
         self.penalty = analysis_panel._narrow(QtGui.QComboBox())
         self.penalty.addItems(["fixed", "local"])
         self.penalty.setCurrentIndex(max(0, self.penalty.findText(defaults.get("nitsche_penalty", "fixed"))))
@@ -255,6 +277,7 @@ class OptimizeTaskPanel(object):
         self.cancel_button.clicked.connect(self.cancel_run)
         layout.addWidget(run)
         self._objective_changed()
+        self._mass_changed()
         return form
 
     def _add_face(self, parent, face):
@@ -286,9 +309,46 @@ class OptimizeTaskPanel(object):
         uses = optimize_feature.objective_by_type(self.objective.currentData()).uses
         for b in self.axis_point + self.axis_dir:
             b.setEnabled("axis" in uses)
-        self.density.setEnabled("density" in uses or "material" in uses)
+        self.density.setEnabled("density" in uses or "material" in uses or self._mass_bounded())
         self.yield_stress.setEnabled("failure" in uses)
         self.exponent.setEnabled("failure" in uses)
+
+    def _mass_bounded(self):
+        return self.max_mass.value() > 0 or self.min_mass.value() > 0
+
+    def mass_problem(self):
+        """Why the mass bounds cannot be sent (min above max, no density), or ``""``."""
+        try:
+            optimize_feature.mass_constraint(self._mass_options())
+        except optimize_feature.OptimizeError as exc:
+            return str(exc)
+        return ""
+
+    def _mass_options(self):
+        return {"density": self.density.value(),
+                "max_mass": self.max_mass.value() or None, "min_mass": self.min_mass.value() or None}
+
+    def _mass_changed(self, *args):
+        """Start mass (density × FreeCAD's ``Shape.Volume``) and the bounds' validation message."""
+        try:
+            volume = optimize_feature.solid_shape(self.obj).Volume
+        except optimize_feature.OptimizeError:
+            volume = None
+        density = self.density.value()
+        if volume is None:
+            self.start_mass.setText("no solid")
+        elif density > 0:
+            self.start_mass.setText("%.6g kg (%g kg/m³ × %.6g mm³)" % (
+                optimize_feature.start_mass(self.obj.Shape, density), density, volume))
+        else:
+            self.start_mass.setText("no density (volume %.6g mm³)" % volume)
+        problem = self.mass_problem()
+        self.mass_message.setText(problem)
+        self.mass_message.setVisible(bool(problem))
+        if self._mass_bounded():
+            self.density.setEnabled(True)
+        else:
+            self._objective_changed()
 
     # -- options -----------------------------------------------------------------------------
 
@@ -351,12 +411,17 @@ class OptimizeTaskPanel(object):
                 "force": tuple(b.value() for b in self.force),
                 "max_iterations": self.iterations.value(),
                 "nitsche_penalty": self.penalty.currentText(),
-                "max_volume_ratio": ratio if ratio > 0 else None}
+                "max_volume_ratio": ratio if ratio > 0 else None,
+                "max_mass": self.max_mass.value() or None, "min_mass": self.min_mass.value() or None}
 
     # -- running -----------------------------------------------------------------------------
 
     def start_run(self):
         if self.running():
+            return False
+        problem = self.mass_problem()
+        if problem:
+            self.status.setText("Not run: %s" % problem)
             return False
         self.outcome = None
         self.progress.setValue(0)
@@ -390,8 +455,10 @@ class OptimizeTaskPanel(object):
             self.results.append(new)
             self.progress.setValue(100)
             self.progress.setFormat("done")
-            self.status.setText("%s added: %s; volume × %.4f; written to %s" % (
-                new.Label, optimize_feature.summary(self.run.history), new.VolumeRatio, self.run.out_dir))
+            mass = optimize_feature.mass_summary(new)
+            self.status.setText("%s added: %s; volume × %.4f%s; written to %s" % (
+                new.Label, optimize_feature.summary(self.run.history), new.VolumeRatio,
+                "; " + mass if mass else "", self.run.out_dir))
             self.changes.clear()
             self.changes.addItems(list(new.ParameterChanges))
             self._show(self.chart, new.HistoryChart, new.HistoryFile)
