@@ -30,6 +30,7 @@
 #include "part_reader.h"
 #include "xfem/area_rules.h"
 #include "xfem/curve_rules.h"
+#include "xfem/nonlinear_xfem.h"
 #include "xfem/quadrature_rule.h"
 
 namespace parafab::occ {
@@ -68,6 +69,23 @@ ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& mode
   if (!volume_matches(model, *s.part, s.message)) return s;
   auto m = std::make_shared<GridModel>(std::move(model));
   s.tractions = tractions_on(*s.part, setup);
+  if (setup.hyperelastic) {
+    xfem::NonlinearXfemOptions no;
+    no.boundary = setup.solver;
+    no.load_steps = setup.load_steps;
+    no.keep_factorization = true;
+    const xfem::NonlinearXfemResult nr =
+        xfem::solve_nonlinear(m->elements, m->adjacent, *setup.hyperelastic, setup.material, setup.dirichlet, s.tractions, no);
+    s.model = std::move(m);
+    if (!nr.converged) {
+      s.message = "the hyperelastic XFEM solve failed: " + nr.message;
+      return s;
+    }
+    s.solution = nr.as_linear();
+    s.done = true;
+    s.message = "ok";
+    return s;
+  }
   s.solution = xfem::solve_linear(m->elements, m->adjacent, setup.material, setup.dirichlet, s.tractions, setup.solver);
   s.model = std::move(m);
   if (!s.solution.solved) {

@@ -16,6 +16,7 @@
 #include "grid_model.h"
 #include "shape_parameters.h"
 #include "xfem/linear_xfem.h"
+#include "xfem/materials.h"
 
 namespace parafab::occ {
 
@@ -33,6 +34,12 @@ struct ComplianceSetup {
   std::vector<xfem::Vec3> forces;
   xfem::LinearXfemOptions solver;
   GridModelOptions grid;  ///< grid.block_cells > 0 (the re-cut works block by block)
+  /// A hyperelastic law (null: linear elasticity). Then each state is solved by Newton
+  /// (xfem::solve_nonlinear, `load_steps`, the Hessian at the solution kept for adjoints) and
+  /// `compliance` is not computed (0): only objectives with an adjoint through the tangent (the
+  /// target shape, shape_target.h) may use it.
+  std::shared_ptr<const xfem::Material> hyperelastic;
+  int load_steps = 1;
 };
 
 /// One evaluated model: the part, its grid model and the solution (with the kept factorization).

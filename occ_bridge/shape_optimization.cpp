@@ -151,6 +151,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   if (compliance) {
     PARAFAB_VERIFY(options.compliance, "objective '" << spec.type << "' needs the elasticity job (material, supports, loads, grid)");
     PARAFAB_VERIFY(options.compliance_step > 0, "compliance_step must be positive, got " << options.compliance_step);
+    if (options.compliance->hyperelastic && (term_weight(spec, "compliance") != 0 || failure))
+      PARAFAB_INPUT_ERROR("objective '" << spec.type << "': compliance and failure run on a linear solve; a hyperelastic "
+                                      "material (" << options.compliance->hyperelastic->name()
+                                      << ") serves the target objective only");
     // The failure integrand is evaluated at the cut cells' moment-fitted rule points, which lie
     // in the fitting box, partly outside the material. The trilinear field stays moderate there,
     // but the triquadratic one of a sliver cell does not, and exp(α σ_vm/σ_y) of it swamps the

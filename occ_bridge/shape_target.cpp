@@ -8,6 +8,7 @@
 
 #include "common/error.h"
 #include "xfem/area_rules.h"
+#include "xfem/nonlinear_xfem.h"
 
 namespace parafab::occ {
 
@@ -216,9 +217,19 @@ ComplianceDerivative target_derivative(const ComplianceState& state, const Targe
       [&](const xfem::GridElement& el, const std::vector<xfem::TractionCondition>& tractions, int base) {
         const std::vector<int>& nodes = state.solution.node[base];
         const Eigen::VectorXd ue = element_values(state.solution.u, nodes), le = element_values(lambda, nodes);
-        const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
         const ElementTarget et = element_target(el, ue, o, so, false);
-        return le.dot(es.K * ue - es.f) + et.integral / A - I / (A * A) * et.area;
+        // The element's residual: K uₑ − fₑ (linear), or its hyperelastic internal force plus
+        // the boundary terms (quadratic in u, as solve_nonlinear assembles them).
+        Eigen::VectorXd residual;
+        if (setup.hyperelastic) {
+          const xfem::ElementSystem eb =
+              xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver, /*include_bulk=*/false);
+          residual = xfem::element_internal_force(el, *setup.hyperelastic, ue) + eb.K * ue - eb.f;
+        } else {
+          const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
+          residual = es.K * ue - es.f;
+        }
+        return le.dot(residual) + et.integral / A - I / (A * A) * et.area;
       });
 }
 

@@ -6,11 +6,12 @@
 // d the signed distance from a plane, sphere, cylinder or torus (closed forms), A the face's
 // area, integrated by the surface rules of the face's cut patches on the fixed grid of the
 // linear XFEM solve (shape_compliance.h: same job). u_h is the nodal field (hex8 incompatible
-// modes are element-internal and not part of it). Linear elasticity: the thesis's lampshade
-// ran a Mooney–Rivlin model; here the equilibrium is linear (small deflections).
-// Gradient as the failure metric's (shape_failure.h): adjoint K λ = −∂J/∂u with the kept
-// factorization, then dJ/ds = ∂J/∂s|_u + λᵀ(dK u − df) by central differences over the re-cut
-// cells only.
+// modes are element-internal and not part of it). The equilibrium is linear, or hyperelastic
+// (ComplianceSetup::hyperelastic: Newton, large deflections; the thesis's lampshade ran a
+// Mooney–Rivlin model). Gradient as the failure metric's (shape_failure.h): adjoint
+// K λ = −∂J/∂u with the kept factorization (hyperelastic: the tangent H(u) at the solution), then
+// dJ/ds = ∂J/∂s|_u + λᵀ ∂R/∂s|_u, R = K u − f (hyperelastic: the internal force plus the boundary
+// terms minus the loads), by central differences over the re-cut cells only.
 #pragma once
 
 #include <Eigen/Core>

@@ -1,5 +1,6 @@
 #include "xfem/nonlinear_xfem.h"
 
+#include <Eigen/LU>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -121,7 +122,35 @@ LinearXfemResult NonlinearXfemResult::as_linear() const {
   r.node = node;
   r.dofs = dofs;
   r.aggregated_nodes = aggregated_nodes;
+  r.factorization = factorization;
+  r.aggregation = aggregation;
   return r;
+}
+
+Eigen::VectorXd element_internal_force(const GridElement& el, const Material& material, const Eigen::VectorXd& ue) {
+  const int nn = static_cast<int>(ue.size() / 3);
+  PARAFAB_VERIFY(ue.size() == 24 || ue.size() == 81, "element_internal_force: " << ue.size() << " nodal values");
+  Eigen::VectorXd ge = Eigen::VectorXd::Zero(ue.size());
+  for (size_t q = 0; q < el.rule.points.size(); ++q) {
+    Eigen::MatrixXd G;
+    if (nn == 8) {
+      Eigen::Matrix<double, 8, 1> N;
+      Eigen::Matrix<double, 8, 3> g;
+      trilinear_shape(el.box, el.rule.points[q], N, g);
+      G = g;
+    } else {
+      Eigen::Matrix<double, 27, 1> N;
+      Eigen::Matrix<double, 27, 3> g;
+      triquadratic_shape(el.box, el.rule.points[q], N, g);
+      G = g;
+    }
+    Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+    for (int k = 0; k < nn; ++k) F += ue.segment<3>(3 * k) * G.row(k);
+    PARAFAB_VERIFY(F.determinant() > 0, "element_internal_force: det F = " << F.determinant() << " at a rule point");
+    const Eigen::Matrix3d P = material.stress(F);
+    for (int k = 0; k < nn; ++k) ge.segment<3>(3 * k) += el.rule.weights[q] * P * G.row(k).transpose();
+  }
+  return ge;
 }
 
 NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
@@ -151,6 +180,7 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
   r.u = Eigen::VectorXd::Zero(r.dofs);
   SparseCholesky llt;  // symbolic analysis once: every Newton Hessian has the same pattern
   if (options.boundary.memory_limit_mb > 0) llt.memory_limit_mb = options.boundary.memory_limit_mb;
+  Eigen::SparseMatrix<double> H_final;  // the reduced Hessian at the converged u (keep_factorization)
   for (int step = 1; step <= options.load_steps; ++step) {
     const double lambda = static_cast<double>(step) / options.load_steps;
     const Eigen::VectorXd f = lambda * (reduce ? Eigen::VectorXd(Tt * boundary.f) : boundary.f);
@@ -242,6 +272,19 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
       return r;
     }
     r.energy = energy;
+    if (options.keep_factorization && step == options.load_steps) H_final = H_bulk + K_boundary;
+  }
+  if (options.keep_factorization) {
+    auto kept = std::make_shared<SparseCholesky>();
+    if (options.boundary.memory_limit_mb > 0) kept->memory_limit_mb = options.boundary.memory_limit_mb;
+    kept->factorize(H_final);
+    if (!kept->IsDone()) {
+      r.message = "the Hessian at the solution could not be factorized (kept for adjoint solves)";
+      r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      return r;
+    }
+    r.factorization = std::move(kept);
+    if (reduce) r.aggregation = T;
   }
   r.converged = true;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

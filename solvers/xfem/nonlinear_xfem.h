@@ -18,6 +18,9 @@ struct NonlinearXfemOptions {
   int load_steps = 1;          ///< loads and prescribed displacements ramped in equal steps
   int max_iterations = 50;     ///< Newton iterations per load step
   double tolerance = 1e-9;     ///< ‖gradient‖ ≤ tolerance · max(‖external load‖, ‖initial gradient‖)
+  /// Factorize the Hessian at the converged u once more and keep it (NonlinearXfemResult::
+  /// factorization): adjoint solves of shape derivatives (occ::target_adjoint).
+  bool keep_factorization = false;
 };
 
 struct NonlinearXfemResult {
@@ -30,7 +33,12 @@ struct NonlinearXfemResult {
   std::vector<std::vector<int>> node;  ///< as LinearXfemResult::node
   double energy = 0;
   double seconds = 0;
-  /// The same interpolation as the linear result.
+  /// With options.keep_factorization: the reduced Hessian TᵀH(u)T at the solution, factorized,
+  /// and T (empty when nothing is aggregated), so that as_linear().solve_again(b) solves
+  /// H(u) x = b (the tangent problem of an adjoint).
+  std::shared_ptr<const SparseCholesky> factorization;
+  Eigen::SparseMatrix<double> aggregation;
+  /// The same interpolation as the linear result (and the kept factorization, if any).
   LinearXfemResult as_linear() const;
 };
 
@@ -43,5 +51,10 @@ NonlinearXfemResult solve_nonlinear(const std::vector<GridElement>& elements,
                                     const std::vector<DirichletCondition>& dirichlet,
                                     const std::vector<TractionCondition>& tractions,
                                     const NonlinearXfemOptions& options = {});
+
+/// The bulk internal force of one element, ∂/∂uₑ Σ_q w_q Ψ(F(X_q)) (uₑ: 3 per node, 8 or 27
+/// nodes in the order of node_offset): the element's share of the gradient solve_nonlinear
+/// drives to zero, without boundary terms. Throws parafab::Error where Ψ is not finite (J ≤ 0).
+Eigen::VectorXd element_internal_force(const GridElement& element, const Material& material, const Eigen::VectorXd& ue);
 
 }  // namespace parafab::xfem

@@ -63,8 +63,11 @@ occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, co
 // (README "Simulation"): material {E, nu, density}, grid {cells, cell_size, block_cells,
 // method}, supports, loads (a traction per area stays fixed; a total force stays fixed and is
 // spread over the load face of every model, as `parafab simulate` does), gravity, the Nitsche
-// penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. Linear material only.
-std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShape& part, const json& job) {
+// penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. material.model: linear,
+// or a hyperelastic law (as `parafab simulate`; load_steps, default 5) for `hyperelastic_ok`
+// objectives (the target shape alone or with moment terms).
+std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShape& part, const json& job,
+                                                             bool hyperelastic_ok) {
   auto s = std::make_shared<occ::ComplianceSetup>();
   const json& m = fields::require(job, "material", "job (objective compliance)");
   s->material.youngs_modulus = number(fields::require(m, "E", "material"), "material.E");
@@ -73,8 +76,15 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   if (!(s->material.youngs_modulus > 0)) PARAFAB_INPUT_ERROR("material.E must be positive, got " << s->material.youngs_modulus);
   if (!(s->material.poisson_ratio > -1 && s->material.poisson_ratio < 0.5))
     PARAFAB_INPUT_ERROR("material.nu must be in (-1, 0.5), got " << s->material.poisson_ratio);
-  if (m.value("model", std::string("linear")) != "linear")
-    PARAFAB_INPUT_ERROR("objective compliance: material.model must be \"linear\" (the compliance of a linear solve)");
+  const std::string model = m.value("model", std::string("linear"));
+  if (model != "linear") {
+    if (!hyperelastic_ok)
+      PARAFAB_INPUT_ERROR("material.model \"" << model << "\": compliance and failure run on a linear solve (a "
+                                                 "hyperelastic law serves the target objective only); use \"linear\"");
+    s->hyperelastic = xfem::make_material(model, s->material.youngs_modulus, s->material.poisson_ratio);
+    s->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
+    if (s->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1, got " << s->load_steps);
+  }
   // hex8 by default (unlike `parafab simulate`): the optimizer's gradient checks and figures were
   // measured with it, and a solve costs less (README "Element"); a job may name hex27.
   s->solver.element = element_of_job(job, xfem::ElementType::Hex8);
@@ -116,7 +126,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   }
   if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
   if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
-  nitsche_of_job(job, s->solver);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
+  nitsche_of_job(job, s->solver, !s->hyperelastic);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
   return s;
 }
 
@@ -280,7 +290,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   }
   json size_estimate;  // the elasticity jobs: estimated before anything is cut, as `parafab simulate` does
   if (needs_compliance) {
-    o.compliance = compliance_setup(*part, job);
+    // A hyperelastic law only where every elastic term has an adjoint through the tangent.
+    const auto elastic_term = [](const occ::ObjectiveSpec& t) { return t.type == "compliance" || t.type == "failure"; };
+    const bool hyperelastic_ok = !elastic_term(o.objective) &&
+                                 std::none_of(o.objective.terms.begin(), o.objective.terms.end(), elastic_term);
+    o.compliance = compliance_setup(*part, job, hyperelastic_ok);
     {
       const occ::PartBoxArea size = occ::part_box_and_area(*part);
       occ::PartInfo info;
@@ -520,6 +534,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["exact_derivatives"] = r.exact_derivatives;
     h["semi_analytic_derivatives"] = r.semi_analytic_derivatives;
   }
+  if (o.compliance) h["material_model"] = o.compliance->hyperelastic ? o.compliance->hyperelastic->name() : "linear";
   if (o.compliance)  // the clamp of the objectives that solve (entries near it differenced when local)
     h["nitsche_penalty"] =
         o.compliance->solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed";
