@@ -49,10 +49,13 @@ def top_probes(offset=H, nx=0.0, nz=1.0):
 
 
 def top_rms(probes, displacements):
-    """(RMS, max) distance of the deformed probes from z = 10, trapezoid rule over x."""
+    """(RMS, max) distance of the deformed probes from z = 10: Simpson over the 41 x-stations,
+    the two y-lines a 2-point Gauss rule (the trapezoid rule would overstate the optimized RMS by
+    0.33 %)."""
     d = [p[2] + u[2] - H for p, u in zip(probes, displacements)]
     sq = [0.5 * (d[2 * i] ** 2 + d[2 * i + 1] ** 2) for i in range(41)]
-    return math.sqrt(sum(0.5 * (sq[i] + sq[i + 1]) for i in range(40)) / 40), max(abs(v) for v in d)
+    simpson = sum((1 if i in (0, 40) else 4 if i % 2 else 2) * v for i, v in enumerate(sq)) / 120
+    return math.sqrt(simpson), max(abs(v) for v in d)
 
 
 def fresh_top_rms(step, offset, nx, nz):
@@ -148,9 +151,9 @@ class OptimizeTarget(unittest.TestCase):
         rms_after, max_after = fresh_top_rms(os.path.join(out, "optimized.step"), offset, nx, nz)
         print("fresh simulation (hex27, 13 cells): RMS %.6f -> %.6f, max %.5f -> %.5f"
               % (rms_before, rms_after, max_before, max_after))
-        # Measured: RMS 0.092358 -> 0.010654 (3e-5 and 0.35 % from the optimizer's), max 0.19015 -> 0.02799.
-        self.assertAlmostEqual(rms_before, h["initial_target_rms"], delta=3e-4 * rms_before)
-        self.assertAlmostEqual(rms_after, h["final_target_rms"], delta=0.01 * rms_after)
+        # Measured: RMS 0.092328 -> 0.010620 (2.9e-4 and 2.8e-4 from the optimizer's), max 0.19015 -> 0.02799.
+        self.assertAlmostEqual(rms_before, h["initial_target_rms"], delta=2e-3 * rms_before)
+        self.assertAlmostEqual(rms_after, h["final_target_rms"], delta=2e-3 * rms_after)
         self.assertLess(max_after, 0.16 * max_before)
 
     def test_the_gradient_matches_central_differences_of_the_whole_pipeline(self):
@@ -216,10 +219,11 @@ class OptimizeTarget(unittest.TestCase):
               "under the hyperelastic law (hex27, 13 cells) the design leaves %.4f mm, the linear design %.4f mm"
               % (h["initial_target_rms"], h["final_target_rms"], rms0, rms1, h["initial_target_max"],
                  h["final_target_max"], max0, max1, rms_design, rms_linear_design))
-        # Measured: RMS 5.7921 -> 0.3406 mm (CalculiX 5.8040 -> 0.3421: 0.21 % and 0.44 %),
-        # max 11.883 -> 1.082 (CalculiX 11.912 -> 1.087); the linear design leaves 0.3439 mm.
+        # Measured: RMS 5.7921 -> 0.3406 mm (CalculiX 5.8021 -> 0.3405: 0.17 % and 0.03 %),
+        # max 11.883 -> 1.082 (CalculiX 11.912 -> 1.087); under parafab's Newton solve on 13 cells
+        # the design leaves 0.3414 mm, the linear design 0.3421 mm.
         self.assertAlmostEqual(h["initial_target_rms"], rms0, delta=0.005 * rms0)
-        self.assertAlmostEqual(h["final_target_rms"], rms1, delta=0.02 * rms1)
+        self.assertAlmostEqual(h["final_target_rms"], rms1, delta=0.005 * rms1)
         self.assertLess(rms1, 0.065 * rms0)
         self.assertLess(rms_design, rms_linear_design)
         self.assertLess(rms_linear_design, 1.05 * rms_design)
