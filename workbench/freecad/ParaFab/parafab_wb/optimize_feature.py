@@ -13,6 +13,11 @@ Bounds: a volume ratio (``max_volume_ratio``) and masses in kg (``max_mass`` / `
 :func:`mass_constraint`: density [kg/m³] × 1e-9 × volume [mm³]); a run with a mass bound gives
 its result ``InitialMass`` / ``FinalMass`` (history.json's ``initial_mass`` / ``final_mass``).
 
+The "target" objective (rest-shape design) matches one face (option ``target_face``, ``FaceN``)
+under the load onto its own CAD surface (plane, cylinder, sphere or torus; the engine's default:
+no ``"target"`` is sent), with the supports, loads and material of "compliance"; its result gets
+``TargetFace`` and ``InitialTargetRms`` / ``FinalTargetRms`` [mm] (:func:`target_summary`).
+
 The original is never changed. Every error (not a solid, bad face, engine error, invalid
 result, cancel) raises :class:`OptimizeError` before anything is added to the document.
 The shape is optimized in the object's local coordinates (exported as BREP, which keeps the
@@ -42,8 +47,9 @@ class Objective(object):
 
     ``uses`` names the inputs the job must carry for it: "axis" (objective.axis), "density"
     (objective.density), "material", "supports", "loads" (simulation-job format), "failure"
-    (objective.yield_stress, exponent, normalize). Supports and
-    loads are always sent when given (the engine keeps their faces fixed).
+    (objective.yield_stress, exponent, normalize), "target" (objective.face: the matched face,
+    option ``target_face``; objective.target only when the option ``target_surface`` is given).
+    Supports and loads are always sent when given (the engine keeps their faces fixed).
     """
 
     def __init__(self, type, label, tooltip, uses=(), terms=()):
@@ -81,6 +87,12 @@ OBJECTIVES = [
               "compliance / its start value + failure metric / its start value (weights: option 'weights'): "
               "stiffer and with a lower peak von Mises stress", ("material", "supports", "loads", "failure"),
               terms=("compliance", "failure")),
+    Objective("target", "Target shape (face under load onto its CAD surface)",
+              "(1/A)∫d(X + u)²dA of the linear XFEM solve (thesis Eq. 6.6, adjoint gradient): the mean squared "
+              "distance [mm²] of the matched face's deformed points from its own surface as modelled (plane, "
+              "cylinder, sphere or torus): the rest shape is designed so that the loaded face lands where the CAD "
+              "model puts it. Pick the matched face (not a support); the result reports its RMS distance in mm",
+              ("material", "supports", "loads", "target")),
 ]
 
 
@@ -98,6 +110,11 @@ def objective_by_type(type):
         if o.type == type:
             return o
     raise OptimizeError("unknown objective type '%s' (available: %s)" % (type, ", ".join(o.type for o in OBJECTIVES)))
+
+
+#: FreeCAD surface types whose own surface can be a target (the engine's closed-form distances).
+TARGET_SURFACES = {"Part::GeomPlane": "plane", "Part::GeomCylinder": "cylinder", "Part::GeomSphere": "sphere",
+                   "Part::GeomToroid": "torus"}
 
 
 #: Parameter names per face type (the engine's block names, solvers/optimize/shape_constraints.cpp).
@@ -226,6 +243,9 @@ def default_options():
         "yield_stress": 250.0,                # MPa, objective "failure"
         "exponent": 8.0,                      # α of objective "failure" (larger: nearer the maximum)
         "normalize": True,                    # "failure": divide the integral by the volume
+        "target_face": None,                  # "FaceN": the face matched by objective "target" (not a support)
+        "target_surface": None,               # "target": None (the face's own surface) or the engine's
+        #   {"plane" | "cylinder" | "sphere" | "torus": {...}} in the part's own frame, sent as given
         "max_iterations": 20,
         "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
         "max_mass": None,                     # kg (density × volume, see mass_constraint); None or 0: no bound
@@ -369,6 +389,37 @@ def start_mass(shape, density):
     return float(density) * MASS_DENSITY_SCALE * shape.Volume
 
 
+def target_entry(shape, opts):
+    """``{"face": k}`` (ParaFab index of the option ``target_face``, ``FaceN`` = k + 1), with
+    ``"target"`` only when ``target_surface`` is given (else the engine uses the face's own surface).
+    Raises :class:`OptimizeError` when no face is chosen, for a face that is a support (it does
+    not move) and, without ``target_surface``, for a face that is no plane, cylinder, sphere or
+    torus."""
+    n = len(shape.Faces)
+    name = opts.get("target_face")
+    if name is None or name == "":
+        raise OptimizeError("objective 'target': no matched face chosen: pick the face that must land on its "
+                            "CAD surface under the load")
+    index = face_index(name, n, "target face")
+    label = "Face%d" % (index + 1)
+    if index in [face_index(f, n, "supports") for f in opts.get("supports") or []]:
+        raise OptimizeError("target face %s is a support: a clamped face does not move under the load; "
+                            "match another face" % label)
+    entry = {"face": index}
+    given = opts.get("target_surface")
+    if given:
+        if not isinstance(given, dict):
+            raise OptimizeError("target surface: expected {\"plane\" | \"cylinder\" | \"sphere\" | \"torus\": "
+                                "{...}}, got %r" % (given,))
+        entry["target"] = given
+    else:
+        kind = shape.Faces[index].Surface.TypeId
+        if kind not in TARGET_SURFACES:
+            raise OptimizeError("target face %s is a %s: its own surface is a target only for a plane, cylinder, "
+                                "sphere or torus" % (label, kind.replace("Part::Geom", "").lower()))
+    return entry
+
+
 def build_job(shape, options, placement=None):
     """The ``parafab optimize`` job for ``options`` (see :func:`default_options`) on the local
     ``shape``; ``placement`` maps local to global coordinates (the axis is given globally)."""
@@ -394,6 +445,8 @@ def build_job(shape, options, placement=None):
                 raise OptimizeError("objective '%s': %s must be positive, got %r" % (objective.type, key, value))
             obj_json[key] = float(value)
         obj_json["normalize"] = bool(opts["normalize"])
+    if "target" in objective.uses:
+        obj_json.update(target_entry(shape, opts))
     if objective.terms:
         weights = opts.get("weights") or [1.0] * len(objective.terms)
         if len(weights) != len(objective.terms):
@@ -556,6 +609,24 @@ _MASS_PROPERTIES = (
 )
 
 
+#: Added after :data:`_RESULT_PROPERTIES` only for a run of the "target" objective (history.json
+#: has ``initial_target_rms``): results of other runs, and of documents saved before it, have none
+#: (read them with ``getattr``, see :func:`target_summary`). Distances in mm.
+_TARGET_PROPERTIES = (
+    ("App::PropertyString", "TargetFace", "The matched face (FreeCAD name; history.json's target_face is FaceN − 1)",
+     None),
+    ("App::PropertyFloat", "InitialTargetRms",
+     "RMS distance [mm] of the original's matched face under the load from the target surface", "initial_target_rms"),
+    ("App::PropertyFloat", "FinalTargetRms",
+     "RMS distance [mm] of the optimized solid's matched face under the load from the target surface",
+     "final_target_rms"),
+    ("App::PropertyFloat", "InitialTargetMax", "Largest distance [mm] of the original's matched face under the load",
+     "initial_target_max"),
+    ("App::PropertyFloat", "FinalTargetMax",
+     "Largest distance [mm] of the optimized solid's matched face under the load", "final_target_max"),
+)
+
+
 def _job_mass_bounds(out_dir):
     """``(max, min)`` [kg, 0: none] of the mass entry of ``out_dir/job.json`` (written by
     :func:`prepare` for both the in-process and the CLI route); ``(0, 0)`` when there is none."""
@@ -624,6 +695,10 @@ def add_result(obj, history, out_dir, placement=None):
             properties += _MASS_PROPERTIES
             values["MaxMass"], values["MinMass"] = _job_mass_bounds(out_dir)
             values["Density"] = float(history.get("density") or 0.0) / MASS_DENSITY_SCALE
+        if history.get("initial_target_rms") is not None:
+            properties += _TARGET_PROPERTIES
+            face = history.get("target_face")
+            values["TargetFace"] = "Face%d" % (int(face) + 1) if face is not None else ""
         for prop_type, name, tip, key in properties:
             new.addProperty(prop_type, name, "Optimization", tip)
             value = values[name] if key is None else history.get(key)
@@ -664,6 +739,16 @@ def mass_summary(result):
     bounds = ["%s %.6g kg" % (k, v) for k, v in (("min", getattr(result, "MinMass", 0.0)),
                                                  ("max", getattr(result, "MaxMass", 0.0))) if v]
     return "mass %.6g -> %.6g kg%s" % (initial, final, " (%s)" % ", ".join(bounds) if bounds else "")
+
+
+def target_summary(result):
+    """``"target RMS 0.0924 -> 0.0106 mm (Face6)"`` of a result object of a "target" run; ``""``
+    for any other (no target properties, e.g. from a document saved before them)."""
+    initial, final = getattr(result, "InitialTargetRms", None), getattr(result, "FinalTargetRms", None)
+    if initial is None or final is None:
+        return ""
+    face = getattr(result, "TargetFace", "")
+    return "target RMS %.6g -> %.6g mm%s" % (initial, final, " (%s)" % face if face else "")
 
 
 def optimize_shape(obj, job_options, out_dir=None, progress=None):

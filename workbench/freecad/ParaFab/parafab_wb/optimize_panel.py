@@ -4,8 +4,9 @@ Shows the solid's faces grouped by the face model's tangency relations (a tangen
 together: a moved plane drags its fillet along) with each face's parameters (offset, normal,
 radius, axis, ...), checkable as design parameters with optional Min / Max bounds (double-click
 a cell), or "all parameters" (``"auto"``); the
-objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density); supports and
-loads (their faces stay fixed); iterations, a volume bound and mass bounds (max / min in kg, the
+objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density, or for "Target
+shape" the matched face: a combo of the solid's faces or the face selected in the 3D view);
+supports and loads (their faces stay fixed); iterations, a volume bound and mass bounds (max / min in kg, the
 start mass density × ``Shape.Volume`` shown beside them, crossing bounds or a bound without a
 density named in the panel). **Run** runs ``parafab optimize``
 in a QProcess (:class:`optimize_runner.OptimizeRun`): the progress bar follows its iterates,
@@ -17,6 +18,7 @@ them (one undo transaction).
 GUI only: imported by the command.
 """
 
+import FreeCAD
 import FreeCADGui
 from PySide import QtCore, QtGui
 
@@ -158,6 +160,20 @@ class OptimizeTaskPanel(object):
         self.exponent = _spin(0.0, 1e3, defaults["exponent"], 2)
         self.exponent.setToolTip("α of the failure objective: larger is nearer the maximum stress")
         grid.addRow("Exponent α", self.exponent)
+        target_tip = ("Target shape: the face that must land on its own CAD surface (plane, cylinder, sphere or "
+                      "torus) under the load; not a support")
+        self.target_face = analysis_panel._narrow(QtGui.QComboBox())
+        self.target_face.addItem("(choose a face)", None)
+        for f in self.model["faces"]:
+            self.target_face.addItem("%s (%s)" % (f["name"], f["type"]), f["name"])
+        self.target_face.setToolTip(target_tip)
+        self.target_pick = analysis_panel._narrow(QtGui.QPushButton("Use selected"))
+        self.target_pick.setToolTip("Match the face selected in the 3D view")
+        self.target_pick.clicked.connect(self.use_selected_target)
+        row = QtGui.QHBoxLayout()
+        row.addWidget(self.target_face)
+        row.addWidget(self.target_pick)
+        grid.addRow("Matched face", row)
         self.iterations = QtGui.QSpinBox()
         self.iterations.setRange(1, 1000)
         self.iterations.setValue(defaults["max_iterations"])
@@ -312,6 +328,26 @@ class OptimizeTaskPanel(object):
         self.density.setEnabled("density" in uses or "material" in uses or self._mass_bounded())
         self.yield_stress.setEnabled("failure" in uses)
         self.exponent.setEnabled("failure" in uses)
+        self.target_face.setEnabled("target" in uses)
+        self.target_pick.setEnabled("target" in uses)
+
+    def set_target_face(self, name):
+        """Choose face ``name`` (``FaceN``) as the matched face of "Target shape"; returns whether
+        it is a face of the solid."""
+        index = self.target_face.findData(name)
+        if index < 0:
+            return False
+        self.target_face.setCurrentIndex(index)
+        return True
+
+    def use_selected_target(self):
+        """The first face selected in the 3D view on the solid becomes the matched face; returns
+        its name or ``None``."""
+        for name in analysis_panel.selected_faces([self.obj]):
+            if self.set_target_face(name):
+                return name
+        FreeCAD.Console.PrintWarning("ParaFab: select the matched face of %s in the 3D view first\n" % self.obj.Label)
+        return None
 
     def _mass_bounded(self):
         return self.max_mass.value() > 0 or self.min_mass.value() > 0
@@ -398,6 +434,7 @@ class OptimizeTaskPanel(object):
                 "axis_direction": tuple(b.value() for b in self.axis_dir),
                 "density": self.density.value(),
                 "yield_stress": self.yield_stress.value(), "exponent": self.exponent.value(),
+                "target_face": self.target_face.currentData(),
                 "parameters": "auto" if self.auto.isChecked() else self.checked_parameters(),
                 "supports": self.supports.faces(), "loads": self.loads.faces(),
                 "draft_faces": self.draft_faces.faces(),
@@ -455,10 +492,10 @@ class OptimizeTaskPanel(object):
             self.results.append(new)
             self.progress.setValue(100)
             self.progress.setFormat("done")
-            mass = optimize_feature.mass_summary(new)
+            extra = "".join("; " + text for text in (optimize_feature.target_summary(new),
+                                                     optimize_feature.mass_summary(new)) if text)
             self.status.setText("%s added: %s; volume × %.4f%s; written to %s" % (
-                new.Label, optimize_feature.summary(self.run.history), new.VolumeRatio,
-                "; " + mass if mass else "", self.run.out_dir))
+                new.Label, optimize_feature.summary(self.run.history), new.VolumeRatio, extra, self.run.out_dir))
             self.changes.clear()
             self.changes.addItems(list(new.ParameterChanges))
             self._show(self.chart, new.HistoryChart, new.HistoryFile)
