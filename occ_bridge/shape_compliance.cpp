@@ -677,4 +677,21 @@ Eigen::VectorXd element_values(const Eigen::VectorXd& v, const std::vector<int>&
   return ve;
 }
 
+Eigen::VectorXd element_residual(const xfem::GridElement& el, const std::vector<xfem::TractionCondition>& tractions,
+                                 const Eigen::VectorXd& ue, const ComplianceSetup& setup) {
+  if (!setup.hyperelastic) {
+    const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
+    return es.K * ue - es.f;
+  }
+  const xfem::ElementSystem boundary =
+      xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver, /*include_bulk=*/false);
+  return xfem::element_internal_force(el, *setup.hyperelastic, ue) + boundary.K * ue - boundary.f;
+}
+
+Eigen::VectorXd adjoint_of(const ComplianceState& state, const Eigen::VectorXd& dJ_du, const char* who) {
+  PARAFAB_VERIFY(dJ_du.size() == state.solution.u.size(), who << ": the value carries no ∂J/∂u of this state (size "
+                                                               << dJ_du.size() << ", u " << state.solution.u.size() << ")");
+  return state.solution.solve_again(-dJ_du);
+}
+
 }  // namespace parafab::occ

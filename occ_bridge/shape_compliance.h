@@ -137,6 +137,17 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
                                         std::shared_ptr<const PartShape> minus, double h, const ComplianceSetup& setup,
                                         const ElementTerm& term);
 
+/// The residual R = ∂(energy)/∂uₑ of one element at its nodal values uₑ, the term an adjoint
+/// contracts with λ in a shape derivative (λᵀ dR/ds): Kₑuₑ − fₑ (linear), or the hyperelastic
+/// internal force plus the boundary terms minus the loads (setup.hyperelastic, as
+/// xfem::solve_nonlinear assembles them).
+Eigen::VectorXd element_residual(const xfem::GridElement& element, const std::vector<xfem::TractionCondition>& tractions,
+                                 const Eigen::VectorXd& ue, const ComplianceSetup& setup);
+
+/// λ = −H⁻¹ ∂J/∂u with the state's kept factorization (K, or the tangent H(u) of a hyperelastic
+/// state); `who` names the caller in the error when ∂J/∂u does not belong to the state.
+Eigen::VectorXd adjoint_of(const ComplianceState& state, const Eigen::VectorXd& dJ_du, const char* who);
+
 /// The entries of a nodal vector v (3 per DOF node) at an element's DOF nodes.
 Eigen::VectorXd element_values(const Eigen::VectorXd& v, const std::vector<int>& nodes);
 

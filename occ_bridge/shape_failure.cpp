@@ -140,9 +140,8 @@ FailureValue failure_value(const ComplianceState& state, const ComplianceSetup& 
 }
 
 Eigen::VectorXd failure_adjoint(const ComplianceState& state, const FailureValue& value) {
-  PARAFAB_VERIFY(value.done && value.gradient_u.size() == state.solution.u.size(),
-                 "failure_adjoint: the value carries no ∂J/∂u of this state");
-  return state.solution.solve_again(-value.gradient_u);
+  PARAFAB_VERIFY(value.done, "failure_adjoint: the value is not computed");
+  return adjoint_of(state, value.gradient_u, "failure_adjoint");
 }
 
 ComplianceDerivative failure_derivative(const ComplianceState& state, const FailureValue& value,
@@ -161,10 +160,9 @@ ComplianceDerivative failure_derivative(const ComplianceState& state, const Fail
       [&](const xfem::GridElement& el, const std::vector<xfem::TractionCondition>& tractions, int base) {
         const std::vector<int>& nodes = state.solution.node[base];
         const Eigen::VectorXd ue = element_values(state.solution.u, nodes), le = element_values(lambda, nodes);
-        const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
         const ElementFailure ef = element_failure(el, ue, D, o, false);
         const double explicit_term = o.normalize ? ef.integral / V - I / (V * V) * ef.volume : ef.integral;
-        return le.dot(es.K * ue - es.f) + explicit_term;
+        return le.dot(element_residual(el, tractions, ue, setup)) + explicit_term;
       });
 }
 

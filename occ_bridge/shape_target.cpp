@@ -8,7 +8,6 @@
 
 #include "common/error.h"
 #include "xfem/area_rules.h"
-#include "xfem/nonlinear_xfem.h"
 
 namespace parafab::occ {
 
@@ -197,9 +196,8 @@ TargetValue target_value(const ComplianceState& state, const ComplianceSetup& se
 }
 
 Eigen::VectorXd target_adjoint(const ComplianceState& state, const TargetValue& value) {
-  PARAFAB_VERIFY(value.done && value.gradient_u.size() == state.solution.u.size(),
-                 "target_adjoint: the value carries no ∂J/∂u of this state");
-  return state.solution.solve_again(-value.gradient_u);
+  PARAFAB_VERIFY(value.done, "target_adjoint: the value is not computed");
+  return adjoint_of(state, value.gradient_u, "target_adjoint");
 }
 
 ComplianceDerivative target_derivative(const ComplianceState& state, const TargetValue& value,
@@ -218,18 +216,7 @@ ComplianceDerivative target_derivative(const ComplianceState& state, const Targe
         const std::vector<int>& nodes = state.solution.node[base];
         const Eigen::VectorXd ue = element_values(state.solution.u, nodes), le = element_values(lambda, nodes);
         const ElementTarget et = element_target(el, ue, o, so, false);
-        // The element's residual: K uₑ − fₑ (linear), or its hyperelastic internal force plus
-        // the boundary terms (quadratic in u, as solve_nonlinear assembles them).
-        Eigen::VectorXd residual;
-        if (setup.hyperelastic) {
-          const xfem::ElementSystem eb =
-              xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver, /*include_bulk=*/false);
-          residual = xfem::element_internal_force(el, *setup.hyperelastic, ue) + eb.K * ue - eb.f;
-        } else {
-          const xfem::ElementSystem es = xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
-          residual = es.K * ue - es.f;
-        }
-        return le.dot(residual) + et.integral / A - I / (A * A) * et.area;
+        return le.dot(element_residual(el, tractions, ue, setup)) + et.integral / A - I / (A * A) * et.area;
       });
 }
 

@@ -24,6 +24,7 @@
 #include "shape_modify.h"
 #include "shape_parameters.h"
 #include "bench_output.h"
+#include "turned_bracket_job.h"
 
 using namespace parafab;
 using namespace parafab::occ;
@@ -40,29 +41,14 @@ int main(int argc, char** argv) {
   const BenchArguments args = bench_arguments(argc, argv);
   const bool quick = args.quick;
   const std::string &out = args.out, &samples = args.samples;
-  const Vec3 centre(30, 20, 25), axis = Vec3(1, 2, 3).normalized();
-  const double degrees = 11;
-  auto turned = [&](const Vec3& X) { return Vec3(centre + Eigen::AngleAxisd(degrees * M_PI / 180, axis) * (X - centre)); };
-  const auto part = rotated_part(*read_part(samples + "/parts/l_bracket.step"), centre, axis, degrees);
-  ComplianceSetup setup;
-  setup.material.youngs_modulus = 210000;
-  setup.material.poisson_ratio = 0.3;
-  xfem::DirichletCondition support;
-  support.face = face_at_point(*part, turned({0, 20, 30}), 1e-6);
-  setup.dirichlet.push_back(support);
-  xfem::TractionCondition load;
-  load.face = face_at_point(*part, turned({60, 20, 4}), 1e-6);
-  const Vec3 force = turned(Vec3(0, 0, -500)) - turned(Vec3::Zero());
-  load.traction = force / face_area(*part, load.face);
-  setup.tractions.push_back(load);
-  setup.forces.push_back(force);
-  setup.grid.grid.cells_longest = 10;
-  setup.grid.grid.block_cells = 4;
-  setup.grid.grid.method = CutMethod::FaceCut;
+  const bench::TurnedBracketJob job = bench::turned_bracket_job(samples);
+  const auto& part = job.part;
+  const ComplianceSetup& setup = job.setup;
+  auto turned = [&](const Vec3& X) { return job.turned(X); };
 
   const FaceModel model = build_face_model(*part);
   ShapeParameterOptions spo;
-  spo.fixed_faces = {support.face, load.face};
+  spo.fixed_faces = {setup.dirichlet[0].face, setup.tractions[0].face};
   const ShapeParameters sp = build_shape_parameters(model, spo);
   const PartInfo info = part_info(*part);
   const double L = (info.bbox_max - info.bbox_min).norm();

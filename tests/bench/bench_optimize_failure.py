@@ -17,13 +17,12 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
-import tempfile
-import time
+import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from pinned_cli import cli  # noqa: E402
 WRENCH = os.path.join(HERE, "..", "..", "samples", "parts", "wrench.step")
-CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
 THESIS_SECONDS_PER_ITERATION = 8.0
 
 ap = argparse.ArgumentParser()
@@ -44,18 +43,6 @@ CELLS = 16
 JOB = dict(ELASTIC, objective={"type": "failure", "yield_stress": 300, "exponent": 8}, grid={"cells": CELLS},
            parameters=PARAMETERS, constraints=[{"type": "volume", "max_ratio": 1.0}],
            max_iterations=2 if args.quick else 6, first_step=0.5, bound=0.4)
-
-
-def cli(argv, job):
-    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
-        json.dump(job, f)
-    try:
-        t = time.time()
-        p = subprocess.run(["taskset", "-c", "0", CLI] + argv[:2] + [f.name] + argv[2:], capture_output=True,
-                           text=True, timeout=3600)
-        return json.loads(p.stdout), time.time() - t
-    finally:
-        os.unlink(f.name)
 
 
 load = os.getloadavg()

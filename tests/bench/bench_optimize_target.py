@@ -20,14 +20,13 @@ import math
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "reference"))
-CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
+sys.path.insert(0, HERE)
+from pinned_cli import cli  # noqa: E402
 L, B, H, E, F = 100.0, 10.0, 10.0, 210000.0, 100.0
 W_TIP = F * L ** 3 / (3 * E * B * H ** 3 / 12)
 BEST_RMS = 0.0566952 * W_TIP  # least-squares line through w(x), stiffness unchanged
@@ -35,18 +34,6 @@ TOP = [50, 5, 10]
 ELASTIC = {"material": {"E": E, "nu": 0.3}, "supports": [{"point": [0, 5, 5]}],
            "loads": [{"point": [L, 5, 5], "force": [0, 0, -F]}]}
 XS = [L * i / 40 for i in range(41)]
-
-
-def cli(argv, job):
-    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
-        json.dump(job, f)
-    try:
-        t = time.time()
-        p = subprocess.run(["taskset", "-c", "0", CLI] + argv[:2] + [f.name] + argv[2:], capture_output=True,
-                           text=True, timeout=3600)
-        return json.loads(p.stdout), time.time() - t
-    finally:
-        os.unlink(f.name)
 
 
 def top_probes(offset, nx, nz):
