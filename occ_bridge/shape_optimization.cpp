@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <set>
+#include <sstream>
 
 #include "common/error.h"
 #include "occt_shape.h"
@@ -208,8 +209,46 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   optimize::ProjectionResult start =
       optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper, {}, popt);
   if (!start.done) {
+    // No p satisfies every constraint (§6.5.1: "the nearest valid model is returned and said
+    // so"): the unit axes and tangencies hold, the user's ties, symmetries and draft give way in
+    // least squares. The optimizer does not run on it.
+    if (sp.first_user_constraint < sp.constraints.size()) {
+      std::vector<bool> soft(sp.constraints.size(), false);
+      for (int i = sp.first_user_constraint; i < sp.constraints.size(); ++i) soft[i] = true;
+      const optimize::ProjectionResult nearest =
+          optimize::project_least_violation(sp.constraints, soft, sp.initial, sp.initial, sp.lower, sp.upper, popt);
+      const ModifyResult mod = nearest.done ? modify_part(part, model, sp, nearest.p) : ModifyResult{};
+      std::vector<ShapeOptimizationResult::Violation> violated;
+      if (nearest.done) {
+        const Eigen::VectorXd c = sp.constraints.values(nearest.p);
+        for (int i = sp.first_user_constraint; i < sp.constraints.size(); ++i)
+          if (std::abs(c[i]) > popt.feasible_violation) violated.push_back({sp.constraints.constraints()[i].name, c[i]});
+      }
+      if (nearest.done && mod.done && !violated.empty()) {
+        std::ostringstream os;
+        os << "no parameters satisfy every constraint; the nearest valid model (tangencies kept, the user constraints in least squares) violates";
+        for (size_t i = 0; i < violated.size(); ++i) os << (i ? "," : "") << " '" << violated[i].name << "' by " << violated[i].value;
+        result.violated_constraints = violated;
+        result.status = "infeasible_constraints";
+        result.message = os.str();
+        result.part = mod.part;
+        result.p_initial = sp.initial;
+        result.p_final = nearest.p;
+        result.design_initial.resize(nd);
+        result.design_final.resize(nd);
+        for (int k = 0; k < nd; ++k) result.design_initial[k] = sp.initial[design[k]], result.design_final[k] = nearest.p[design[k]];
+        result.tangency_residual_max = tangency_residual_max(model, sp, nearest.p);
+        result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        return result;
+      }
+      result.notes.push_back(!nearest.done ? "no nearest valid model either: " + nearest.message
+                             : violated.empty()
+                                 ? "the least-violation model violates no user constraint (the projection failed otherwise)"
+                                 : "no nearest valid model either: its B-rep update failed: " + mod.message);
+    }
     result.status = "invalid_start";
-    result.message = "the part's own parameters do not project onto its constraints: " + start.message;
+    result.message = "the part's own parameters do not project onto its constraints: " + start.message +
+                     (result.notes.empty() ? "" : " (" + result.notes.back() + ")");
     return result;
   }
   Eigen::VectorXd anchor = start.p;  // p̃ outside the design entries

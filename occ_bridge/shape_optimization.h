@@ -180,6 +180,14 @@ struct ShapeOptimizationResult {
   std::vector<AugmentedLagrangianStep> outer;  ///< empty without a volume bound
   bool volume_restored = false;        ///< the final volume-only restoration moved the design
   double final_violation = 0;          ///< relative, ≥ 0
+  /// status "infeasible_constraints": no p satisfies every constraint, and `part` is the nearest
+  /// valid model (tangencies and unit axes hold; the user constraints, least squares, violated
+  /// by these values: name of the row, c_i). No iterations; design_final its design entries.
+  struct Violation {
+    std::string name;
+    double value = 0;
+  };
+  std::vector<Violation> violated_constraints;
   std::vector<std::string> notes;      ///< parameterization notes and first invalid-model message
   double seconds = 0;
 };

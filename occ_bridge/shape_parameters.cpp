@@ -265,6 +265,7 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
       ++sp.relation_equations;
     }
   }
+  sp.first_user_constraint = sp.constraints.size();  // ties, symmetries, draft from here on
   for (const auto& tie : options.ties) {
     PARAFAB_VERIFY(tie.size() >= 2, "a tie needs at least two parameters");
     const int first = parameter_index(sp, tie[0].face, tie[0].parameter);

@@ -78,6 +78,10 @@ struct ShapeParameters {
   std::vector<int> fixed_faces;                  ///< fixed by the options or by a relation with a free-form face
   std::vector<std::string> notes;                ///< what was not expressible and what was done about it
   int relation_equations = 0;                    ///< tangency equations in `constraints`
+  /// Rows of `constraints` from here on are the user's (ties, mirrors, rotations, orthogonal);
+  /// the rows before (unit axes, tangencies) make the B-rep valid. When no p satisfies all,
+  /// the user rows give way (optimize_shape's nearest valid model).
+  int first_user_constraint = 0;
 
   int size() const { return static_cast<int>(initial.size()); }
   const optimize::ParameterBlock* block(int face) const {

@@ -27,6 +27,12 @@ class ProjectionNlp : public Ipopt::TNLP {
     system_.jacobian_structure(jrows_, jcols_);
     system_.hessian_structure(hrows_, hcols_);
   }
+  /// The least-violation problem: rows with soft[i] leave the constraints and enter the
+  /// objective ½Σ c_i², the distance is weighted by `regularization`.
+  void set_least_violation(const std::vector<bool>& soft, double regularization) {
+    soft_ = soft;
+    epsilon_ = regularization;
+  }
 
   Eigen::VectorXd x, lambda;
   Ipopt::SolverReturn status = Ipopt::UNASSIGNED;
@@ -42,6 +48,8 @@ class ProjectionNlp : public Ipopt::TNLP {
   bool get_bounds_info(Index n, Number* xl, Number* xu, Index m, Number* gl, Number* gu) override {
     for (Index i = 0; i < n; ++i) xl[i] = lower_[i], xu[i] = upper_[i];
     for (Index i = 0; i < m; ++i) gl[i] = gu[i] = 0;
+    for (Index i = 0; i < m && !soft_.empty(); ++i)
+      if (soft_[i]) gl[i] = -2e19, gu[i] = 2e19;  // beyond nlp_lower/upper_bound_inf: free rows
     return true;
   }
   bool get_starting_point(Index n, bool init_x, Number* x0, bool, Number*, Number*, Index m, bool init_lambda,
@@ -53,11 +61,16 @@ class ProjectionNlp : public Ipopt::TNLP {
     return true;
   }
   bool eval_f(Index n, const Number* xv, bool, Number& f) override {
-    f = 0.5 * (Eigen::Map<const Eigen::VectorXd>(xv, n) - target_).cwiseAbs2().dot(w_);
+    const Eigen::Map<const Eigen::VectorXd> p(xv, n);
+    f = 0.5 * epsilon_ * (p - target_).cwiseAbs2().dot(w_);
+    if (!soft_.empty()) f += 0.5 * soft_values(p).squaredNorm();
     return true;
   }
   bool eval_grad_f(Index n, const Number* xv, bool, Number* g) override {
-    Eigen::Map<Eigen::VectorXd>(g, n) = (Eigen::Map<const Eigen::VectorXd>(xv, n) - target_).cwiseProduct(w_);
+    const Eigen::Map<const Eigen::VectorXd> p(xv, n);
+    Eigen::Map<Eigen::VectorXd> grad(g, n);
+    grad = epsilon_ * (p - target_).cwiseProduct(w_);
+    if (!soft_.empty()) grad += system_.jacobian(p).transpose() * soft_values(p);  // Σ_soft c_i ∇c_i
     return true;
   }
   bool eval_g(Index n, const Number* xv, bool, Index m, Number* g) override {
@@ -78,9 +91,18 @@ class ProjectionNlp : public Ipopt::TNLP {
       for (size_t k = 0; k < hrows_.size(); ++k) rows[k] = hrows_[k], cols[k] = hcols_[k];
       return true;
     }
-    system_.hessian_values(Eigen::Map<const Eigen::VectorXd>(xv, n), obj_factor,
-                           Eigen::Map<const Eigen::VectorXd>(l, m), values);
-    for (Index i = 0; i < n; ++i) values[i] += obj_factor * (w_[i] - 1.0);  // diagonal: obj_factor·w_i
+    const Eigen::Map<const Eigen::VectorXd> p(xv, n);
+    if (soft_.empty()) {
+      system_.hessian_values(p, obj_factor, Eigen::Map<const Eigen::VectorXd>(l, m), values);
+    } else {
+      // ∇²(½Σ_soft c_i²) = Σ_soft (c_i ∇²c_i + ∇c_i ∇c_iᵀ); soft rows carry no multiplier.
+      Eigen::VectorXd lambda = Eigen::Map<const Eigen::VectorXd>(l, m), outer = Eigen::VectorXd::Zero(m);
+      const Eigen::VectorXd c = system_.values(p);
+      for (Index i = 0; i < m; ++i)
+        if (soft_[i]) lambda[i] = obj_factor * c[i], outer[i] = obj_factor;
+      system_.hessian_values(p, obj_factor, lambda, values, &outer);
+    }
+    for (Index i = 0; i < n; ++i) values[i] += obj_factor * (epsilon_ * w_[i] - 1.0);  // diagonal: obj_factor·ε·w_i
     return true;
   }
   void finalize_solution(Ipopt::SolverReturn s, Index n, const Number* xv, const Number*, const Number*, Index m,
@@ -92,8 +114,17 @@ class ProjectionNlp : public Ipopt::TNLP {
   }
 
  private:
+  Eigen::VectorXd soft_values(const Eigen::VectorXd& p) const {
+    Eigen::VectorXd c = system_.values(p);
+    for (int i = 0; i < c.size(); ++i)
+      if (!soft_[i]) c[i] = 0;
+    return c;
+  }
+
   const ConstraintSystem& system_;
   Eigen::VectorXd target_, start_, lower_, upper_, lambda0_, w_;
+  std::vector<bool> soft_;  ///< empty: the projection; else the least-violation problem
+  double epsilon_ = 1;      ///< weight of the distance ½‖p − p̃‖²_W
   std::vector<int> jrows_, jcols_, hrows_, hcols_;
 };
 
@@ -144,6 +175,21 @@ bool stationary(const ConstraintSystem& system, const Eigen::VectorXd& p, const 
   return residual <= std::max(relative * g.lpNorm<Eigen::Infinity>(), absolute);
 }
 
+Ipopt::SmartPtr<Ipopt::IpoptApplication> ipopt_application(const ProjectionOptions& options, bool warm_start) {
+  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
+  app->Options()->SetIntegerValue("print_level", options.print ? 5 : 0);
+  app->Options()->SetStringValue("sb", "yes");
+  app->Options()->SetNumericValue("tol", options.tolerance);
+  app->Options()->SetNumericValue("constr_viol_tol", options.tolerance);
+  app->Options()->SetIntegerValue("max_iter", options.max_iterations);
+  app->Options()->SetNumericValue("bound_relax_factor", 0.0);
+  app->Options()->SetNumericValue("bound_push", 1e-10);
+  app->Options()->SetNumericValue("bound_frac", 1e-10);
+  if (warm_start) app->Options()->SetStringValue("warm_start_init_point", "yes");
+  PARAFAB_VERIFY(app->Initialize() == Ipopt::Solve_Succeeded, "project: Ipopt failed to initialize");
+  return app;
+}
+
 }  // namespace
 
 ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& target, const Eigen::VectorXd& start,
@@ -161,19 +207,9 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
                  "project: weights need " << n << " entries, got " << options.weights.size());
   PARAFAB_VERIFY(w.minCoeff() > 0, "project: weights must be positive");
   Ipopt::SmartPtr<ProjectionNlp> nlp = new ProjectionNlp(system, target, start, lower, upper, start_multipliers, w);
-  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
-  app->Options()->SetIntegerValue("print_level", options.print ? 5 : 0);
-  app->Options()->SetStringValue("sb", "yes");
-  app->Options()->SetNumericValue("tol", options.tolerance);
-  app->Options()->SetNumericValue("constr_viol_tol", options.tolerance);
-  app->Options()->SetIntegerValue("max_iter", options.max_iterations);
-  app->Options()->SetNumericValue("bound_relax_factor", 0.0);
-  app->Options()->SetNumericValue("bound_push", 1e-10);
-  app->Options()->SetNumericValue("bound_frac", 1e-10);
-  if (start_multipliers.size() == system.size() && system.size() > 0)
-    app->Options()->SetStringValue("warm_start_init_point", "yes");
-  Ipopt::ApplicationReturnStatus status = app->Initialize();
-  PARAFAB_VERIFY(status == Ipopt::Solve_Succeeded, "project: Ipopt failed to initialize");
+  Ipopt::SmartPtr<Ipopt::IpoptApplication> app =
+      ipopt_application(options, start_multipliers.size() == system.size() && system.size() > 0);
+  Ipopt::ApplicationReturnStatus status = Ipopt::Solve_Succeeded;
   Eigen::VectorXd p = start;
   bool stalled_away = false;  // "search direction too small" away from the nearest point, twice
   if (system.size() == 0) {  // nothing to satisfy: the target clamped to the bounds
@@ -234,6 +270,71 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
                       " (the nearest model found is returned, it is not valid)";
   else if (!result.done)
     result.message += " (the constraints hold but the point is not the nearest: not used)";
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+ProjectionResult project_least_violation(const ConstraintSystem& system, const std::vector<bool>& soft,
+                                         const Eigen::VectorXd& target, const Eigen::VectorXd& start,
+                                         const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                                         const ProjectionOptions& options, double regularization) {
+  const int n = system.parameters(), m = system.size();
+  PARAFAB_VERIFY(static_cast<int>(soft.size()) == m, "project_least_violation: soft has " << soft.size()
+                                                         << " entries, the system " << m << " constraints");
+  PARAFAB_VERIFY(target.size() == n && start.size() == n && lower.size() == n && upper.size() == n,
+                 "project_least_violation: target, start and bounds need " << n << " entries");
+  PARAFAB_VERIFY(regularization > 0, "project_least_violation: regularization must be positive, got " << regularization);
+  const auto t0 = std::chrono::steady_clock::now();
+  const Eigen::VectorXd w = options.weights.size() == n ? options.weights : Eigen::VectorXd::Ones(n);
+  auto hard_violation = [&](const Eigen::VectorXd& p) {
+    const Eigen::VectorXd c = system.values(p);
+    double worst = 0;
+    for (int i = 0; i < m; ++i)
+      if (!soft[i]) worst = std::max(worst, std::abs(c[i]));
+    return worst;
+  };
+  ProjectionResult result;
+  // 1. Least violation: min ½Σ_soft c_i² + ε·½‖p − p̃‖²_W s.t. hard rows = 0, bounds.
+  Ipopt::SmartPtr<ProjectionNlp> least =
+      new ProjectionNlp(system, target, start.cwiseMax(lower).cwiseMin(upper), lower, upper, Eigen::VectorXd(), w);
+  least->set_least_violation(soft, regularization);
+  Ipopt::ApplicationReturnStatus status = ipopt_application(options, false)->OptimizeTNLP(least);
+  const bool least_converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
+                               status == Ipopt::Search_Direction_Becomes_Too_Small;
+  result.p = least->x.size() == n ? least->x : start;
+  result.multipliers = Eigen::VectorXd::Zero(m);
+  result.message = std::string("least violation: ") + status_words(status);
+  // 2. The point nearest p̃ with that violation: project() on the system with the soft rows
+  // shifted by their values there, c_i(p) − c_i(p*) = 0, from p̃ itself (step 1 leaves the
+  // directions the violation does not see wherever its tiny ε let them drift).
+  if (least_converged && hard_violation(result.p) <= options.feasible_violation) {
+    const Eigen::VectorXd c_least = system.values(result.p);
+    ConstraintSystem shifted(n);
+    for (int i = 0; i < m; ++i) {
+      ScalarConstraint c = system.constraints()[i];
+      if (soft[i]) {
+        const double value = c_least[i];
+        c.f = [f = c.f, value](const std::vector<Jet>& x) { return f(x) - value; };
+      }
+      shifted.add(std::move(c));
+    }
+    const ProjectionResult nearest =
+        project(shifted, target, target.cwiseMax(lower).cwiseMin(upper), lower, upper, Eigen::VectorXd(), options);
+    if (nearest.done) {
+      result.p = nearest.p;
+      result.multipliers = nearest.multipliers;
+      result.iterations = nearest.iterations;
+    } else {
+      result.message += "; the nearest point with that violation: " + nearest.message + " (the least-violation point kept)";
+    }
+  }
+  const double hard = hard_violation(result.p);
+  result.done = least_converged && hard <= options.feasible_violation;
+  result.status = result.done ? "least_violation" : "failed";
+  result.constraint_violation = m ? system.values(result.p).cwiseAbs().maxCoeff() : 0.0;
+  result.distance = std::sqrt((result.p - target).cwiseAbs2().dot(w));
+  if (!result.done)
+    result.message += "; the constraints that must hold are violated by " + std::to_string(hard);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;
 }

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "optimize/shape_constraints.h"
 
@@ -27,7 +28,7 @@ struct ProjectionOptions {
 
 struct ProjectionResult {
   bool done = false;                     ///< a valid model: max |c_i| <= feasible_violation
-  std::string status;                    ///< "solved", "infeasible" (nearest model returned), "failed"
+  std::string status;                    ///< "solved", "infeasible" (nearest model returned), "failed"; "least_violation" (project_least_violation)
   std::string message;                   ///< Ipopt's status in words
   Eigen::VectorXd p;                     ///< p⊥ (or Ipopt's last iterate when not done)
   Eigen::VectorXd multipliers;           ///< λ of c (Ipopt sign: L = ½‖p − p̃‖² + λᵀc)
@@ -45,6 +46,19 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
                          const Eigen::VectorXd& start, const Eigen::VectorXd& lower,
                          const Eigen::VectorXd& upper, const Eigen::VectorXd& start_multipliers = {},
                          const ProjectionOptions& options = {});
+
+/// When no p satisfies every constraint (project() ends "infeasible"): the nearest valid model.
+/// Rows with soft[i] (user constraints: ties, symmetries, draft) give way; the others (unit axes,
+/// tangencies, what makes the B-rep valid) and the bounds hold. Two Ipopt solves: the least
+/// violation min ½Σ_soft c_i² + ε·½‖p − p̃‖²_W (ε = `regularization`, only to make the point
+/// unique; it biases the violations by about ε times the distance moved), then the point nearest p̃ among those with that violation (the projection with the
+/// soft rows held at their values). done: the hard rows hold to feasible_violation (status
+/// "least_violation"; system.values(p) on the soft rows are what remains violated); else
+/// "failed". Throws parafab::Error for mismatched sizes.
+ProjectionResult project_least_violation(const ConstraintSystem& system, const std::vector<bool>& soft,
+                                         const Eigen::VectorXd& target, const Eigen::VectorXd& start,
+                                         const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                                         const ProjectionOptions& options = {}, double regularization = 1e-12);
 
 struct ProjectionDerivative {
   Eigen::MatrixXd jacobian;  ///< dp⊥/dp̃ (n × n; symmetric when W = I)

@@ -129,18 +129,19 @@ void ConstraintSystem::hessian_structure(std::vector<int>& rows, std::vector<int
 }
 
 void ConstraintSystem::hessian_values(const Eigen::VectorXd& p, double objective_factor,
-                                      const Eigen::VectorXd& lambda, double* values) const {
+                                      const Eigen::VectorXd& lambda, double* values, const Eigen::VectorXd* outer) const {
   build_hessian_index();
   std::fill(values, values + hessian_rows_.size(), 0.0);
   for (int i = 0; i < n_; ++i) values[i] = objective_factor;
   for (int c = 0; c < size(); ++c) {
-    if (lambda[c] == 0) continue;
+    const double s = outer ? (*outer)[c] : 0.0;
+    if (lambda[c] == 0 && s == 0) continue;
     const Jet j = evaluate_jet(constraints_[c], p);
     const int m = static_cast<int>(constraints_[c].vars.size());
     for (int k = 0; k < m; ++k)
       for (int l = 0; l <= k; ++l) {
         // A repeated global pair (k != l mapping to one diagonal) cannot occur: vars are distinct.
-        values[hessian_slot_[c][k * m + l]] += lambda[c] * j.h(k, l);
+        values[hessian_slot_[c][k * m + l]] += lambda[c] * j.h(k, l) + s * j.g[k] * j.g[l];
       }
   }
 }

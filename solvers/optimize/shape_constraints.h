@@ -64,9 +64,10 @@ class ConstraintSystem {
   void jacobian_values(const Eigen::VectorXd& p, double* values) const;
   /// Lower-triangular structure of the Lagrangian Hessian (diagonal first, every p index).
   void hessian_structure(std::vector<int>& rows, std::vector<int>& cols) const;
-  /// objective_factor·I + Σ λ_i ∇²c_i on hessian_structure.
+  /// objective_factor·I + Σ λ_i ∇²c_i on hessian_structure, plus Σ s_i ∇c_i ∇c_iᵀ when
+  /// `outer` (s, one factor per constraint) is given: the Gauss–Newton part of ½Σ s_i c_i².
   void hessian_values(const Eigen::VectorXd& p, double objective_factor, const Eigen::VectorXd& lambda,
-                      double* values) const;
+                      double* values, const Eigen::VectorXd* outer = nullptr) const;
   /// Σ λ_i ∇²c_i, dense.
   Eigen::MatrixXd constraint_hessian(const Eigen::VectorXd& p, const Eigen::VectorXd& lambda) const;
 

@@ -506,6 +506,28 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     };
   const occ::ShapeOptimizationResult r = occ::optimize_shape(*part, o, report);
   if (!r.part) PARAFAB_INPUT_ERROR("optimization of " << part_path << " could not start: " << r.message);
+  if (r.status == "infeasible_constraints") {
+    // Contradictory constraints: the nearest valid model is written beside the original (never
+    // as optimized.step) with a history naming what stays violated, and the run is an input error.
+    std::string written;
+    if (!out_dir.empty()) {
+      std::filesystem::create_directories(out_dir);
+      const std::string step = out_dir + "/nearest_valid.step";
+      PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
+                     "the output " << step << " would overwrite the input part");
+      occ::write_step(*r.part, step);
+      json h{{"status", r.status}, {"message", r.message}, {"nearest_valid_step", step},
+             {"tangency_residual_max", r.tangency_residual_max}, {"violated_constraints", json::array()},
+             {"parameters", json::array()}, {"iterations", json::array()}};
+      for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
+      for (size_t k = 0; k < r.design_names.size(); ++k)
+        h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
+      std::ofstream f(out_dir + "/history.json");
+      PARAFAB_VERIFY(f && (f << h.dump(2) << "\n"), "cannot write " << out_dir << "/history.json");
+      written = "; the nearest valid model is written to " + step + " (not optimized; history.json lists the violations)";
+    }
+    PARAFAB_INPUT_ERROR("the constraints of " << part_path << " cannot all hold: " << r.message << written);
+  }
 
   json h;
   h["status"] = r.status;

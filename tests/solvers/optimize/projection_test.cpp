@@ -260,6 +260,42 @@ TEST(Projection, ReportsInfeasibleConstraintsAndReturnsTheNearestModel) {
   EXPECT_NE(r.message.find("not valid"), std::string::npos) << r.message;
 }
 
+TEST(Projection, LeastViolationKeepsTheTangenciesAndSplitsContradictoryUserConstraints) {
+  // Plane a (z = 8) fixed, plane b (x = 8) with its normal fixed and its offset free; the user
+  // asks for radius 5 and radius 6. The least squares of the two is radius 5.5 (violations
+  // ∓0.5); the nearest such model to p0 keeps plane a, so the axis goes to z = 8 + 5.5 = 13.5,
+  // and against plane b the 0.5 splits evenly between the plane's offset and the axis' x
+  // (min α² + (0.5 − α)²): offset 7.75, axis x 13.25.
+  Fillet f;
+  for (int k = 0; k < 7; ++k) f.lower[k] = f.upper[k] = f.p0[k];
+  const int first_user = f.system.size();
+  add_linear(f.system, {14}, {1.0}, 5.0, "radius 5");
+  add_linear(f.system, {14}, {1.0}, 6.0, "radius 6");
+  ASSERT_FALSE(project(f.system, f.p0, f.p0, f.lower, f.upper).done);
+  std::vector<bool> soft(f.system.size(), false);
+  for (int i = first_user; i < f.system.size(); ++i) soft[i] = true;
+  const ProjectionResult r = project_least_violation(f.system, soft, f.p0, f.p0, f.lower, f.upper);
+  ASSERT_TRUE(r.done) << r.message;
+  EXPECT_EQ(r.status, "least_violation");
+  const Eigen::VectorXd c = f.system.values(r.p);
+  EXPECT_LT(c.head(first_user).cwiseAbs().maxCoeff(), 1e-10);  // tangencies and unit axes hold
+  EXPECT_NEAR(c[first_user], 0.5, 1e-9);
+  EXPECT_NEAR(c[first_user + 1], -0.5, 1e-9);
+  EXPECT_NEAR(r.p[14], 5.5, 1e-9);
+  EXPECT_NEAR(r.p[10], 13.5, 1e-9);  // axis z
+  EXPECT_NEAR(r.p[7], 7.75, 1e-8);   // plane b's offset
+  EXPECT_NEAR(r.p[8], 13.25, 1e-8);  // axis x
+  EXPECT_NEAR(r.p[9], 0, 1e-8);      // axis y stays
+  EXPECT_EQ(r.p.head(4), f.p0.head(4));
+  // The same contradiction among the rows that must hold: no valid model, said so.
+  std::vector<bool> none(f.system.size(), false);
+  const ProjectionResult hard = project_least_violation(f.system, none, f.p0, f.p0, f.lower, f.upper);
+  EXPECT_FALSE(hard.done);
+  EXPECT_EQ(hard.status, "failed");
+  EXPECT_NE(hard.message.find("must hold are violated"), std::string::npos) << hard.message;
+  EXPECT_THROW(project_least_violation(f.system, {true}, f.p0, f.p0, f.lower, f.upper), parafab::Error);
+}
+
 TEST(Projection, DerivativeMatchesFiniteDifferencesOfTheProjection) {
   Fillet f;
   Eigen::VectorXd target = f.p0;

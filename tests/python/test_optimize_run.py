@@ -1,0 +1,126 @@
+"""Run-level behaviour of `parafab optimize` (issue 12) on the L-bracket (base 60 x 40 x 8 mm,
+two through bolt holes r = 4 at (40, 12) and (40, 28), inner fillet r = 5), checked against
+closed forms and OCCT's mass properties of the written STEP:
+- contradictory user constraints: no parameters satisfy them all, so the nearest valid model
+  (tangencies kept, the user constraints in least squares) is written as nearest_valid.step,
+  never as optimized.step, and the run is an input error naming what stays violated;
+- an iterate whose B-rep fails OCCT's checker (a hole grown through the plate's side and into
+  its neighbour) is rejected, the run says so and ends on the last valid model."""
+import hashlib
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"))
+import parafab  # noqa: E402
+from optimize_cli import cli  # noqa: E402
+
+SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
+BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
+THICKNESS = 8.0  # the base plate the bolt holes go through (mm)
+HOLE_1 = {"point": [44, 12, 4], "parameter": "radius"}  # on the hole at (40, 12), r = 4
+HOLE_2 = {"point": [44, 28, 4], "parameter": "radius"}
+FILLET = {"point": [13 - 5 / math.sqrt(2), 20, 13 - 5 / math.sqrt(2)], "parameter": "radius"}  # axis (13, y, 13), r = 5
+
+
+def sha(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def face_index(path, center, radius):
+    """Index of the cylinder with axis through `center` (x, y) and `radius`."""
+    for f in parafab.inspect_part(path)["faces"]:
+        p = f["parameters"]
+        if f["type"] == "cylinder" and abs(p["r"] - radius) < 1e-6 and \
+                math.hypot(p["c"][0] - center[0], p["c"][1] - center[1]) < 1e-6:
+            return f["index"]
+    raise AssertionError("no cylinder r = %g at %s" % (radius, center))
+
+
+class OptimizeRun(unittest.TestCase):
+    def setUp(self):
+        self.dir = tempfile.mkdtemp()
+        self.part = os.path.join(self.dir, "l_bracket.step")
+        shutil.copy(BRACKET, self.part)
+        self.v0 = parafab.integrate_part(self.part, cells=4)["occt"]["volume"]
+
+    def tearDown(self):
+        shutil.rmtree(self.dir)
+
+    def test_contradictory_ties_write_the_nearest_valid_model_and_name_the_violations(self):
+        # Hole 2 (r = 4) and the inner fillet (r = 5) are fixed; hole 1's radius is tied to both.
+        # No model has 4 = r1 = 5; the least squares of r1 − 4 and r1 − 5 is r1 = 4.5, both ties
+        # violated by 0.5, every tangency kept.
+        hole2 = face_index(self.part, (40, 28), 4.0)
+        fillet = [f["index"] for f in parafab.inspect_part(self.part)["faces"]
+                  if f["type"] == "cylinder" and abs(f["parameters"]["r"] - 5) < 1e-6]
+        self.assertEqual(len(fillet), 1)
+        before = sha(self.part)
+        out = os.path.join(self.dir, "out")
+        job = {"objective": {"type": "volume"}, "parameters": [HOLE_1], "fixed_faces": [hole2, fillet[0]],
+               "ties": [[HOLE_1, HOLE_2, FILLET]], "max_iterations": 5}
+        code, err = cli(["optimize", self.part, "-o", out], job)
+        self.assertEqual(code, 2, err)
+        message = err["error"]["message"]
+        self.assertIn("cannot all hold", message)
+        self.assertIn("nearest valid model", message)
+        self.assertEqual(message.count("'tie "), 2, message)
+        self.assertIn("nearest_valid.step", message)
+        self.assertEqual(sha(self.part), before)  # the original is never touched
+        self.assertFalse(os.path.exists(os.path.join(out, "optimized.step")))
+        with open(os.path.join(out, "history.json")) as f:
+            h = json.load(f)
+        self.assertEqual(h["status"], "infeasible_constraints")
+        self.assertEqual(h["iterations"], [])
+        values = sorted(v["value"] for v in h["violated_constraints"])
+        self.assertEqual(len(values), 2)
+        self.assertAlmostEqual(values[0], -0.5, delta=1e-9)
+        self.assertAlmostEqual(values[1], 0.5, delta=1e-9)
+        self.assertAlmostEqual(h["parameters"][0]["final"], 4.5, delta=1e-9)
+        self.assertLess(h["tangency_residual_max"], 1e-9)
+        # Independent: the written STEP as OCCT reads it. Hole 1 at r = 4.5, the rest as read.
+        step = os.path.join(out, "nearest_valid.step")
+        self.assertEqual(face_index(step, (40, 12), 4.5), face_index(self.part, (40, 12), 4.0))
+        self.assertEqual(face_index(step, (40, 28), 4.0), hole2)
+        self.assertEqual(len(parafab.inspect_part(step)["faces"]), len(parafab.inspect_part(self.part)["faces"]))
+        v = parafab.integrate_part(step, cells=4)["occt"]["volume"]
+        self.assertAlmostEqual(v, self.v0 - math.pi * (4.5 ** 2 - 4.0 ** 2) * THICKNESS, delta=1e-9 * self.v0)
+        # The same ties with the fillet free hold (r1 = r2 = rf = 4): an ordinary run, exit 0.
+        job_ok = dict(job, fixed_faces=[hole2], max_iterations=0)
+        code, h = cli(["optimize", self.part, "-o", os.path.join(self.dir, "ok")], job_ok)
+        self.assertEqual(code, 0, h)
+        self.assertAlmostEqual(h["parameters"][0]["final"], 4.0, delta=1e-9)
+
+    def test_an_iterate_failing_the_checker_is_rejected_and_the_last_valid_model_kept(self):
+        # Minimizing the volume grows hole 1 (bounds up to r = 16). At r = 12 it reaches the
+        # plate's side y = 0 and hole 2 (centres 16 apart, 12 + 4): beyond, the faces' edges no
+        # longer exist and the write-back fails. Those steps are rejected, counted and named;
+        # the run ends on a valid part below r = 12.
+        before = sha(self.part)
+        out = os.path.join(self.dir, "grow")
+        job = {"objective": {"type": "volume"}, "parameters": [HOLE_1], "bound": 3.0, "first_step": 12.0,
+               "max_iterations": 20}
+        code, h = cli(["optimize", self.part, "-o", out], job)
+        self.assertEqual(code, 0, h)
+        self.assertEqual(sha(self.part), before)
+        self.assertGreaterEqual(h["invalid_models"], 1, h)
+        self.assertTrue(any("invalid B-rep update" in n for n in h["notes"]), h["notes"])
+        r = h["parameters"][0]["final"]
+        self.assertGreater(r, 10.0)
+        self.assertLess(r, 12.0)
+        # Independent: OCCT's volume of the written STEP against the closed form at that radius,
+        # and the hole as OCCT reads it.
+        step = os.path.join(out, "optimized.step")
+        v = parafab.integrate_part(step, cells=4)["occt"]["volume"]
+        self.assertAlmostEqual(v, self.v0 - math.pi * (r ** 2 - 4.0 ** 2) * THICKNESS, delta=1e-9 * self.v0)
+        self.assertAlmostEqual(h["final_objective"], v, delta=1e-9 * self.v0)
+        face_index(step, (40, 12), r)
+
+
+if __name__ == "__main__":
+    unittest.main()
