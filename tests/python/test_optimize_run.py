@@ -5,7 +5,10 @@ closed forms and OCCT's mass properties of the written STEP:
   (tangencies kept, the user constraints in least squares) is written as nearest_valid.step,
   never as optimized.step, and the run is an input error naming what stays violated;
 - an iterate whose B-rep fails OCCT's checker (a hole grown through the plate's side and into
-  its neighbour) is rejected, the run says so and ends on the last valid model."""
+  its neighbour) is rejected, the run says so and ends on the last valid model;
+- "parameters": "auto" end to end: every parameter of every face that is neither supported nor
+  loaded, tied by the tangencies, under a volume bound; the written part is stiffer by a fresh
+  hex27 simulation on its own grid, and within the bound by OCCT's volume."""
 import hashlib
 import json
 import math
@@ -24,6 +27,9 @@ BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
 THICKNESS = 8.0  # the base plate the bolt holes go through (mm)
 HOLE_1 = {"point": [44, 12, 4], "parameter": "radius"}  # on the hole at (40, 12), r = 4
 HOLE_2 = {"point": [44, 28, 4], "parameter": "radius"}
+ELASTIC = {"material": {"E": 210000, "nu": 0.3}, "element": "hex8",
+           "supports": [{"point": [0, 20, 30]}],             # the upright's outer face x = 0
+           "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}  # the base's end face x = 60
 FILLET = {"point": [13 - 5 / math.sqrt(2), 20, 13 - 5 / math.sqrt(2)], "parameter": "radius"}  # axis (13, y, 13), r = 5
 
 
@@ -120,6 +126,41 @@ class OptimizeRun(unittest.TestCase):
         self.assertAlmostEqual(v, self.v0 - math.pi * (r ** 2 - 4.0 ** 2) * THICKNESS, delta=1e-9 * self.v0)
         self.assertAlmostEqual(h["final_objective"], v, delta=1e-9 * self.v0)
         face_index(step, (40, 12), r)
+
+    def test_auto_parameters_end_to_end(self):
+        faces = parafab.inspect_part(self.part)["faces"]
+        held = {f["index"] for f in faces if f["type"] == "plane" and abs(abs(f["parameters"]["n"][0]) - 1) < 1e-12
+                and f["parameters"]["p"][0] in (0.0, 60.0)}  # the support's and the load's faces
+        self.assertEqual(len(held), 2)
+        free = [f for f in faces if f["index"] not in held]
+        self.assertTrue(all(f["type"] in ("plane", "cylinder") for f in free))
+        out = os.path.join(self.dir, "auto")
+        job = dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8}, parameters="auto",
+                   constraints=[{"type": "volume", "max_ratio": 1.0}], max_iterations=5)
+        code, h = cli(["optimize", self.part, "-o", out], job)
+        self.assertEqual(code, 0, h)
+        # Every block parameter of every free face (plane: n, d; cylinder: c, a, r), none of the held ones.
+        self.assertEqual(len(h["parameters"]), sum(4 if f["type"] == "plane" else 7 for f in free))
+        designed = {int(p["name"].split()[1]) for p in h["parameters"]}
+        self.assertEqual(designed, {f["index"] for f in free})
+        self.assertEqual(h["gradient"], "exact")
+        self.assertLess(h["tangency_residual_max"], 1e-9)  # measured 1.8e-15
+        # Measured: 40.729 -> 40.462 (-0.66 %) on the optimizer's 8-cell grid in 5 iterations.
+        self.assertLess(h["final_objective"], 0.995 * h["initial_objective"])
+        step = os.path.join(out, "optimized.step")
+        v = parafab.integrate_part(step, cells=4)["occt"]["volume"]
+        self.assertLessEqual(v, self.v0 * (1 + 1e-6))
+        self.assertAlmostEqual(v, h["final_volume"], delta=1e-6 * self.v0)
+        # Independent: fresh hex27 simulations of both parts on 16 cells (each on its own grid).
+        # Measured ratio 0.99417. Coarser fresh grids are no judge here: at 12 hex8 cells the
+        # compliance moves by 5.6 % when the part turns by 0.005 degrees (the grid is fitted to
+        # the box, its planes leave the faces), more than the 0.66 % gained.
+        c = []
+        for p in (self.part, step):
+            code, r = cli(["simulate", p], dict(ELASTIC, element="hex27", grid={"cells": 16, "method": "face"}))
+            self.assertEqual(code, 0, r)
+            c.append(-2 * r["potential"])
+        self.assertLess(c[1], 0.996 * c[0])
 
 
 if __name__ == "__main__":
