@@ -240,6 +240,38 @@ class OptimizeFeatureTest(unittest.TestCase):
               file=sys.stderr)
         self.assertLess(c1, c0)
 
+    def test_contradictory_ties_add_nothing_and_name_the_nearest_valid_model(self):
+        """A bolt hole tied to the fixed other hole (r = 4) and the fixed inner fillet (r = 5):
+        no model satisfies both ties. The feature raises naming both ties and where the nearest
+        valid model was written (hole r = 4.5 there, by FreeCAD's reading of that file); nothing
+        is added to the document."""
+        bracket = self.doc.addObject("Part::Feature", "Bracket")
+        bracket.Shape = Part.read(os.path.join(_REPO, "samples", "parts", "l_bracket.step"))
+        self.doc.recompute()
+
+        def face_at(x, y, z):
+            v = Part.Vertex(FreeCAD.Vector(x, y, z))
+            return min((f.distToShape(v)[0], "Face%d" % (i + 1)) for i, f in enumerate(bracket.Shape.Faces))[1]
+        hole1, hole2 = face_at(44, 12, 4), face_at(44, 28, 4)
+        fillet = face_at(13 - 5 / 2 ** 0.5, 20, 13 - 5 / 2 ** 0.5)
+        self.assertAlmostEqual(bracket.Shape.getElement(fillet).Surface.Radius, 5.0, delta=1e-9)
+        before = sorted(o.Name for o in self.doc.Objects)
+        options = dict(optimize_feature.default_options(), objective="mass", parameters=[(hole1, "radius")],
+                       fixed_faces=[hole2, fillet], ties=[[(hole1, "radius"), (hole2, "radius"), (fillet, "radius")]],
+                       max_iterations=3)
+        with self.assertRaises(optimize_feature.OptimizeError) as caught:
+            optimize_feature.optimize_shape(bracket, options, self.tmp)
+        message = str(caught.exception)
+        self.assertIn("cannot all hold", message)
+        self.assertEqual(message.count("'tie "), 2, message)
+        self.assertEqual(sorted(o.Name for o in self.doc.Objects), before)
+        nearest = os.path.join(self.tmp, "nearest_valid.step")
+        self.assertIn(nearest, message)
+        shape = Part.read(nearest)
+        self.assertTrue(shape.isValid())
+        radii = sorted(round(f.Surface.Radius, 9) for f in shape.Faces if type(f.Surface).__name__ == "Cylinder")
+        self.assertEqual(radii, [4.0, 4.5, 5.0, 12.0])
+
     def test_balance_and_compliance_is_a_normalized_sum(self):
         """The panel's "Balance + compliance" objective sends a normalized weighted sum whose
         terms share the global axis mapped into the part's frame; the engine's start value of a
