@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdarg>
+#include <cstdio>
 #include <cmath>
 #include <fstream>
 
@@ -18,6 +20,17 @@ namespace {
 struct SupernodalLlt : Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> {
   const cholmod_factor* factor() const { return m_cholmodFactor; }
 };
+
+// CHOLMOD prints its warnings ("matrix not positive definite", then handled by the LU
+// fallback) through SuiteSparse's printf, i.e. on stdout, where the CLI writes its JSON: they
+// go to stderr instead.
+int print_to_stderr(const char* format, ...) {
+  va_list args;
+  va_start(args, format);
+  const int n = std::vfprintf(stderr, format, args);
+  va_end(args);
+  return n;
+}
 }  // namespace
 
 double SparseCholesky::default_memory_limit_mb() {
@@ -37,7 +50,7 @@ struct SparseCholesky::Impl {
   std::shared_ptr<const Eigen::SparseMatrix<double>> K;  // for iterative refinement (compressed)
 };
 
-SparseCholesky::SparseCholesky() : impl_(std::make_unique<Impl>()) {}
+SparseCholesky::SparseCholesky() : impl_(std::make_unique<Impl>()) { SuiteSparse_config.printf_func = print_to_stderr; }
 SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
