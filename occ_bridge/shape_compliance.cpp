@@ -160,6 +160,23 @@ std::vector<int> match(const GridModel& at, const std::vector<int>& base, const 
   return out;
 }
 
+// Freezes the discrete switches of `m` at `from`: every element of a cut cell with as many
+// elements in both (matched as the derivatives match them) switches on its match's own volume
+// fraction. Cells whose element count changed (a subvolume appears or vanishes) keep their own.
+int freeze_switches(GridModel& m, const GridModel& from) {
+  const auto by_from = elements_by_cell(from), by_m = elements_by_cell(m);
+  int frozen = 0;
+  for (const auto& [cell, B] : by_from) {
+    const auto it = by_m.find(cell);
+    if (it == by_m.end() || it->second.size() != B.size()) continue;
+    if (B.size() == 1 && !from.elements[B[0]].subvolume && !m.elements[it->second[0]].subvolume) continue;  // uncut
+    const std::vector<int> matched = match(from, B, m, it->second);
+    for (size_t i = 0; i < B.size(); ++i, ++frozen)
+      m.elements[matched[i]].switch_fraction = xfem::volume_fraction(from.elements[B[i]]);
+  }
+  return frozen;
+}
+
 }  // namespace
 
 ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const ComplianceSetup& setup) {
@@ -181,12 +198,17 @@ ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const Co
 }
 
 ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
-                              const ComplianceSetup& setup) {
+                              const ComplianceSetup& setup, const ComplianceState* switches_from) {
   PARAFAB_VERIFY(base.done && base.model, "compliance_at: the base state is not solved");
+  PARAFAB_VERIFY(!switches_from || switches_from->model, "compliance_at: the state to freeze the switches at has no model");
   RecutReport r;
   GridModel m = rebuild_grid_model(*part, *base.model, *base.part, setup.grid, &r);
+  const int frozen = switches_from && m.done ? freeze_switches(m, *switches_from->model) : 0;
   ComplianceState s = solve_on(std::move(part), std::move(m), setup);
   s.recut_full = r.full;
+  s.frozen_elements = frozen;
+  if (frozen > 0 && s.model)
+    s.switches_own = xfem::switches_match_own_fractions(s.model->elements, s.model->adjacent, setup.solver);
   return s;
 }
 
@@ -266,6 +288,11 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
     }
     if (B.empty()) continue;
     ++d.cells_changed;
+    // The perturbed elements switch (incompatible modes) as their element of `at` does.
+    for (int side = 0; side < 2; ++side)
+      if (ok[side])
+        for (size_t i = 0; i < B.size(); ++i)
+          models[side].elements[matched[side][i]].switch_fraction = xfem::switching_fraction(at.model->elements[B[i]]);
     for (size_t i = 0; i < B.size(); ++i) {
       if (ok[0] && ok[1]) {
         items.push_back({0, matched[0][i], B[i], 1 / (2 * h)});

@@ -52,15 +52,24 @@ struct ComplianceState {
   xfem::LinearXfemResult solution;
   double compliance = 0;
   bool recut_full = false;    ///< the re-cut fell back to a whole cut (same grid planes)
+  /// compliance_at with `switches_from`: elements whose discrete switches were frozen there, and
+  /// whether the switches came out as the elements' own fractions would set them (false: this
+  /// model's objective differs from its own-switch value; the optimizer then re-evaluates it).
+  int frozen_elements = 0;
+  bool switches_own = true;
 };
 
 /// The start: cuts `part` on a new grid (the grid of the whole optimization) and solves.
 ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const ComplianceSetup& setup);
 
 /// A modified part on the grid of `base` (re-cut from the base part: the objective depends on
-/// the part only, whatever the previous iterate was).
+/// the part only, whatever the previous iterate was). With `switches_from` (another state on
+/// the same grid, e.g. a line search's start), the discrete switches (small-cell aggregation
+/// and its hosts, incompatible modes) of every cut cell that has as many elements in both are
+/// decided on that state's volume fractions (xfem::GridElement::switch_fraction): along a line
+/// search the objective then only jumps where a cell gains or loses a subvolume.
 ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
-                              const ComplianceSetup& setup);
+                              const ComplianceSetup& setup, const ComplianceState* switches_from = nullptr);
 
 struct ComplianceDerivative {
   bool done = false;

@@ -110,6 +110,7 @@ struct Evaluation {
   double target_rms = 0, target_max = 0;  ///< "target": √J and max |d| of the matched face
   Eigen::VectorXd p, lambda, volume_gradient;  ///< volume_gradient: dV/dx (design entries)
   std::shared_ptr<const PartShape> part;
+  std::shared_ptr<const ComplianceState> state;  ///< the elasticity solve (objectives that solve)
 };
 
 }  // namespace
@@ -289,6 +290,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   }
   // Compliance: the grid of the whole run is cut from the first evaluated model (the start).
   std::shared_ptr<ComplianceState> base_state;
+  // The discrete switches of a line search's trial models are those of its start (the last
+  // accepted iterate, evaluated with its own switches): see ShapeOptimizationOptions::freeze_switches.
+  std::shared_ptr<const ComplianceState> line_start;
   const auto is_direction = [&](int i) {
     const std::string& n = sp.names[i];
     return n.find(" normal ") != std::string::npos || n.find("half-angle") != std::string::npos ||
@@ -354,7 +358,8 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         if (!state->done) PARAFAB_INPUT_ERROR("compliance at the start: " << state->message);
         base_state = state;
       } else {
-        state = std::make_shared<ComplianceState>(compliance_at(mod.part, *base_state, *options.compliance));
+        state = std::make_shared<ComplianceState>(compliance_at(mod.part, *base_state, *options.compliance,
+                                                                options.freeze_switches ? line_start.get() : nullptr));
         if (!state->done) {
           if (result.invalid_models++ == 0) result.notes.push_back("first failed compliance evaluation: " + state->message);
           return false;
@@ -385,6 +390,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         last.target_max = tv.max_distance;
         target_adjoint_u = target_adjoint(*state, tv);
       }
+      last.state = state;
       normalize_terms(md.moments, state->compliance, fv.objective, tv.objective);
       const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure"), tw = term_weight(spec, "target");
       f = cw * state->compliance + fw * fv.objective + tw * tv.objective + objective_from_moments(spec, md.moments, &dfdm);
@@ -484,10 +490,27 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     return true;
   };
 
+  // At an accepted point whose frozen switches differ from its own: evaluated again with its
+  // own, so that the next line search starts from the model's own objective and gradient.
+  auto refresh = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
+    if (!last.state || last.state->switches_own) return false;
+    const Evaluation frozen = last;
+    const std::shared_ptr<const ComplianceState> keep = line_start;
+    line_start.reset();
+    const bool ok = evaluate(x, F, grad);
+    line_start = keep;
+    if (!ok) {
+      last = frozen;
+      return false;
+    }
+    ++result.switch_refreshes;
+    return true;
+  };
   Evaluation accepted;
   int outer_index = 0, iteration_count = 0;
   auto on_iterate = [&](const optimize::LbfgsIterate& it) {
     accepted = last;
+    line_start = accepted.state;
     // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
     if (it.iteration == 0 && outer_index > 0) return true;
     if (iteration_count == 0) {
@@ -513,7 +536,8 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     double previous_g = 1e300;
     for (outer_index = 0; outer_index < (bounded ? options.max_outer : 1); ++outer_index) {
       const int evaluations_before = result.evaluations;
-      run = optimize::minimize_lbfgs(evaluate, x, lower, upper, options.lbfgs, on_iterate);
+      run = optimize::minimize_lbfgs(evaluate, x, lower, upper, options.lbfgs, on_iterate,
+                                     options.freeze_switches ? optimize::ObjectiveFunction(refresh) : optimize::ObjectiveFunction());
       x = run.x;
       if (!bounded) break;
       AugmentedLagrangianStep step;
@@ -571,7 +595,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     }
     volume_only = false;
     if (signed_violation(good.volume, V0) <= options.volume_tolerance) {
-      // The objective at the restored design (a full evaluation, compliance included).
+      // The objective at the restored design (a full evaluation, compliance included, with its
+      // own discrete switches).
+      line_start.reset();
       if (evaluate(xr, F, gr)) {
         result.volume_restored = true;
         last.violation = std::max(0.0, signed_violation(last.volume, V0));

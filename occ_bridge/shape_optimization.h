@@ -107,9 +107,16 @@ struct ShapeOptimizationOptions {
   /// The elasticity job of objective "compliance" (required for it, ignored otherwise). The grid
   /// is cut once from the first evaluated model and every later model is re-cut on it (fixed
   /// grid planes: the objective is continuous along line searches except where a cell changes
-  /// its number of subvolumes, or a small-cell aggregation / incompatible-mode threshold is
-  /// crossed; those discrete switches are frozen at the current model in the gradient).
+  /// its number of subvolumes; the small-cell aggregation and incompatible-mode thresholds are
+  /// frozen at the current model in the gradient and, with freeze_switches, during line searches).
   std::shared_ptr<const ComplianceSetup> compliance;
+  /// Discrete switches (small-cell aggregation and its hosts, incompatible modes) frozen during
+  /// each line search: a trial model's cut cells switch as those of the search's start (the last
+  /// accepted iterate), so the objective along the search is continuous except where a cell
+  /// gains or loses a subvolume; an accepted point whose own switches differ is evaluated again
+  /// with them (ShapeOptimizationResult::switch_refreshes) before the next search. Off: every
+  /// model switches on its own volume fractions (the behaviour before 2026-11-29).
+  bool freeze_switches = true;
   /// Route of the compliance gradient. Exact (default): the rule derivatives of Eq. 6.30–6.31
   /// (compliance_gradient: one solve, boundary integrals, every design entry at once), except
   /// for design entries that move a face sharing an edge with a support or load, which take the
@@ -171,6 +178,8 @@ struct ShapeOptimizationResult {
   /// Compliance / failure design-entry derivatives computed by each route, summed over evaluations.
   int exact_derivatives = 0, semi_analytic_derivatives = 0;
   int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
+  /// Accepted iterates evaluated again with their own discrete switches (freeze_switches).
+  int switch_refreshes = 0;
   int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
   /// "failure": max σ_vm over the material quadrature points at the start and at the end.
   double initial_max_von_mises = 0, final_max_von_mises = 0;

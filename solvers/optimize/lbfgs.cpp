@@ -11,7 +11,7 @@ namespace parafab::optimize {
 
 LbfgsResult minimize_lbfgs(const ObjectiveFunction& f, const Eigen::VectorXd& x0, const Eigen::VectorXd& lower,
                            const Eigen::VectorXd& upper, const LbfgsOptions& options,
-                           const IterateCallback& callback) {
+                           const IterateCallback& callback, const ObjectiveFunction& refresh) {
   const int n = static_cast<int>(x0.size());
   PARAFAB_VERIFY(lower.size() == n && upper.size() == n,
                  "L-BFGS: bounds need " << n << " entries, got " << lower.size() << " and " << upper.size());
@@ -77,8 +77,13 @@ LbfgsResult minimize_lbfgs(const ObjectiveFunction& f, const Eigen::VectorXd& x0
         r.message = "no sufficient decrease along the search direction";
         break;
       }
-      const Eigen::VectorXd s = xn - x, y = gn - g;
       const double improvement = fx - fn;
+      if (refresh) {
+        double fr = 0;
+        Eigen::VectorXd gr(n);
+        if (refresh(xn, fr, gr) && std::isfinite(fr)) fn = fr, gn = gr, ++r.evaluations;
+      }
+      const Eigen::VectorXd s = xn - x, y = gn - g;
       x = xn, g = gn, fx = fn;
       if (s.dot(y) > 1e-12 * s.norm() * y.norm()) {
         S.push_back(s), Y.push_back(y);

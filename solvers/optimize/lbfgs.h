@@ -45,9 +45,12 @@ using ObjectiveFunction = std::function<bool(const Eigen::VectorXd& x, double& f
 using IterateCallback = std::function<bool(const LbfgsIterate&)>;
 
 /// Minimizes f over lower <= x <= upper from x0 (clamped into the box). Throws parafab::Error
-/// for mismatched sizes or an unevaluable start.
+/// for mismatched sizes or an unevaluable start. `refresh`, if given, is called at every
+/// accepted point before `callback`: returning true it replaces f and its gradient there (an
+/// objective whose discrete switches were frozen during the line search, re-decided at the
+/// new point); the step's improvement is still that of the line search's value.
 LbfgsResult minimize_lbfgs(const ObjectiveFunction& f, const Eigen::VectorXd& x0, const Eigen::VectorXd& lower,
                            const Eigen::VectorXd& upper, const LbfgsOptions& options = {},
-                           const IterateCallback& callback = {});
+                           const IterateCallback& callback = {}, const ObjectiveFunction& refresh = {});
 
 }  // namespace parafab::optimize

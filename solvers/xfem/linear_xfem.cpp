@@ -132,7 +132,8 @@ struct IncompatibleModes {
 IncompatibleModes incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D, double min_fraction) {
   IncompatibleModes im;
   for (double w : el.rule.weights) im.volume += w;
-  if (!(im.volume > min_fraction * el.box.volume())) return im;  // tiny pieces: K_aa near singular
+  if (!(switching_fraction(el) > min_fraction)) return im;  // tiny pieces: K_aa near singular
+  if (!(im.volume > 0)) return im;
   const size_t nq = el.rule.points.size();
   std::vector<Vec3> grad(nq);
   for (size_t q = 0; q < nq; ++q) {
@@ -834,6 +835,7 @@ ElementKey element_key(const GridElement& el, const std::vector<DirichletConditi
   for (const Vec3& p : el.rule.points) h.add(p);
   for (double w : el.rule.weights) h.add(w);
   h.add(static_cast<uint64_t>(el.subvolume != nullptr));
+  h.add(el.switch_fraction);  // frozen switches may change the element matrix (incompatible modes)
   if (el.subvolume)
     for (const CutPatch& patch : el.subvolume->patches) {
       if (patch.source_face < 0) continue;
@@ -1128,29 +1130,35 @@ Eigen::VectorXd LinearXfemResult::solve_again(const Eigen::VectorXd& f) const {
   return aggregation * factorization->solve(aggregation.transpose() * f, refine);
 }
 
-Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
-                                            const std::vector<std::array<int, 2>>& adjacent,
-                                            const std::vector<std::vector<int>>& node, int count,
-                                            double fraction, int* aggregated, std::vector<int>* reduced_out) {
-  // Small elements: volume fraction below `fraction`. A DOF node all of whose elements are
-  // small is "floating" (barely stiff): it follows the field of a normal neighbour.
+namespace {
+
+// The discrete decisions of aggregation: small elements (fraction below `fraction`) and the
+// host of each (its largest normal face neighbour, -1 if none), from the switching fractions
+// (switches = true) or the rules' own (false).
+struct AggregationSwitches {
+  std::vector<char> small;
+  std::vector<int> host;
+};
+
+AggregationSwitches aggregation_switches(const std::vector<GridElement>& elements,
+                                         const std::vector<std::array<int, 2>>& adjacent, double fraction, bool chain,
+                                         bool switches) {
   const int n = static_cast<int>(elements.size());
-  std::vector<char> small(n, 0);
+  AggregationSwitches sw;
+  sw.small.assign(n, 0);
+  std::vector<double> phi(n);
   for (int e = 0; e < n; ++e) {
-    double v = 0;
-    for (double w : elements[e].rule.weights) v += w;
-    small[e] = fraction > 0 && v < fraction * elements[e].box.volume();
+    phi[e] = switches ? switching_fraction(elements[e]) : volume_fraction(elements[e]);
+    sw.small[e] = fraction > 0 && phi[e] < fraction;
   }
-  std::vector<char> supported(count, 0);
-  for (int e = 0; e < n; ++e)
-    if (!small[e]) for (int k : node[e]) supported[k] = 1;
-  std::vector<int> host(n, -1);  // the largest normal neighbour of every small element
+  const std::vector<char>& small = sw.small;
+  std::vector<int>& host = sw.host;  // the largest normal neighbour of every small element
+  host.assign(n, -1);
   std::vector<double> host_volume(n, 0);
   for (const auto& [a, b] : adjacent)
     for (const auto& [s, o] : {std::pair<int, int>{a, b}, std::pair<int, int>{b, a}}) {
       if (!small[s] || small[o]) continue;
-      double v = 0;
-      for (double w : elements[o].rule.weights) v += w;
+      const double v = phi[o] * elements[o].box.volume();
       if (v > host_volume[s]) host_volume[s] = v, host[s] = o;
     }
   // Small elements whose face neighbours are all small (corner slivers where two cut faces meet
@@ -1159,7 +1167,6 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
   // made the Newton solve of the turned bracket stall at a residual of 3e-6 (without it: 1e-8
   // in 6 iterations, XfemParallel.NewtonIdenticalForOneAndTwoThreads), so hex8 keeps the
   // slivers' own DOFs as before.
-  const bool chain = !node.empty() && node.front().size() == 27;
   for (bool changed = chain; changed;) {
     changed = false;
     std::vector<int> next = host;
@@ -1169,6 +1176,48 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
           next[s] = host[o], host_volume[s] = host_volume[o], changed = true;
     host = std::move(next);
   }
+  return sw;
+}
+
+}  // namespace
+
+double volume_fraction(const GridElement& element) {
+  double v = 0;
+  for (double w : element.rule.weights) v += w;
+  return v / element.box.volume();
+}
+
+bool switches_match_own_fractions(const std::vector<GridElement>& elements,
+                                  const std::vector<std::array<int, 2>>& adjacent, const LinearXfemOptions& options) {
+  bool any = false;
+  for (const GridElement& el : elements) any = any || el.switch_fraction >= 0;
+  if (!any) return true;
+  const bool chain = options.element == ElementType::Hex27;
+  const AggregationSwitches a = aggregation_switches(elements, adjacent, options.aggregation_fraction, chain, true);
+  const AggregationSwitches b = aggregation_switches(elements, adjacent, options.aggregation_fraction, chain, false);
+  if (a.small != b.small || a.host != b.host) return false;
+  if (options.element == ElementType::Hex8 && options.incompatible_modes)
+    for (const GridElement& el : elements)
+      if ((switching_fraction(el) > options.incompatible_min_fraction) !=
+          (volume_fraction(el) > options.incompatible_min_fraction))
+        return false;
+  return true;
+}
+
+Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elements,
+                                            const std::vector<std::array<int, 2>>& adjacent,
+                                            const std::vector<std::vector<int>>& node, int count,
+                                            double fraction, int* aggregated, std::vector<int>* reduced_out) {
+  // Small elements: volume fraction below `fraction`. A DOF node all of whose elements are
+  // small is "floating" (barely stiff): it follows the field of a normal neighbour.
+  const int n = static_cast<int>(elements.size());
+  const bool chain = !node.empty() && node.front().size() == 27;
+  const AggregationSwitches sw = aggregation_switches(elements, adjacent, fraction, chain, true);
+  const std::vector<char>& small = sw.small;
+  const std::vector<int>& host = sw.host;
+  std::vector<char> supported(count, 0);
+  for (int e = 0; e < n; ++e)
+    if (!small[e]) for (int k : node[e]) supported[k] = 1;
   std::vector<int> reduced(count, -1);
   int m = 0;
   std::vector<std::array<int, 2>> source(count, {-1, -1});  // (small element, its node) of a floating DOF node

@@ -27,7 +27,19 @@ struct GridElement {
   Box3 box;                          ///< the cell's box (trilinear shape functions live here)
   QuadratureRule3 rule;              ///< volume rule over the element's part of the solid
   const Subvolume* subvolume = nullptr;  ///< boundary patches (null for interior cells)
+  /// When ≥ 0: the volume fraction the discrete switches use (aggregation: small element and
+  /// host choice; incompatible modes on or off) instead of the rule's own. Set from another
+  /// model to freeze those switches, e.g. during an optimizer's line search
+  /// (occ::compliance_at). −1: the rule's own (volume_fraction).
+  double switch_fraction = -1;
 };
+
+/// Σ rule weights / box volume.
+double volume_fraction(const GridElement& element);
+/// The fraction the discrete switches see: switch_fraction when set, else volume_fraction.
+inline double switching_fraction(const GridElement& element) {
+  return element.switch_fraction >= 0 ? element.switch_fraction : volume_fraction(element);
+}
 
 struct ElasticMaterial {
   double youngs_modulus = 1;  ///< E
@@ -328,6 +340,12 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
                                             const std::vector<std::vector<int>>& node, int count,
                                             double fraction, int* aggregated = nullptr,
                                             std::vector<int>* reduced = nullptr);
+
+/// Whether the discrete switches (aggregation's small elements and hosts, incompatible modes)
+/// come out the same from every element's switch_fraction as from its own volume fraction
+/// (true when no switch_fraction is set).
+bool switches_match_own_fractions(const std::vector<GridElement>& elements,
+                                  const std::vector<std::array<int, 2>>& adjacent, const LinearXfemOptions& options);
 
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<std::array<int, 2>>& adjacent,

@@ -8,12 +8,13 @@ closed forms and OCCT's mass properties of the written STEP:
   its neighbour) is rejected, the run says so and ends on the last valid model;
 - "parameters": "auto" end to end: every parameter of every face that is neither supported nor
   loaded, tied by the tangencies, under a volume bound; the written part is stiffer by a fresh
-  hex27 simulation on its own grid, and within the bound by OCCT's volume."""
+  hex27 simulation on its own grid and by Gmsh + CalculiX, and within the bound by OCCT's volume."""
 import hashlib
 import json
 import math
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -24,6 +25,7 @@ from optimize_cli import cli  # noqa: E402
 
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
+CALCULIX = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "reference", "calculix_reference.py")
 THICKNESS = 8.0  # the base plate the bolt holes go through (mm)
 HOLE_1 = {"point": [44, 12, 4], "parameter": "radius"}  # on the hole at (40, 12), r = 4
 HOLE_2 = {"point": [44, 28, 4], "parameter": "radius"}
@@ -136,31 +138,50 @@ class OptimizeRun(unittest.TestCase):
         self.assertTrue(all(f["type"] in ("plane", "cylinder") for f in free))
         out = os.path.join(self.dir, "auto")
         job = dict(ELASTIC, objective={"type": "compliance"}, grid={"cells": 8}, parameters="auto",
-                   constraints=[{"type": "volume", "max_ratio": 1.0}], max_iterations=5)
+                   constraints=[{"type": "volume", "max_ratio": 1.0}], max_iterations=10)
+        # Along the way CHOLMOD warns twice ("matrix not positive definite", handled by the LU
+        # fallback); the JSON on stdout must stay clean (those warnings went to stdout before).
         code, h = cli(["optimize", self.part, "-o", out], job)
         self.assertEqual(code, 0, h)
+        # Discrete switches frozen during line searches; accepted points whose own switches
+        # differ are evaluated again (measured 4 of 10).
+        self.assertTrue(h["freeze_switches"])
+        self.assertGreaterEqual(h["switch_refreshes"], 1)
         # Every block parameter of every free face (plane: n, d; cylinder: c, a, r), none of the held ones.
         self.assertEqual(len(h["parameters"]), sum(4 if f["type"] == "plane" else 7 for f in free))
         designed = {int(p["name"].split()[1]) for p in h["parameters"]}
         self.assertEqual(designed, {f["index"] for f in free})
         self.assertEqual(h["gradient"], "exact")
         self.assertLess(h["tangency_residual_max"], 1e-9)  # measured 1.8e-15
-        # Measured: 40.729 -> 40.462 (-0.66 %) on the optimizer's 8-cell grid in 5 iterations.
-        self.assertLess(h["final_objective"], 0.995 * h["initial_objective"])
+        # Measured: 40.729 -> 20.993 (-48 %) on the optimizer's 8-cell grid in 10 iterations, V
+        # 0.931 V0: the upright's inner face tilts 10° (thicker at the root), the sides flare.
+        self.assertLess(h["final_objective"], 0.55 * h["initial_objective"])
         step = os.path.join(out, "optimized.step")
         v = parafab.integrate_part(step, cells=4)["occt"]["volume"]
         self.assertLessEqual(v, self.v0 * (1 + 1e-6))
         self.assertAlmostEqual(v, h["final_volume"], delta=1e-6 * self.v0)
         # Independent: fresh hex27 simulations of both parts on 16 cells (each on its own grid).
-        # Measured ratio 0.99417. Coarser fresh grids are no judge here: at 12 hex8 cells the
-        # compliance moves by 5.6 % when the part turns by 0.005 degrees (the grid is fitted to
-        # the box, its planes leave the faces), more than the 0.66 % gained.
+        # Measured 54.669 -> 29.435 (ratio 0.5384).
         c = []
         for p in (self.part, step):
             code, r = cli(["simulate", p], dict(ELASTIC, element="hex27", grid={"cells": 16, "method": "face"}))
             self.assertEqual(code, 0, r)
             c.append(-2 * r["potential"])
-        self.assertLess(c[1], 0.996 * c[0])
+        self.assertLess(c[1], 0.56 * c[0])
+        # Independent: Gmsh + CalculiX tet10 (h = 2 mm) of both STEP files. Measured 54.826 ->
+        # 29.715 (ratio 0.5420, 0.7 % from the fresh hex27 ratio).
+        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+            json.dump({k: ELASTIC[k] for k in ("material", "supports", "loads")}, f)
+        try:
+            ccx = []
+            for p in (self.part, step):
+                run = subprocess.run(["/usr/bin/python3", CALCULIX, f.name, "--parafab", p, "--size", "2", "--quiet"],
+                                     capture_output=True, text=True, check=True, timeout=600)
+                ccx.append(json.loads(run.stdout)["compliance"])
+        finally:
+            os.unlink(f.name)
+        self.assertLess(ccx[1], 0.56 * ccx[0])
+        self.assertAlmostEqual(ccx[1] / ccx[0], c[1] / c[0], delta=0.01)
 
 
 if __name__ == "__main__":

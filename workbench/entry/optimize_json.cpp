@@ -477,6 +477,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_INPUT_ERROR("max_iterations must be a non-negative integer");
     o.lbfgs.max_iterations = job["max_iterations"].get<int>();
   }
+  if (job.contains("freeze_switches")) {
+    if (!job["freeze_switches"].is_boolean())
+      PARAFAB_INPUT_ERROR("freeze_switches must be true or false, got " << job["freeze_switches"].dump());
+    o.freeze_switches = job["freeze_switches"].get<bool>();
+  }
   if (job.contains("relative_improvement"))
     o.lbfgs.relative_improvement = number(job["relative_improvement"], "relative_improvement");
   if (job.contains("first_step")) o.lbfgs.first_step = number(job["first_step"], "first_step");
@@ -560,6 +565,10 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (o.compliance)  // the clamp of the objectives that solve (entries near it differenced when local)
     h["nitsche_penalty"] =
         o.compliance->solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed";
+  if (o.compliance) {  // discrete switches frozen during line searches, accepted points re-evaluated
+    h["freeze_switches"] = o.freeze_switches;
+    h["switch_refreshes"] = r.switch_refreshes;
+  }
   if (r.semi_analytic_derivatives > 0) {
     h["topology_switches"] = r.topology_switches;
     h["gradient_cells"] = r.gradient_cells;
