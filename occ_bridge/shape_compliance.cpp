@@ -160,10 +160,13 @@ std::vector<int> match(const GridModel& at, const std::vector<int>& base, const 
   return out;
 }
 
-// Freezes the discrete switches of `m` at `from`: every element of a cut cell with as many
-// elements in both (matched as the derivatives match them) switches on its match's own volume
-// fraction. Cells whose element count changed (a subvolume appears or vanishes) keep their own.
-int freeze_switches(GridModel& m, const GridModel& from) {
+// Freezes the discrete switches of `m` at `from`: every cut element of `m` in a cell with as
+// many elements in both (matched as the derivatives match them) switches on its match's
+// switching fraction. Left to their own: cells whose element count changed (a subvolume appears
+// or vanishes), elements uncut in `m` (the uncut reference element), and elements whose own
+// fraction is below the incompatible-mode floor or more than half the aggregation threshold
+// away from the match's (a big trial step: a sliver must not be treated as a normal element).
+int freeze_switches(GridModel& m, const GridModel& from, const xfem::LinearXfemOptions& options) {
   const auto by_from = elements_by_cell(from), by_m = elements_by_cell(m);
   int frozen = 0;
   for (const auto& [cell, B] : by_from) {
@@ -171,8 +174,15 @@ int freeze_switches(GridModel& m, const GridModel& from) {
     if (it == by_m.end() || it->second.size() != B.size()) continue;
     if (B.size() == 1 && !from.elements[B[0]].subvolume && !m.elements[it->second[0]].subvolume) continue;  // uncut
     const std::vector<int> matched = match(from, B, m, it->second);
-    for (size_t i = 0; i < B.size(); ++i, ++frozen)
-      m.elements[matched[i]].switch_fraction = xfem::volume_fraction(from.elements[B[i]]);
+    for (size_t i = 0; i < B.size(); ++i) {
+      xfem::GridElement& el = m.elements[matched[i]];
+      const double own = xfem::volume_fraction(el), other = xfem::switching_fraction(from.elements[B[i]]);
+      if (!el.subvolume || own < options.incompatible_min_fraction ||
+          std::abs(own - other) > 0.5 * options.aggregation_fraction)
+        continue;
+      el.switch_fraction = other;
+      ++frozen;
+    }
   }
   return frozen;
 }
@@ -198,12 +208,11 @@ ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const Co
 }
 
 ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
-                              const ComplianceSetup& setup, const ComplianceState* switches_from) {
+                              const ComplianceSetup& setup, const GridModel* switches_from) {
   PARAFAB_VERIFY(base.done && base.model, "compliance_at: the base state is not solved");
-  PARAFAB_VERIFY(!switches_from || switches_from->model, "compliance_at: the state to freeze the switches at has no model");
   RecutReport r;
   GridModel m = rebuild_grid_model(*part, *base.model, *base.part, setup.grid, &r);
-  const int frozen = switches_from && m.done ? freeze_switches(m, *switches_from->model) : 0;
+  const int frozen = switches_from && m.done ? freeze_switches(m, *switches_from, setup.solver) : 0;
   ComplianceState s = solve_on(std::move(part), std::move(m), setup);
   s.recut_full = r.full;
   s.frozen_elements = frozen;

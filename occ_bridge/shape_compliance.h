@@ -63,13 +63,15 @@ struct ComplianceState {
 ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const ComplianceSetup& setup);
 
 /// A modified part on the grid of `base` (re-cut from the base part: the objective depends on
-/// the part only, whatever the previous iterate was). With `switches_from` (another state on
+/// the part only, whatever the previous iterate was). With `switches_from` (another model on
 /// the same grid, e.g. a line search's start), the discrete switches (small-cell aggregation
-/// and its hosts, incompatible modes) of every cut cell that has as many elements in both are
-/// decided on that state's volume fractions (xfem::GridElement::switch_fraction): along a line
-/// search the objective then only jumps where a cell gains or loses a subvolume.
+/// and its hosts, incompatible modes) of every cut element in a cell that has as many elements
+/// in both are decided on that model's fractions (xfem::GridElement::switch_fraction): along a
+/// line search the objective then only jumps where a cell gains or loses a subvolume. Not frozen
+/// (big trial steps): an element whose own fraction is below the incompatible-mode floor or
+/// differs from its match's by more than half the aggregation threshold.
 ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
-                              const ComplianceSetup& setup, const ComplianceState* switches_from = nullptr);
+                              const ComplianceSetup& setup, const GridModel* switches_from = nullptr);
 
 struct ComplianceDerivative {
   bool done = false;

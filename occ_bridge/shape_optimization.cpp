@@ -110,7 +110,11 @@ struct Evaluation {
   double target_rms = 0, target_max = 0;  ///< "target": √J and max |d| of the matched face
   Eigen::VectorXd p, lambda, volume_gradient;  ///< volume_gradient: dV/dx (design entries)
   std::shared_ptr<const PartShape> part;
-  std::shared_ptr<const ComplianceState> state;  ///< the elasticity solve (objectives that solve)
+  /// Objectives that solve: the grid model of the solve (its cut elements' fractions freeze the
+  /// next line search's switches; the solution and its factorization are not kept) and whether
+  /// its switches were its own.
+  std::shared_ptr<const GridModel> model;
+  bool switches_own = true;
 };
 
 }  // namespace
@@ -213,6 +217,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     // No p satisfies every constraint (§6.5.1: "the nearest valid model is returned and said
     // so"): the unit axes and tangencies hold, the user's ties, symmetries and draft give way in
     // least squares. The optimizer does not run on it.
+    std::string fallback;
     if (sp.first_user_constraint < sp.constraints.size()) {
       std::vector<bool> soft(sp.constraints.size(), false);
       for (int i = sp.first_user_constraint; i < sp.constraints.size(); ++i) soft[i] = true;
@@ -227,7 +232,8 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       }
       if (nearest.done && mod.done && !violated.empty()) {
         std::ostringstream os;
-        os << "no parameters satisfy every constraint; the nearest valid model (tangencies kept, the user constraints in least squares) violates";
+        os << "no parameters satisfying every constraint were found (projection: " << start.status
+           << "); the nearest valid model (tangencies kept, the user constraints in least squares) violates";
         for (size_t i = 0; i < violated.size(); ++i) os << (i ? "," : "") << " '" << violated[i].name << "' by " << violated[i].value;
         result.violated_constraints = violated;
         result.status = "infeasible_constraints";
@@ -242,14 +248,15 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return result;
       }
-      result.notes.push_back(!nearest.done ? "no nearest valid model either: " + nearest.message
-                             : violated.empty()
-                                 ? "the least-violation model violates no user constraint (the projection failed otherwise)"
-                                 : "no nearest valid model either: its B-rep update failed: " + mod.message);
+      fallback = !nearest.done ? "no nearest valid model either: " + nearest.message
+                 : violated.empty()
+                     ? "the least-violation model violates no user constraint (the projection failed otherwise)"
+                     : "no nearest valid model either: its B-rep update failed: " + mod.message;
+      result.notes.push_back(fallback);
     }
     result.status = "invalid_start";
     result.message = "the part's own parameters do not project onto its constraints: " + start.message +
-                     (result.notes.empty() ? "" : " (" + result.notes.back() + ")");
+                     (fallback.empty() ? "" : " (" + fallback + ")");
     return result;
   }
   Eigen::VectorXd anchor = start.p;  // p̃ outside the design entries
@@ -292,7 +299,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   std::shared_ptr<ComplianceState> base_state;
   // The discrete switches of a line search's trial models are those of its start (the last
   // accepted iterate, evaluated with its own switches): see ShapeOptimizationOptions::freeze_switches.
-  std::shared_ptr<const ComplianceState> line_start;
+  std::shared_ptr<const GridModel> line_start;
   const auto is_direction = [&](int i) {
     const std::string& n = sp.names[i];
     return n.find(" normal ") != std::string::npos || n.find("half-angle") != std::string::npos ||
@@ -390,7 +397,8 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         last.target_max = tv.max_distance;
         target_adjoint_u = target_adjoint(*state, tv);
       }
-      last.state = state;
+      last.model = state->model;
+      last.switches_own = state->switches_own;
       normalize_terms(md.moments, state->compliance, fv.objective, tv.objective);
       const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure"), tw = term_weight(spec, "target");
       f = cw * state->compliance + fw * fv.objective + tw * tv.objective + objective_from_moments(spec, md.moments, &dfdm);
@@ -493,14 +501,18 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   // At an accepted point whose frozen switches differ from its own: evaluated again with its
   // own, so that the next line search starts from the model's own objective and gradient.
   auto refresh = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
-    if (!last.state || last.state->switches_own) return false;
+    if (!last.model || last.switches_own) return false;
     const Evaluation frozen = last;
-    const std::shared_ptr<const ComplianceState> keep = line_start;
+    const int invalid = result.invalid_models;
+    const size_t notes = result.notes.size();
+    const std::shared_ptr<const GridModel> keep = line_start;
     line_start.reset();
-    const bool ok = evaluate(x, F, grad);
+    const bool ok = evaluate(x, F, grad) && std::isfinite(F);
     line_start = keep;
-    if (!ok) {
+    if (!ok) {  // keep the frozen value (the model is valid: it was just evaluated)
       last = frozen;
+      result.invalid_models = invalid;
+      result.notes.resize(notes);
       return false;
     }
     ++result.switch_refreshes;
@@ -510,7 +522,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   int outer_index = 0, iteration_count = 0;
   auto on_iterate = [&](const optimize::LbfgsIterate& it) {
     accepted = last;
-    line_start = accepted.state;
+    line_start = accepted.model;
     // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
     if (it.iteration == 0 && outer_index > 0) return true;
     if (iteration_count == 0) {

@@ -99,7 +99,7 @@ class ProjectionNlp : public Ipopt::TNLP {
       Eigen::VectorXd lambda = Eigen::Map<const Eigen::VectorXd>(l, m), outer = Eigen::VectorXd::Zero(m);
       const Eigen::VectorXd c = system_.values(p);
       for (Index i = 0; i < m; ++i)
-        if (soft_[i]) lambda[i] = obj_factor * c[i], outer[i] = obj_factor;
+        if (soft_[i]) lambda[i] += obj_factor * c[i], outer[i] = obj_factor;  // a free row's own multiplier is 0
       system_.hessian_values(p, obj_factor, lambda, values, &outer);
     }
     for (Index i = 0; i < n; ++i) values[i] += obj_factor * (epsilon_ * w_[i] - 1.0);  // diagonal: obj_factor·ε·w_i
@@ -299,9 +299,32 @@ ProjectionResult project_least_violation(const ConstraintSystem& system, const s
       new ProjectionNlp(system, target, start.cwiseMax(lower).cwiseMin(upper), lower, upper, Eigen::VectorXd(), w);
   least->set_least_violation(soft, regularization);
   Ipopt::ApplicationReturnStatus status = ipopt_application(options, false)->OptimizeTNLP(least);
-  const bool least_converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
-                               status == Ipopt::Search_Direction_Becomes_Too_Small;
   result.p = least->x.size() == n ? least->x : start;
+  // "Search direction too small" counts only where p is stationary for the least-violation
+  // problem: g = Σ_soft c_i ∇c_i + ε W (p − p̃) in the row space of the hard rows' Jacobian on the
+  // free entries (as project() checks its own stops).
+  auto stationary_least = [&](const Eigen::VectorXd& p) {
+    const Eigen::VectorXd c = system.values(p);
+    const Eigen::MatrixXd J = system.jacobian(p);
+    Eigen::VectorXd cs = c;
+    std::vector<int> hard_rows;
+    for (int i = 0; i < m; ++i)
+      if (!soft[i]) cs[i] = 0, hard_rows.push_back(i);
+    const Eigen::VectorXd g = J.transpose() * cs + regularization * w.cwiseProduct(p - target);
+    const std::vector<int> free = free_entries(p, lower, upper, 0.0);
+    Eigen::VectorXd r(free.size());
+    for (size_t k = 0; k < free.size(); ++k) r[k] = g[free[k]];
+    if (!free.empty() && !hard_rows.empty()) {
+      Eigen::MatrixXd JFt(free.size(), hard_rows.size());
+      for (size_t k = 0; k < free.size(); ++k)
+        for (size_t i = 0; i < hard_rows.size(); ++i) JFt(k, i) = J(hard_rows[i], free[k]);
+      r += JFt * Eigen::VectorXd(JFt.completeOrthogonalDecomposition().solve(-r));
+    }
+    return (r.size() ? r.lpNorm<Eigen::Infinity>() : 0.0) <=
+           std::max(options.stationarity * g.lpNorm<Eigen::Infinity>(), options.feasible_violation);
+  };
+  const bool least_converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
+                               (status == Ipopt::Search_Direction_Becomes_Too_Small && stationary_least(result.p));
   result.multipliers = Eigen::VectorXd::Zero(m);
   result.message = std::string("least violation: ") + status_words(status);
   // 2. The point nearest p̃ with that violation: project() on the system with the soft rows

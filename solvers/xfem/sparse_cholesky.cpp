@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cmath>
 #include <fstream>
+#include <mutex>
 
 #include "common/error.h"
 
@@ -50,7 +51,16 @@ struct SparseCholesky::Impl {
   std::shared_ptr<const Eigen::SparseMatrix<double>> K;  // for iterative refinement (compressed)
 };
 
-SparseCholesky::SparseCholesky() : impl_(std::make_unique<Impl>()) { SuiteSparse_config.printf_func = print_to_stderr; }
+SparseCholesky::SparseCholesky() : impl_(std::make_unique<Impl>()) {
+  static std::once_flag once;
+  std::call_once(once, [] {
+#if defined(SUITESPARSE_MAIN_VERSION) && SUITESPARSE_MAIN_VERSION >= 7
+    SuiteSparse_config_printf_func_set(print_to_stderr);  // the struct is private from SuiteSparse 7
+#else
+    SuiteSparse_config.printf_func = print_to_stderr;
+#endif
+  });
+}
 SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;

@@ -331,7 +331,7 @@ TEST(ShapeCompliance, FrozenSwitchesRemoveTheAggregationJumpAlongALine) {
     return true;
   };
   auto state_at = [&](double s, const ComplianceState* frozen = nullptr) {
-    ComplianceState st = compliance_at(line.at(s), base, c.setup, frozen);
+    ComplianceState st = compliance_at(line.at(s), base, c.setup, frozen ? frozen->model.get() : nullptr);
     EXPECT_TRUE(st.done) << st.message;
     return st;
   };

@@ -90,7 +90,7 @@ class OptimizeRun(unittest.TestCase):
         self.assertAlmostEqual(values[0], -0.5, delta=1e-9)
         self.assertAlmostEqual(values[1], 0.5, delta=1e-9)
         self.assertAlmostEqual(h["parameters"][0]["final"], 4.5, delta=1e-9)
-        self.assertLess(h["tangency_residual_max"], 1e-9)
+        self.assertLess(h["tangency_residual_max"], 1e-12)  # measured 1.1e-14
         # Independent: the written STEP as OCCT reads it. Hole 1 at r = 4.5, the rest as read.
         step = os.path.join(out, "nearest_valid.step")
         self.assertEqual(face_index(step, (40, 12), 4.5), face_index(self.part, (40, 12), 4.0))
@@ -106,9 +106,11 @@ class OptimizeRun(unittest.TestCase):
 
     def test_an_iterate_failing_the_checker_is_rejected_and_the_last_valid_model_kept(self):
         # Minimizing the volume grows hole 1 (bounds up to r = 16). At r = 12 it reaches the
-        # plate's side y = 0 and hole 2 (centres 16 apart, 12 + 4): beyond, the faces' edges no
-        # longer exist and the write-back fails. Those steps are rejected, counted and named;
-        # the run ends on a valid part below r = 12.
+        # plate's side y = 0 and hole 2 (centres 16 apart, 12 + 4): beyond, the top and bottom
+        # faces' wires intersect and OCCT's checker refuses the written B-rep
+        # (BRepCheck_IntersectingWires). Those steps are rejected, counted and named; the run
+        # ends on a valid part just below r = 12 (measured 100 of 111 evaluations rejected,
+        # r = 11.999992).
         before = sha(self.part)
         out = os.path.join(self.dir, "grow")
         job = {"objective": {"type": "volume"}, "parameters": [HOLE_1], "bound": 3.0, "first_step": 12.0,
@@ -117,9 +119,9 @@ class OptimizeRun(unittest.TestCase):
         self.assertEqual(code, 0, h)
         self.assertEqual(sha(self.part), before)
         self.assertGreaterEqual(h["invalid_models"], 1, h)
-        self.assertTrue(any("invalid B-rep update" in n for n in h["notes"]), h["notes"])
+        self.assertTrue(any("invalid B-rep update" in n and "BRepCheck" in n for n in h["notes"]), h["notes"])
         r = h["parameters"][0]["final"]
-        self.assertGreater(r, 10.0)
+        self.assertGreater(r, 11.999)
         self.assertLess(r, 12.0)
         # Independent: OCCT's volume of the written STEP against the closed form at that radius,
         # and the hole as OCCT reads it.
@@ -152,10 +154,23 @@ class OptimizeRun(unittest.TestCase):
         designed = {int(p["name"].split()[1]) for p in h["parameters"]}
         self.assertEqual(designed, {f["index"] for f in free})
         self.assertEqual(h["gradient"], "exact")
-        self.assertLess(h["tangency_residual_max"], 1e-9)  # measured 1.8e-15
+        self.assertLess(h["tangency_residual_max"], 1e-12)  # measured 1.8e-15
         # Measured: 40.729 -> 20.993 (-48 %) on the optimizer's 8-cell grid in 10 iterations, V
         # 0.931 V0: the upright's inner face tilts 10° (thicker at the root), the sides flare.
         self.assertLess(h["final_objective"], 0.55 * h["initial_objective"])
+        self.assertAlmostEqual(h["final_volume"] / h["initial_volume"], 0.931, delta=0.005)
+        # The same run with each model's own switches: the same iterates (the refreshes only
+        # re-decide at accepted points), fewer evaluations.
+        code, own = cli(["optimize", self.part, "-o", out + "_own"], dict(job, freeze_switches=False))
+        self.assertEqual(code, 0, own)
+        self.assertEqual((own["freeze_switches"], own["switch_refreshes"]), (False, 0))
+        self.assertEqual(len(own["iterations"]), len(h["iterations"]))
+        for a, b in zip(own["iterations"], h["iterations"]):
+            self.assertAlmostEqual(a["objective"], b["objective"], delta=1e-9 * h["initial_objective"])
+        self.assertEqual(h["evaluations"], own["evaluations"] + h["switch_refreshes"])
+        code, err = cli(["optimize", self.part, "-o", out + "_bad"], dict(job, freeze_switches="yes"))
+        self.assertEqual(code, 2)
+        self.assertIn("freeze_switches must be true or false", err["error"]["message"])
         step = os.path.join(out, "optimized.step")
         v = parafab.integrate_part(step, cells=4)["occt"]["volume"]
         self.assertLessEqual(v, self.v0 * (1 + 1e-6))

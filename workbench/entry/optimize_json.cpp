@@ -521,9 +521,13 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
                      "the output " << step << " would overwrite the input part");
       occ::write_step(*r.part, step);
+      // An optimized.step of an earlier run in this folder would now be mistaken for this run's.
+      const std::string stale = out_dir + "/optimized.step";
+      if (std::filesystem::weakly_canonical(stale) != std::filesystem::weakly_canonical(part_path))
+        std::filesystem::remove(stale);
       json h{{"status", r.status}, {"message", r.message}, {"nearest_valid_step", step},
              {"tangency_residual_max", r.tangency_residual_max}, {"violated_constraints", json::array()},
-             {"parameters", json::array()}, {"iterations", json::array()}};
+             {"parameters", json::array()}, {"iterations", json::array()}, {"notes", r.notes}};
       for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
       for (size_t k = 0; k < r.design_names.size(); ++k)
         h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});

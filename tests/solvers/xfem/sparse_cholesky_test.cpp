@@ -94,7 +94,13 @@ TEST(SparseCholesky, IndefiniteMatrixFallsBackToLU) {
   const Eigen::SparseMatrix<double> A = laplacian(4, -3.0);  // eigenvalues 6 − 2Σcos: some below 3
   const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(A.rows(), 1, 3);
   SparseCholesky chol;
+  // CHOLMOD's warning goes to stderr: stdout carries the CLI's JSON.
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
   ASSERT_TRUE(chol.factorize(A)) << chol.message();
+  const std::string out = testing::internal::GetCapturedStdout(), err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(out.find("CHOLMOD"), std::string::npos) << out;
+  EXPECT_NE(err.find("not positive definite"), std::string::npos) << err;
   EXPECT_EQ(chol.status(), SparseCholesky::Status::FactorizedByLU);
   const Eigen::VectorXd ref = Eigen::MatrixXd(A).partialPivLu().solve(b);
   EXPECT_LT((chol.solve(b, 0) - ref).norm(), 1e-12 * ref.norm());
