@@ -210,6 +210,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     const PartInfo info = part_info(part);
     popt.weights = projection_weights(sp, design, options.follower_weight, (info.bbox_max - info.bbox_min).norm());
   }
+  // p and the design entries at the start and at the end of the run.
+  const auto set_ends = [&](const Eigen::VectorXd& p_initial, const Eigen::VectorXd& p_final) {
+    result.p_initial = p_initial, result.p_final = p_final;
+    result.design_initial.resize(nd), result.design_final.resize(nd);
+    for (int k = 0; k < nd; ++k) result.design_initial[k] = p_initial[design[k]], result.design_final[k] = p_final[design[k]];
+  };
   // The start: the part's own parameters projected (the face model's relations hold to ~1e-6).
   optimize::ProjectionResult start =
       optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper, {}, popt);
@@ -239,11 +245,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         result.status = "infeasible_constraints";
         result.message = os.str();
         result.part = mod.part;
-        result.p_initial = sp.initial;
-        result.p_final = nearest.p;
-        result.design_initial.resize(nd);
-        result.design_final.resize(nd);
-        for (int k = 0; k < nd; ++k) result.design_initial[k] = sp.initial[design[k]], result.design_final[k] = nearest.p[design[k]];
+        set_ends(sp.initial, nearest.p);
         result.tangency_residual_max = tangency_residual_max(model, sp, nearest.p);
         result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return result;
@@ -636,11 +638,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   result.final_target_rms = accepted.target_rms, result.final_target_max = accepted.target_max;
   result.initial_volume = V0;
   result.final_volume = accepted.volume;
-  result.p_initial = start.p;
-  result.p_final = accepted.p;
-  result.design_initial.resize(nd);
-  result.design_final.resize(nd);
-  for (int k = 0; k < nd; ++k) result.design_initial[k] = start.p[design[k]], result.design_final[k] = accepted.p[design[k]];
+  set_ends(start.p, accepted.p);
   result.part = accepted.part;
   // Tangency on the final B-rep: the face model of the written part, its own relations (if its
   // NURBS conversion fails, the original relations evaluated at p⊥).

@@ -157,22 +157,28 @@ Eigen::MatrixXd columns(const Eigen::MatrixXd& A, const std::vector<int>& cols) 
   return B;
 }
 
-// First-order optimality of p for min ½Σ wᵢ(pᵢ − tᵢ)² s.t. c(p) = 0 on the entries strictly
-// inside their bounds: g_F + J_Fᵀλ = 0 for the least-squares λ (g = w∘(p − t)). True where the
-// residual ‖g_F + J_Fᵀλ‖∞ is at most `relative`·‖g‖∞ or `absolute`.
-bool stationary(const ConstraintSystem& system, const Eigen::VectorXd& p, const Eigen::VectorXd& target,
-                const Eigen::VectorXd& w, const Eigen::VectorXd& lower, const Eigen::VectorXd& upper, double relative,
-                double absolute) {
-  const Eigen::VectorXd g = w.cwiseProduct(p - target);
+// First-order optimality at p of an objective with gradient g under the constraints whose
+// Jacobian rows are J, on the entries strictly inside their bounds: g_F + J_Fᵀλ = 0 for the
+// least-squares λ. True where the residual ‖g_F + J_Fᵀλ‖∞ is at most `relative`·‖g‖∞ or `absolute`.
+bool stationary(const Eigen::VectorXd& g, const Eigen::MatrixXd& J, const Eigen::VectorXd& p,
+                const Eigen::VectorXd& lower, const Eigen::VectorXd& upper, double relative, double absolute) {
   const std::vector<int> free = free_entries(p, lower, upper, 0.0);
   Eigen::VectorXd r(free.size());
   for (size_t i = 0; i < free.size(); ++i) r[i] = g[free[i]];
-  if (!free.empty() && system.size() > 0) {
-    const Eigen::MatrixXd JFt = columns(system.jacobian(p), free).transpose();
+  if (!free.empty() && J.rows() > 0) {
+    const Eigen::MatrixXd JFt = columns(J, free).transpose();
     r += JFt * Eigen::VectorXd(JFt.completeOrthogonalDecomposition().solve(-r));
   }
   const double residual = r.size() ? r.lpNorm<Eigen::Infinity>() : 0.0;
   return residual <= std::max(relative * g.lpNorm<Eigen::Infinity>(), absolute);
+}
+
+// The projection's optimality: g = w∘(p − t) under every constraint.
+bool stationary(const ConstraintSystem& system, const Eigen::VectorXd& p, const Eigen::VectorXd& target,
+                const Eigen::VectorXd& w, const Eigen::VectorXd& lower, const Eigen::VectorXd& upper, double relative,
+                double absolute) {
+  return stationary(w.cwiseProduct(p - target), system.size() ? system.jacobian(p) : Eigen::MatrixXd(0, p.size()), p,
+                    lower, upper, relative, absolute);
 }
 
 Ipopt::SmartPtr<Ipopt::IpoptApplication> ipopt_application(const ProjectionOptions& options, bool warm_start) {
@@ -306,22 +312,12 @@ ProjectionResult project_least_violation(const ConstraintSystem& system, const s
   auto stationary_least = [&](const Eigen::VectorXd& p) {
     const Eigen::VectorXd c = system.values(p);
     const Eigen::MatrixXd J = system.jacobian(p);
-    Eigen::VectorXd cs = c;
+    Eigen::VectorXd c_soft = c;
     std::vector<int> hard_rows;
     for (int i = 0; i < m; ++i)
-      if (!soft[i]) cs[i] = 0, hard_rows.push_back(i);
-    const Eigen::VectorXd g = J.transpose() * cs + regularization * w.cwiseProduct(p - target);
-    const std::vector<int> free = free_entries(p, lower, upper, 0.0);
-    Eigen::VectorXd r(free.size());
-    for (size_t k = 0; k < free.size(); ++k) r[k] = g[free[k]];
-    if (!free.empty() && !hard_rows.empty()) {
-      Eigen::MatrixXd JFt(free.size(), hard_rows.size());
-      for (size_t k = 0; k < free.size(); ++k)
-        for (size_t i = 0; i < hard_rows.size(); ++i) JFt(k, i) = J(hard_rows[i], free[k]);
-      r += JFt * Eigen::VectorXd(JFt.completeOrthogonalDecomposition().solve(-r));
-    }
-    return (r.size() ? r.lpNorm<Eigen::Infinity>() : 0.0) <=
-           std::max(options.stationarity * g.lpNorm<Eigen::Infinity>(), options.feasible_violation);
+      if (!soft[i]) c_soft[i] = 0, hard_rows.push_back(i);
+    return stationary(J.transpose() * c_soft + regularization * w.cwiseProduct(p - target), J(hard_rows, Eigen::all), p,
+                      lower, upper, options.stationarity, options.feasible_violation);
   };
   const bool least_converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
                                (status == Ipopt::Search_Direction_Becomes_Too_Small && stationary_least(result.p));

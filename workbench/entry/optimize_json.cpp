@@ -240,6 +240,17 @@ occ::ObjectiveSpec objective_spec(const occ::PartShape& part, const json& obj, c
   return spec;
 }
 
+// Writes `part` as out_dir/name (the folder created), never over the input part; the path.
+std::string write_beside(const occ::PartShape& part, const std::string& out_dir, const std::string& name,
+                         const std::string& part_path) {
+  std::filesystem::create_directories(out_dir);
+  const std::string step = out_dir + "/" + name;
+  PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
+                 "the output " << step << " would overwrite the input part");
+  occ::write_step(part, step);
+  return step;
+}
+
 }  // namespace
 
 json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
@@ -516,11 +527,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     // as optimized.step) with a history naming what stays violated, and the run is an input error.
     std::string written;
     if (!out_dir.empty()) {
-      std::filesystem::create_directories(out_dir);
-      const std::string step = out_dir + "/nearest_valid.step";
-      PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
-                     "the output " << step << " would overwrite the input part");
-      occ::write_step(*r.part, step);
+      const std::string step = write_beside(*r.part, out_dir, "nearest_valid.step", part_path);
       // An optimized.step of an earlier run in this folder would now be mistaken for this run's.
       const std::string stale = out_dir + "/optimized.step";
       if (std::filesystem::weakly_canonical(stale) != std::filesystem::weakly_canonical(part_path))
@@ -628,12 +635,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     h["parameters"].push_back(entry);
   }
   if (!out_dir.empty()) {
-    std::filesystem::create_directories(out_dir);
-    const std::string step = out_dir + "/optimized.step";
-    PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
-                   "the output " << step << " would overwrite the input part");
-    occ::write_step(*r.part, step);
-    h["optimized_step"] = step;
+    h["optimized_step"] = write_beside(*r.part, out_dir, "optimized.step", part_path);
     const std::string history = out_dir + "/history.json";
     {
       std::ofstream f(history);
