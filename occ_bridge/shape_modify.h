@@ -2,7 +2,8 @@
 // q = q(p⊥)): faces get the surfaces of their new parameters, edges and vertices are recomputed
 // from the neighbouring surfaces (intersections; tangent edges from the relation's closed form)
 // through OCCT's BRepTools_Modification mechanism (as BRepOffsetAPI_DraftAngle's
-// Draft_Modification), then BRepCheck_Analyzer decides whether the result is a valid solid.
+// Draft_Modification), then BRepCheck_Analyzer and a self-interference test decide whether the
+// result is a valid solid.
 #pragma once
 
 #include <Eigen/Core>
@@ -24,11 +25,20 @@ struct ModifyResult {
   double seconds = 0;
 };
 
+struct ModifyOptions {
+  /// Also reject a solid whose faces or edges cross each other away from their shared edges and
+  /// vertices (BOPAlgo_ArgumentAnalyzer's self-interference test): a blind hole deepened through
+  /// the far wall, a pocket grown into another. BRepCheck_Analyzer checks each face's own wires
+  /// only. Costs about as much as the write-back itself; the optimizer skips it for the ±h
+  /// models of a finite-difference derivative, which lie within h of a checked model.
+  bool check_self_interference = true;
+};
+
 /// The part with the faces of `parameters` set to p. `model` is the face model of `part`
 /// (edge tangency, relations). Never throws for a geometric failure (done = false, message);
 /// throws parafab::Error for a p of the wrong size.
 ModifyResult modify_part(const PartShape& part, const FaceModel& model, const ShapeParameters& parameters,
-                         const Eigen::VectorXd& p);
+                         const Eigen::VectorXd& p, const ModifyOptions& options = {});
 
 /// Writes the part as STEP (AP214, mm). Throws parafab::Error naming the path on failure.
 void write_step(const PartShape& part, const std::string& path);

@@ -425,7 +425,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           t[design[k]] += side == 0 ? h : -h;
           const optimize::ProjectionResult pk = optimize::project(sp.constraints, t, proj.p, sp.lower, sp.upper, {}, popt);
           if (!pk.done) continue;
-          const ModifyResult mk = modify_part(part, model, sp, pk.p);
+          ModifyOptions unchecked;  // within h of the checked model
+          unchecked.check_self_interference = false;
+          const ModifyResult mk = modify_part(part, model, sp, pk.p, unchecked);
           if (mk.done) sides[side] = mk.part;
         }
         // dC/dx_k, dJ/dx_k of the failure metric and of the target from the same two perturbed

@@ -173,10 +173,17 @@ def bump_block():
     return solid
 
 
+def blind_hole_block():
+    # Block 40 x 40 x 20 with a blind hole r = 5 from the top down to z = 10: deepened past the
+    # bottom face, its floor would cross that face away from any shared edge (a solid OCCT's
+    # BRepCheck_Analyzer passes; the write-back's self-interference test refuses it).
+    return Part.makeBox(40, 40, 20).cut(Part.makeCylinder(5, 10, V(20, 20, 10), Z))
+
+
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
          "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
          "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes,
-         "flange": flange, "bump_block": bump_block}
+         "flange": flange, "bump_block": bump_block, "blind_hole_block": blind_hole_block}
 # PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
 only = [n for n in os.environ.get("PARAFAB_PARTS_ONLY", "").split(",") if n]
 

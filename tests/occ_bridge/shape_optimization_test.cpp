@@ -4,7 +4,10 @@
 // finite differences, BRepCheck, and a STEP round trip.
 #include <gtest/gtest.h>
 
+#include <BRepAlgoAPI_Cut.hxx>
 #include <BRepGProp.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCylinder.hxx>
 #include <BRepPrimAPI_MakeCone.hxx>
 #include <GProp_GProps.hxx>
 #include <GProp_PrincipalProps.hxx>
@@ -285,6 +288,55 @@ TEST(ShapeDerivatives, BoundaryQuadratureMatchesOcctMoments) {
     const Moments ref = occt_moments(*s.part);
     for (int k = 0; k < 10; ++k)
       EXPECT_NEAR(md.moments[k], ref[k], 1e-8 * std::abs(ref[0]) * (k == 0 ? 1 : k < 4 ? 100 : 1e4)) << name << " " << k;
+  }
+}
+
+// A blind hole (r = 5, from the top z = 20 of a 40 x 40 x 20 block down to z = 10) deepened by
+// moving its bottom plane: OCCT's volume of the written part against the closed form at every
+// depth, then through the block's bottom face. Found: below z = 1.4 the seam vertex kept its
+// old place (a vertex moved at most 0.25 (1 + |P|), here 8.6 mm) and the part's volume was
+// wrong by 1.5 % while BRepCheck_Analyzer passed it; and a bottom pushed through the far wall
+// gives a solid BRepCheck_Analyzer passes too (faces crossing away from shared edges).
+TEST(ShapeModify, BlindHoleDeepensToTheClosedFormAndIsRejectedThroughTheFarWall) {
+  const TopoDS_Shape block = BRepPrimAPI_MakeBox(40, 40, 20).Shape();
+  const TopoDS_Shape drill = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(20, 20, 10), gp_Dir(0, 0, 1)), 5, 20).Shape();
+  const auto part = make_part(BRepAlgoAPI_Cut(block, drill).Shape(), "blind hole block");
+  const FaceModel model = build_face_model(*part);
+  const ShapeParameters sp = build_shape_parameters(model);
+  const int bottom = plane_at(model, Vec3::UnitZ(), 10), floor = plane_at(model, Vec3::UnitZ(), 0);
+  const int d = parameter_index(sp, bottom, "offset");
+  const int radius = parameter_index(sp, cylinder_at(model, 5, 20, 20), "radius");
+  double r = 5;  // of the last projected model
+  const double sign = sp.initial[d] > 0 ? 1 : -1;  // offset = n · point, n = ±z
+  const double v0 = 40 * 40 * 20 - M_PI * 25 * 10;
+  ASSERT_NEAR(occt_mass_properties(*part).volume, v0, 1e-9 * v0);
+  auto deepened = [&](double z, const ModifyOptions& options = {}) {
+    // Through the projection, as the optimizer does (it also moves the hole's radius by 1e-7:
+    // the seam vertex then has two moved faces).
+    Eigen::VectorXd t = sp.initial;
+    t[d] = sign * z;
+    optimize::ProjectionOptions o;
+    o.weights = projection_weights(sp, {d}, 1e-6, 60);
+    const optimize::ProjectionResult p = optimize::project(sp.constraints, t, sp.initial, sp.lower, sp.upper, {}, o);
+    EXPECT_TRUE(p.done) << p.message;
+    r = p.p[radius];
+    return modify_part(*part, model, sp, p.p, options);
+  };
+  for (const double z : {8.0, 5.0, 1.5, 1.0, 0.5, 0.01}) {
+    const ModifyResult m = deepened(z);
+    ASSERT_TRUE(m.done) << "z = " << z << ": " << m.message;
+    EXPECT_NEAR(r, 5, 2e-7);
+    EXPECT_NEAR(occt_mass_properties(*m.part).volume, 40 * 40 * 20 - M_PI * r * r * (20 - z), 1e-9 * v0) << "z = " << z;
+  }
+  for (const double z : {0.0, -2.0}) {
+    const ModifyResult m = deepened(z);
+    EXPECT_FALSE(m.done) << "z = " << z;
+    EXPECT_NE(m.message.find("intersects itself: self-interference between"), std::string::npos) << m.message;
+    EXPECT_NE(m.message.find("face " + std::to_string(floor)), std::string::npos) << m.message;
+    // What catches it: without the self-interference test the write-back accepts the part.
+    ModifyOptions unchecked;
+    unchecked.check_self_interference = false;
+    EXPECT_TRUE(deepened(z, unchecked).done) << "z = " << z;
   }
 }
 
