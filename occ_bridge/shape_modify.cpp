@@ -4,46 +4,46 @@
 // intersections, pcurves by projection.
 #include "shape_modify.h"
 
+#include <Bnd_Box.hxx>
 #include <BOPAlgo_ArgumentAnalyzer.hxx>
 #include <BOPAlgo_CheckResult.hxx>
+#include <BRep_Builder.hxx>
+#include <BRep_Tool.hxx>
+#include <BRepAdaptor_Surface.hxx>
 #include <BRepBndLib.hxx>
 #include <BRepCheck_Analyzer.hxx>
-#include <Bnd_Box.hxx>
 #include <BRepLib.hxx>
 #include <BRepTools.hxx>
 #include <BRepTools_Modification.hxx>
 #include <BRepTools_Modifier.hxx>
-#include <BRep_Builder.hxx>
-#include <ShapeAnalysis_Edge.hxx>
-#include <BRep_Tool.hxx>
-#include <BRepAdaptor_Surface.hxx>
-#include <GeomAPI_IntCS.hxx>
-#include <GeomAPI_IntSS.hxx>
-#include <GeomAPI_ProjectPointOnCurve.hxx>
-#include <GeomAPI_ProjectPointOnSurf.hxx>
-#include <GeomProjLib.hxx>
+#include <Geom2d_Curve.hxx>
 #include <Geom_BSplineSurface.hxx>
 #include <Geom_Circle.hxx>
 #include <Geom_ConicalSurface.hxx>
-#include <Geom_Ellipse.hxx>
 #include <Geom_CylindricalSurface.hxx>
+#include <Geom_Ellipse.hxx>
 #include <Geom_Line.hxx>
 #include <Geom_Plane.hxx>
 #include <Geom_SphericalSurface.hxx>
 #include <Geom_ToroidalSurface.hxx>
 #include <Geom_TrimmedCurve.hxx>
-#include <Geom2d_Curve.hxx>
+#include <GeomAPI_IntCS.hxx>
+#include <GeomAPI_IntSS.hxx>
+#include <GeomAPI_ProjectPointOnCurve.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <GeomProjLib.hxx>
 #include <IFSelect_ReturnStatus.hxx>
+#include <Interface_Static.hxx>
 #include <Message.hxx>
 #include <Message_Messenger.hxx>
 #include <Precision.hxx>
-#include <Interface_Static.hxx>
-#include <STEPControl_Writer.hxx>
+#include <ShapeAnalysis_Edge.hxx>
 #include <Standard_Failure.hxx>
+#include <STEPControl_Writer.hxx>
 #include <TopExp.hxx>
+#include <TopoDS.hxx>
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
 #include <TopTools_IndexedMapOfShape.hxx>
-#include <TopoDS.hxx>
 #include <chrono>
 #include <map>
 #include <sstream>
@@ -96,6 +96,9 @@ class ParameterModification : public BRepTools_Modification {
   ParameterModification(const PartShape& part, const FaceModel& model, const ShapeParameters& sp,
                         const Eigen::VectorXd& p)
       : part_(part) {
+    Bnd_Box box;  // tight: no triangulation, no tolerances
+    BRepBndLib::AddOptimal(part.shape, box, Standard_False, Standard_False);
+    scale_ = std::sqrt(box.SquareExtent());
     const int nf = part.face_count();
     surfaces_.resize(nf);
     modified_.assign(nf, false);
@@ -146,9 +149,6 @@ class ParameterModification : public BRepTools_Modification {
       curves_[e] = new_curve(e, info);
       edge_modified_[e] = true;
     }
-    Bnd_Box box;
-    BRepBndLib::Add(part.shape, box);
-    scale_ = std::sqrt(box.SquareExtent());
     const TopTools_IndexedMapOfShape& vertices = part.vertices;
     points_.resize(vertices.Extent());
     vertex_modified_.assign(vertices.Extent(), false);
@@ -170,6 +170,7 @@ class ParameterModification : public BRepTools_Modification {
   }
 
   int modified_count = 0;
+  double scale() const { return scale_; }  ///< the part's (tight) bounding-box diagonal
 
   Standard_Boolean NewSurface(const TopoDS_Face& F, Handle(Geom_Surface)& S, TopLoc_Location& L, Standard_Real& tol,
                               Standard_Boolean& rev_wires, Standard_Boolean& rev_face) override {
@@ -285,7 +286,7 @@ class ParameterModification : public BRepTools_Modification {
         const double t = f + (l - f) * k / n, tp = pf + (pl - pf) * k / n;
         const gp_Pnt2d uv = pc->Value(tp);
         const gp_Pnt X = c->Value(t);
-        if (surfaces_[fi]->Value(uv.X(), uv.Y()).Distance(X) > 1e-9 * (1 + X.XYZ().Modulus())) return false;
+        if (surfaces_[fi]->Value(uv.X(), uv.Y()).Distance(X) > 1e-9 * scale_) return false;
       }
     }
     return true;
@@ -360,7 +361,7 @@ class ParameterModification : public BRepTools_Modification {
       // GeomAPI_IntSS gives an ellipse with equal radii, on which BOPAlgo's self-interference
       // test failed to match the section of the two faces with their shared edge (a false
       // "self-interference" on the turned L-bracket). The circle it is.
-      if (ellipse->MajorRadius() - ellipse->MinorRadius() <= 1e-9 * ellipse->MajorRadius())
+      if (ellipse->MajorRadius() - ellipse->MinorRadius() <= 0.1 * Precision::Confusion())
         base = new Geom_Circle(ellipse->Position(), ellipse->MajorRadius());
     }
     if (auto circle = Handle(Geom_Circle)::DownCast(base)) {
@@ -459,10 +460,14 @@ class ParameterModification : public BRepTools_Modification {
     return oriented_like(best, e);
   }
 
+  // The vertex's new place: of the intersections of its edges' new curves with its other faces'
+  // new surfaces within the part's size, the nearest to the old place among the transversal ones
+  // (at least half the largest |tangent · normal|: a far branch that is more transversal does
+  // not win over the continuation), then onto all its edges' curves.
   gp_Pnt new_point(const TopoDS_Vertex& V) const {
     const gp_Pnt P0 = BRep_Tool::Pnt(V);
-    double best_angle = -1;
-    gp_Pnt best = P0;
+    std::vector<std::pair<double, gp_Pnt>> candidates;  // (|cos|, point)
+    double best_angle = 0;
     for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
       const int e = part_.edge_index(Es);
       if (BRep_Tool::Degenerated(TopoDS::Edge(Es))) continue;
@@ -486,12 +491,13 @@ class ParameterModification : public BRepTools_Modification {
           surfaces_[f]->D1(u, v, X, Su, Sv);
           const gp_Vec N = Su.Crossed(Sv);
           if (T.Magnitude() < 1e-12 || N.Magnitude() < 1e-12) continue;
-          const double angle = std::abs(T.Dot(N)) / (T.Magnitude() * N.Magnitude()) - 1e-3 * Q.Distance(P0);
-          if (angle > best_angle) best_angle = angle, best = Q;
+          const double angle = std::abs(T.Dot(N)) / (T.Magnitude() * N.Magnitude());
+          candidates.emplace_back(angle, Q);
+          best_angle = std::max(best_angle, angle);
         }
       }
     }
-    if (best_angle < 0) {
+    if (best_angle < 1e-6) {  // none, or all tangent
       // Two faces only (e.g. a closed edge): the vertex's projection on a modified edge's curve.
       for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
         const int e = part_.edge_index(Es);
@@ -501,6 +507,10 @@ class ParameterModification : public BRepTools_Modification {
       }
       throw Failure{"vertex " + std::to_string(part_.vertices.FindIndex(V) - 1) + ": no curve/surface intersection"};
     }
+    gp_Pnt best = P0;
+    double nearest = 1e300;
+    for (const auto& [angle, Q] : candidates)
+      if (angle >= 0.5 * best_angle && Q.Distance(P0) < nearest) nearest = Q.Distance(P0), best = Q;
     return onto_edges(V, best);
   }
 
@@ -509,27 +519,32 @@ class ParameterModification : public BRepTools_Modification {
   // (a torus's seam meeting the plane it is tangent to) it is found only to about √ε of the
   // size (measured 2.5e-4 mm on the housing's boss fillet), while the seam and the tangent
   // circle still cross at a right angle, so the projections converge at once.
+  // Stops when a sweep moves P by less than 1e-10 of the part's size (curves that only nearly
+  // meet, or meet tangentially, stop there too; check_vertices_on_new_geometry judges the result).
   gp_Pnt onto_edges(const TopoDS_Vertex& V, gp_Pnt P) const {
     const double tol = 1e-3 * std::max(1e-7 * scale_, Precision::Confusion());
-    for (int iteration = 0; iteration < 100; ++iteration) {
-      double moved = 0;
+    for (int sweep = 0; sweep < 100; ++sweep) {
+      const gp_Pnt before = P;
       for (const TopoDS_Shape& E : vertex_edges_.FindFromKey(V)) {
         if (BRep_Tool::Degenerated(TopoDS::Edge(E))) continue;
-        GeomAPI_ProjectPointOnCurve proj(P, curves_[part_.edge_index(E)]);
-        if (proj.NbPoints() == 0) return P;  // left to check_vertices_on_new_geometry
-        moved = std::max(moved, proj.LowerDistance());
+        const int e = part_.edge_index(E);
+        GeomAPI_ProjectPointOnCurve proj(P, curves_[e]);
+        if (proj.NbPoints() == 0)
+          throw Failure{"vertex " + std::to_string(part_.vertices.FindIndex(V) - 1) + " does not project on the new curve of edge " +
+                        std::to_string(e)};
         P = proj.NearestPoint();
       }
-      if (moved <= tol) break;
+      if (P.Distance(before) <= tol) break;
     }
     return P;
   }
 
   // Every moved vertex must lie on the new curves of its edges and the new surfaces of its faces
-  // (1e-7 of the part's size): a point picked from the wrong intersection branch, or the
-  // fallback's projection, would otherwise give a B-rep whose vertices are off their edges,
-  // which BRepCheck_Analyzer passes (found: a blind hole's bottom deepened by 9 mm kept its old
-  // seam vertex, and OCCT's volume of the result was wrong by 1.5 %).
+  // (distance ≤ 1e-7 of the part's size): a point left behind, e.g. by the fallback's projection,
+  // would otherwise give a B-rep whose vertices are off their edges, which BRepCheck_Analyzer
+  // passes (found: a blind hole's bottom deepened by 9 mm kept its old seam vertex, and OCCT's
+  // volume of the result was wrong by 1.5 %). A distance check: it cannot see a point on another
+  // branch of the same curves, nor one displaced along a common tangent of two tangent edges.
   void check_vertices_on_new_geometry() const {
     const double tol = std::max(1e-7 * scale_, Precision::Confusion());
     for (int v = 0; v < static_cast<int>(points_.size()); ++v) {
@@ -569,29 +584,33 @@ class ParameterModification : public BRepTools_Modification {
   TopTools_IndexedDataMapOfShapeListOfShape edge_faces_, vertex_edges_, vertex_faces_;
 };
 
-// Edges whose approximated pcurves (an ellipse on a cylinder) end within a factor 2 of the
-// edge's tolerance get twice the deviation: SameParameter's approximation reached 9.7e-8 of a
-// 1e-7 tolerance on the turned L-bracket with its base top tilted, and BRepCheck_Analyzer then
-// refused some such parts (BRepCheck_InvalidSameParameterFlag) that were fine.
-void widen_near_tolerance_edges(const TopoDS_Shape& shape) {
-  TopTools_IndexedMapOfShape edges;
-  TopExp::MapShapes(shape, TopAbs_EDGE, edges);
+// The rebuilt edges of `result` (those not in `original`) that SameParameter left unflagged at
+// 1e-7 get it at 1e-6; those whose pcurves end within a factor 2 of their tolerance, up to 1e-6
+// of the part's size, get twice the deviation, and their rebuilt vertices at least that much.
+// Found: the turned L-bracket with its base top tilted by +0.1 mm (an ellipse on each hole's
+// cylinder, pcurves within 9.7e-8 of the 1e-7 tolerance) was refused by BRepCheck_Analyzer
+// (BRepCheck_InvalidSameParameterFlag). Larger deviations are left for BRepCheck to refuse, and
+// the original's edges and vertices, shared by the result, are never touched.
+void widen_near_tolerance_edges(const TopoDS_Shape& result, const TopoDS_Shape& original, double scale) {
+  TopTools_IndexedMapOfShape old_edges, old_vertices, edges;
+  TopExp::MapShapes(original, TopAbs_EDGE, old_edges);
+  TopExp::MapShapes(original, TopAbs_VERTEX, old_vertices);
+  TopExp::MapShapes(result, TopAbs_EDGE, edges);
   BRep_Builder builder;
-  bool widened = false;
   for (int i = 1; i <= edges.Extent(); ++i) {
     const TopoDS_Edge& E = TopoDS::Edge(edges(i));
-    if (!BRep_Tool::SameParameter(E)) {  // not reached at 1e-7: at 1e-6, then as measured below
-      BRepLib::SameParameter(E, 1e-6);
-      widened = true;
-    }
+    if (old_edges.Contains(E)) continue;
+    if (!BRep_Tool::SameParameter(E)) BRepLib::SameParameter(E, 1e-6);
     double deviation = 0;
     ShapeAnalysis_Edge().CheckSameParameter(E, deviation);
-    if (deviation > 0.5 * BRep_Tool::Tolerance(E)) {
-      builder.UpdateEdge(E, 2 * deviation);
-      widened = true;
-    }
+    if (deviation <= 0.5 * BRep_Tool::Tolerance(E) || 2 * deviation > 1e-6 * scale) continue;
+    builder.UpdateEdge(E, 2 * deviation);
+    TopoDS_Vertex a, b;
+    TopExp::Vertices(E, a, b);
+    for (const TopoDS_Vertex& v : {a, b})
+      if (!v.IsNull() && !old_vertices.Contains(v) && BRep_Tool::Tolerance(v) < 2 * deviation)
+        builder.UpdateVertex(v, 2 * deviation);
   }
-  if (widened) BRepLib::UpdateTolerances(shape);  // vertices at least as wide as their edges
 }
 
 // The first self-interference BOPAlgo_ArgumentAnalyzer finds in `part` ("" if none) between
@@ -618,8 +637,10 @@ std::string self_interference(const PartShape& part) {
     }
   };
   for (const BOPAlgo_CheckResult& r : analyzer.GetCheckResult()) {
-    if (r.GetCheckStatus() != BOPAlgo_SelfIntersect)
-      return "BOPAlgo_ArgumentAnalyzer: status " + std::to_string(int(r.GetCheckStatus()));
+    if (r.GetCheckStatus() != BOPAlgo_SelfIntersect)  // OperationAborted, CheckUnknown: the test itself failed
+      return std::string("the self-interference test could not finish (BOPAlgo_ArgumentAnalyzer: ") +
+             (r.GetCheckStatus() == BOPAlgo_OperationAborted ? "operation aborted" : "status " + std::to_string(int(r.GetCheckStatus()))) +
+             "), so the part is not accepted";
     TopTools_IndexedMapOfShape seen;
     bool adjacent = false;
     std::string what;
@@ -659,7 +680,7 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
     if (!modifier.IsDone()) return finish("BRepTools_Modifier failed");
     TopoDS_Shape result = modifier.ModifiedShape(part.shape);
     BRepLib::SameParameter(result, 1e-7, Standard_True);
-    widen_near_tolerance_edges(result);
+    widen_near_tolerance_edges(result, part.shape, mod->scale());
     std::shared_ptr<const PartShape> out = make_part(result, part.source + " (optimized)");
     if (!BRepCheck_Analyzer(result).IsValid())
       return finish("the modified solid fails BRepCheck_Analyzer: " + check_failure_description(*out));
@@ -671,7 +692,8 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
       if (!modifier.ModifiedShape(part.face(f)).IsSame(out->face(f))) return finish("face numbering changed");
     if (options.check_self_interference) {
       const std::string si = self_interference(*out);
-      if (!si.empty()) return finish("the modified solid intersects itself: " + si);
+      if (!si.empty())
+        return finish(si.rfind("self-interference", 0) == 0 ? "the modified solid intersects itself: " + si : si);
     }
     r.part = out;
     r.done = true;

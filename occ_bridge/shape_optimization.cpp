@@ -425,9 +425,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           t[design[k]] += side == 0 ? h : -h;
           const optimize::ProjectionResult pk = optimize::project(sp.constraints, t, proj.p, sp.lower, sp.upper, {}, popt);
           if (!pk.done) continue;
-          ModifyOptions unchecked;  // within h of the checked model
-          unchecked.check_self_interference = false;
-          const ModifyResult mk = modify_part(part, model, sp, pk.p, unchecked);
+          // Checked like the model itself: next to a refused model (the run's end, say) a side
+          // can cross; element_difference then takes the one-sided difference.
+          const ModifyResult mk = modify_part(part, model, sp, pk.p);
           if (mk.done) sides[side] = mk.part;
         }
         // dC/dx_k, dJ/dx_k of the failure metric and of the target from the same two perturbed
