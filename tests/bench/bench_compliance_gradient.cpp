@@ -46,13 +46,8 @@ int main(int argc, char** argv) {
   const ComplianceSetup& setup = job.setup;
   auto turned = [&](const Vec3& X) { return job.turned(X); };
 
-  const FaceModel model = build_face_model(*part);
-  ShapeParameterOptions spo;
-  spo.fixed_faces = {setup.dirichlet[0].face, setup.tractions[0].face};
-  const ShapeParameters sp = build_shape_parameters(model, spo);
-  const PartInfo info = part_info(*part);
-  const double L = (info.bbox_max - info.bbox_min).norm();
-  const auto start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
+  const bench::DesignSpace space = bench::design_space(*part, setup);
+  const auto& [model, sp, start, L] = space;
   struct Entry {
     const char* label;
     Vec3 point;

@@ -42,13 +42,8 @@ int main(int argc, char** argv) {
   const BenchArguments args = bench_arguments(argc, argv);
   const bench::TurnedBracketJob job = bench::turned_bracket_job(args.samples);
   const auto& part = job.part;
-  const FaceModel model = build_face_model(*part);
-  ShapeParameterOptions spo;
-  spo.fixed_faces = {job.setup.dirichlet[0].face, job.setup.tractions[0].face};
-  const ShapeParameters sp = build_shape_parameters(model, spo);
-  const PartInfo info = part_info(*part);
-  const double L = (info.bbox_max - info.bbox_min).norm();
-  const auto start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
+  const bench::DesignSpace space = bench::design_space(*part, job.setup);
+  const auto& [model, sp, start, L] = space;
   struct Entry {
     const char* label;
     Vec3 point;

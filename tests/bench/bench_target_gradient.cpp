@@ -43,13 +43,8 @@ int main(int argc, char** argv) {
   hyper.hyperelastic = xfem::make_material("neo_hooke_isochoric", 3000, 0.3);
   hyper.load_steps = 3;
 
-  const FaceModel model = build_face_model(*part);
-  ShapeParameterOptions spo;
-  spo.fixed_faces = {linear.dirichlet[0].face, linear.tractions[0].face};
-  const ShapeParameters sp = build_shape_parameters(model, spo);
-  const PartInfo info = part_info(*part);
-  const double L = (info.bbox_max - info.bbox_min).norm();
-  const auto start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
+  const bench::DesignSpace space = bench::design_space(*part, linear);
+  const auto& [model, sp, start, L] = space;
   TargetOptions target;
   target.face = face_at_point(*part, turned({30, 20, 8}), 1e-6);
   target.target = target_of_face(model, target.face);

@@ -9,10 +9,12 @@
 #include <string>
 
 #include "face_lookup.h"
+#include "optimize/projection.h"
 #include "occt_mass_properties.h"
 #include "part_reader.h"
 #include "shape_compliance.h"
 #include "shape_modify.h"
+#include "shape_parameters.h"
 
 namespace parafab::occ::bench {
 
@@ -44,6 +46,29 @@ inline TurnedBracketJob turned_bracket_job(const std::string& samples) {
   j.setup.grid.grid.block_cells = 4;
   j.setup.grid.grid.method = CutMethod::FaceCut;
   return j;
+}
+
+/// The part's design space as the benchmarks use it: the parameters of every face but the
+/// support's and the load's, their own values projected onto the constraints, and the part's
+/// size L (bounding-box diagonal).
+struct DesignSpace {
+  FaceModel model;
+  ShapeParameters parameters;
+  optimize::ProjectionResult start;
+  double size = 0;
+};
+
+inline DesignSpace design_space(const PartShape& part, const ComplianceSetup& setup) {
+  DesignSpace d;
+  d.model = build_face_model(part);
+  ShapeParameterOptions options;
+  options.fixed_faces = {setup.dirichlet[0].face, setup.tractions[0].face};
+  d.parameters = build_shape_parameters(d.model, options);
+  const PartInfo info = part_info(part);
+  d.size = (info.bbox_max - info.bbox_min).norm();
+  const ShapeParameters& sp = d.parameters;
+  d.start = optimize::project(sp.constraints, sp.initial, sp.initial, sp.lower, sp.upper);
+  return d;
 }
 
 }  // namespace parafab::occ::bench

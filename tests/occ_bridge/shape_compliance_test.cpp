@@ -296,6 +296,25 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
   }
 }
 
+// One design entry of the turned bracket (support and load faces fixed) moved as the optimizer
+// moves it, the start simulated, and the compliance at s along it on the start's grid (its
+// discrete switches frozen at `frozen` when given).
+struct BracketLine {
+  BracketCase c;
+  testing::DesignSpace space{*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face}};
+  DesignLine line;
+  ComplianceState base;
+  BracketLine(int BracketCase::*face, const char* parameter)
+      : line(*c.part, space.model, space.parameters, parameter_index(space.parameters, c.*face, parameter),
+             space.start.p, space.size),
+        base(compliance_start(line.at(0), c.setup)) {}
+  ComplianceState state_at(double s, const ComplianceState* frozen = nullptr) const {
+    ComplianceState st = compliance_at(line.at(s), base, c.setup, frozen ? frozen->model.get() : nullptr);
+    EXPECT_TRUE(st.done) << "s = " << s << ": " << st.message;
+    return st;
+  }
+};
+
 // Discrete switches frozen along a line search (ShapeOptimizationOptions::freeze_switches):
 // the turned bracket's inner fillet radius grows until a cut cell crosses the aggregation threshold
 // (volume fraction 0.05) and a DOF node starts or stops following its neighbour, with no cell
@@ -303,17 +322,14 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
 // switches of the bracket's left end (as a line search from there sees them) it moves only by
 // the slope times the interval. A state frozen at itself is the natural one.
 TEST(ShapeCompliance, FrozenSwitchesRemoveTheAggregationJumpAlongALine) {
-  BracketCase c;
-  const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
-  ASSERT_TRUE(space.start.done);
-  const auto& [model, sp, start, L] = space;
   // The inner fillet's radius (its tangent planes follow). Found by scanning the design entries:
   // the hole radius shows no such switch up to +1.5 mm; the base top offset has one at +0.068 mm
   // (jump 2.2e-6 relative), the upright's inner offset at +0.195 mm (3.6e-7).
-  const DesignLine line(*c.part, model, sp, parameter_index(sp, c.fillet, "radius"), start.p, L);
+  const BracketLine line(&BracketCase::fillet, "radius");
+  const BracketCase& c = line.c;
+  ASSERT_TRUE(line.space.start.done);
+  ASSERT_TRUE(line.base.done) << line.base.message;
   const double step = 0.05;
-  const ComplianceState base = compliance_start(line.at(0), c.setup);
-  ASSERT_TRUE(base.done) << base.message;
   // Signature of a state: elements per cut cell, which elements are small, and the number of
   // DOF nodes aggregated (a small element whose nodes all lose their normal elements).
   using Signature = std::map<std::array<int, 3>, std::vector<char>>;
@@ -330,11 +346,7 @@ TEST(ShapeCompliance, FrozenSwitchesRemoveTheAggregationJumpAlongALine) {
       if (i->first != j->first || (i->first[0] >= 0 && i->second.size() != j->second.size())) return false;
     return true;
   };
-  auto state_at = [&](double s, const ComplianceState* frozen = nullptr) {
-    ComplianceState st = compliance_at(line.at(s), base, c.setup, frozen ? frozen->model.get() : nullptr);
-    EXPECT_TRUE(st.done) << st.message;
-    return st;
-  };
+  auto state_at = [&](double s, const ComplianceState* frozen = nullptr) { return line.state_at(s, frozen); };
   // Scan the radius (entry s = Δr) for a pure switch.
   double a = -1, b = -1;
   ComplianceState left = state_at(0);
@@ -379,13 +391,9 @@ TEST(ShapeCompliance, FrozenSwitchesRemoveTheAggregationJumpAlongALine) {
 // piece of fraction 1.000, becomes an uncut cell. (The hole radius has a smaller one at
 // +0.1312 mm: a piece splits off, 5.2e-6 relative.)
 TEST(ShapeCompliance, ASubvolumeMergeStillMakesTheObjectiveJumpAlongALine) {
-  BracketCase c;
-  const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
-  ASSERT_TRUE(space.start.done);
-  const auto& [model, sp, start, L] = space;
-  const DesignLine line(*c.part, model, sp, parameter_index(sp, c.upright_inner, "offset"), start.p, L);
-  const ComplianceState base = compliance_start(line.at(0), c.setup);
-  ASSERT_TRUE(base.done) << base.message;
+  const BracketLine line(&BracketCase::upright_inner, "offset");
+  ASSERT_TRUE(line.space.start.done);
+  ASSERT_TRUE(line.base.done) << line.base.message;
   auto pieces = [](const ComplianceState& st) {  // material pieces (elements) per cut cell
     std::map<std::array<int, 3>, int> m;
     if (!st.done) return m;  // (a model the cut refuses: state_at's EXPECT fails the test)
@@ -393,11 +401,7 @@ TEST(ShapeCompliance, ASubvolumeMergeStillMakesTheObjectiveJumpAlongALine) {
       if (el.subvolume) ++m[el.cell];
     return m;
   };
-  auto state_at = [&](double s, const ComplianceState* frozen = nullptr) {
-    ComplianceState st = compliance_at(line.at(s), base, c.setup, frozen ? frozen->model.get() : nullptr);
-    EXPECT_TRUE(st.done) << "s = " << s << ": " << st.message;
-    return st;
-  };
+  auto state_at = [&](double s, const ComplianceState* frozen = nullptr) { return line.state_at(s, frozen); };
   double a = 0.58, b = 0.62;
   const auto left = pieces(state_at(a));
   ASSERT_NE(left, pieces(state_at(b)));
