@@ -158,11 +158,11 @@ class OptimizeRun(unittest.TestCase):
         code, h = cli(["optimize", part, "-o", out], job)
         self.assertEqual(code, 0, h)
         self.assertEqual(sha(part), before)
-        self.assertGreaterEqual(h["invalid_models"], 50, h)
+        self.assertAlmostEqual(h["invalid_models"], 73, delta=5)  # of 83 evaluations (measured)
         self.assertTrue(any("intersects itself: self-interference between face" in n for n in h["notes"]), h["notes"])
         z = abs(h["parameters"][0]["final"])  # the floor's height (offset = n · X, n = ±z)
         self.assertGreater(z, 0)
-        self.assertLess(z, 1e-3)
+        self.assertLess(z, 2e-4)  # measured 6.1e-5
         # Independent: OCCT's volume of the written STEP against the closed form at that depth,
         # with the hole's radius as written (the projection may move it by about 1e-7).
         step = os.path.join(out, "optimized.step")
