@@ -584,22 +584,20 @@ class ParameterModification : public BRepTools_Modification {
   TopTools_IndexedDataMapOfShapeListOfShape edge_faces_, vertex_edges_, vertex_faces_;
 };
 
-// The rebuilt edges of `result` (those not in `original`) that SameParameter left unflagged at
+// The rebuilt edges of `result` (those not in `original`'s maps) that SameParameter left unflagged at
 // 1e-7 get it at 1e-6; those whose pcurves end within a factor 2 of their tolerance, up to 1e-6
 // of the part's size, get twice the deviation, and their rebuilt vertices at least that much.
 // Found: the turned L-bracket with its base top tilted by +0.1 mm (an ellipse on each hole's
 // cylinder, pcurves within 9.7e-8 of the 1e-7 tolerance) was refused by BRepCheck_Analyzer
 // (BRepCheck_InvalidSameParameterFlag). Larger deviations are left for BRepCheck to refuse, and
 // the original's edges and vertices, shared by the result, are never touched.
-void widen_near_tolerance_edges(const TopoDS_Shape& result, const TopoDS_Shape& original, double scale) {
-  TopTools_IndexedMapOfShape old_edges, old_vertices, edges;
-  TopExp::MapShapes(original, TopAbs_EDGE, old_edges);
-  TopExp::MapShapes(original, TopAbs_VERTEX, old_vertices);
+void widen_near_tolerance_edges(const TopoDS_Shape& result, const PartShape& original, double scale) {
+  TopTools_IndexedMapOfShape edges;
   TopExp::MapShapes(result, TopAbs_EDGE, edges);
   BRep_Builder builder;
   for (int i = 1; i <= edges.Extent(); ++i) {
     const TopoDS_Edge& E = TopoDS::Edge(edges(i));
-    if (old_edges.Contains(E)) continue;
+    if (original.edges.Contains(E)) continue;
     if (!BRep_Tool::SameParameter(E)) BRepLib::SameParameter(E, 1e-6);
     double deviation = 0;
     ShapeAnalysis_Edge().CheckSameParameter(E, deviation);
@@ -608,13 +606,14 @@ void widen_near_tolerance_edges(const TopoDS_Shape& result, const TopoDS_Shape& 
     TopoDS_Vertex a, b;
     TopExp::Vertices(E, a, b);
     for (const TopoDS_Vertex& v : {a, b})
-      if (!v.IsNull() && !old_vertices.Contains(v) && BRep_Tool::Tolerance(v) < 2 * deviation)
+      if (!v.IsNull() && !original.vertices.Contains(v) && BRep_Tool::Tolerance(v) < 2 * deviation)
         builder.UpdateVertex(v, 2 * deviation);
   }
 }
 
-// The first self-interference BOPAlgo_ArgumentAnalyzer finds in `part` ("" if none) between
-// sub-shapes with no vertex in common, naming the faces, edges or vertices by their indices.
+// Why `part` is refused for the first self-interference BOPAlgo_ArgumentAnalyzer finds between
+// sub-shapes with no vertex in common, naming the faces, edges or vertices by their indices, or
+// for a test that could not finish; "" if neither.
 // Pairs that share an edge or vertex are not counted: on plane ∩ cylinder ellipses the test
 // reported faces meeting only along their shared edge (the turned L-bracket with its base top
 // tilted: the hole's rim, pcurves within 9.7e-8 of a 1.0e-7 tolerance; a STEP round trip of the
@@ -651,7 +650,9 @@ std::string self_interference(const PartShape& part) {
       for (int i = 1; i <= vertices.Extent(); ++i) seen.Add(vertices(i));
       what += (what.empty() ? "" : " and ") + name(s);
     }
-    if (!adjacent) return "self-interference between " + (what.empty() ? std::string("sub-shapes") : what);
+    if (!adjacent)
+      return "the modified solid intersects itself: self-interference between " +
+             (what.empty() ? std::string("sub-shapes") : what);
   }
   return "";
 }
@@ -680,7 +681,7 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
     if (!modifier.IsDone()) return finish("BRepTools_Modifier failed");
     TopoDS_Shape result = modifier.ModifiedShape(part.shape);
     BRepLib::SameParameter(result, 1e-7, Standard_True);
-    widen_near_tolerance_edges(result, part.shape, mod->scale());
+    widen_near_tolerance_edges(result, part, mod->scale());
     std::shared_ptr<const PartShape> out = make_part(result, part.source + " (optimized)");
     if (!BRepCheck_Analyzer(result).IsValid())
       return finish("the modified solid fails BRepCheck_Analyzer: " + check_failure_description(*out));
@@ -692,8 +693,7 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
       if (!modifier.ModifiedShape(part.face(f)).IsSame(out->face(f))) return finish("face numbering changed");
     if (options.check_self_interference) {
       const std::string si = self_interference(*out);
-      if (!si.empty())
-        return finish(si.rfind("self-interference", 0) == 0 ? "the modified solid intersects itself: " + si : si);
+      if (!si.empty()) return finish(si);
     }
     r.part = out;
     r.done = true;
