@@ -180,10 +180,24 @@ def blind_hole_block():
     return Part.makeBox(40, 40, 20).cut(Part.makeCylinder(5, 10, V(20, 20, 10), Z))
 
 
+def countersunk_pin_block():
+    # Block 60 x 40 x 12 with a countersunk hole (cylinder r = 4 through, cone of semi-angle 45
+    # degrees from r = 4 at z = 8 to r = 8 at the top) at (15, 20), and a round-ended pin at
+    # (42, 20): a cylinder r = 6 from the top up to z = 24 capped by a hemisphere r = 6 (centre
+    # z = 24, tangent to the cylinder). The cone's and the sphere's parameters (semi-angle, radius,
+    # centre) are design entries of the optimizer; the pin's tangency ties sphere and cylinder.
+    s = Part.makeBox(60, 40, 12)
+    s = s.cut(Part.makeCylinder(4, 20, V(15, 20, -4), Z))
+    s = s.cut(Part.makeCone(4, 10, 6, V(15, 20, 8), Z))
+    pin = Part.makeCylinder(6, 14, V(42, 20, 10), Z).fuse(Part.makeSphere(6, V(42, 20, 24)))
+    return s.fuse(pin).removeSplitter()
+
+
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
          "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
          "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes,
-         "flange": flange, "bump_block": bump_block, "blind_hole_block": blind_hole_block}
+         "flange": flange, "bump_block": bump_block, "blind_hole_block": blind_hole_block,
+         "countersunk_pin_block": countersunk_pin_block}
 # PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
 only = [n for n in os.environ.get("PARAFAB_PARTS_ONLY", "").split(",") if n]
 

@@ -281,6 +281,89 @@ TEST(ShapeModify, ParameterChangesGiveValidPartsWithTheClosedFormVolume) {
   }
 }
 
+// Cones and spheres (samples/parts/countersunk_pin_block.step): a countersunk hole (cone of
+// half-angle 45° from r = 4 at z = 8, where it meets the hole's cylinder, up to the top z = 12)
+// and a pin (cylinder r = 6 from the top to z = 24) capped by a tangent hemisphere (centre
+// z = 24). Each change goes through the projection (the cylinder-sphere tangency moves the other
+// face) and the write-back; OCCT's volume of the written part against the closed form, whose
+// inputs (cone reference circle, half-angle, radii, centre) are read from the written part's own
+// face model; STEP round trip with the same faces and tangency relation.
+TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
+  PartSetup s("countersunk_pin_block");
+  const int cone = find_face(s.model, SurfaceType::cone, [](const Primitive&) { return true; });
+  const int sphere = find_face(s.model, SurfaceType::sphere, [](const Primitive&) { return true; });
+  const int pin = cylinder_at(s.model, 6, 42, 20);
+  ASSERT_EQ(s.model.relations.size(), 1u);  // cylinder-sphere
+  // The part's volume from its primitives: block, minus the hole (r_h through z 0..12) and the
+  // countersink beyond it (frustum from the cone's circle of radius r_h up to z = 12), plus the
+  // pin (cylinder from z = 12 to the sphere's centre) and its hemisphere.
+  auto closed_form = [](const FaceModel& m, int cone_face, int hole_face, int pin_face, int sphere_face) {
+    const Primitive& c = m.faces[cone_face].primitive;
+    const Primitive& h = m.faces[hole_face].primitive;
+    const Primitive& pc = m.faces[pin_face].primitive;
+    const Primitive& sp = m.faces[sphere_face].primitive;
+    const double rh = h.radius, t = std::tan(c.semi_angle);
+    // Cone radius r(z) = c.radius + (z − z_c) tan α along its axis +z (checked below).
+    const double z0 = c.location.z() + (rh - c.radius) / t, r_top = c.radius + (12 - c.location.z()) * t;
+    const double countersink = M_PI / 3 * (12 - z0) * (r_top * r_top + r_top * rh + rh * rh) - M_PI * rh * rh * (12 - z0);
+    const double rp = pc.radius;
+    return 60.0 * 40 * 12 - M_PI * rh * rh * 12 - countersink + M_PI * rp * rp * (sp.location.z() - 12) +
+           2.0 / 3 * M_PI * std::pow(sp.radius, 3);
+  };
+  const int hole = cylinder_at(s.model, 4, 15, 20);
+  EXPECT_NEAR(s.model.faces[cone].primitive.axis.z(), 1, 1e-12);
+  EXPECT_NEAR(closed_form(s.model, cone, hole, pin, sphere), occt_mass_properties(*s.part).volume, 1e-9 * 29738);
+  struct Change {
+    std::string what;
+    int index;
+    double value;
+  };
+  const std::vector<Change> changes = {
+      {"cone half-angle 45 -> 40 deg", parameter_index(s.sp, cone, "half-angle"), 40 * M_PI / 180},
+      {"cone half-angle 45 -> 52 deg", parameter_index(s.sp, cone, "half-angle"), 52 * M_PI / 180},
+      {"pin radius 6 -> 6.5 (sphere follows)", parameter_index(s.sp, pin, "radius"), 6.5},
+      {"sphere radius 6 -> 5.5 (pin follows)", parameter_index(s.sp, sphere, "radius"), 5.5},
+      {"sphere centre z 24 -> 27 (pin grows)", parameter_index(s.sp, sphere, "centre z"), 27},
+  };
+  for (const Change& c : changes) {
+    const optimize::ProjectionResult p = s.projected({{c.index, c.value}});
+    ASSERT_TRUE(p.done) << c.what << ": " << p.message;
+    // The entry reaches its value up to its weighted compromise with the tangent follower
+    // (weights 1 and 1e-6: measured 5.0e-7 of a 0.5 mm radius change).
+    EXPECT_NEAR(p.p[c.index], c.value, 2e-6 * std::abs(c.value - s.start.p[c.index])) << c.what;
+    const ModifyResult m = modify_part(*s.part, s.model, s.sp, p.p);
+    ASSERT_TRUE(m.done) << c.what << ": " << m.message;
+    const std::string path = ::testing::TempDir() + "/cone_sphere_roundtrip.step";
+    write_step(*m.part, path);
+    const auto back = read_part(path);
+    std::remove(path.c_str());
+    const FaceModel after = build_face_model(*back);
+    ASSERT_EQ(after.faces.size(), s.model.faces.size()) << c.what;
+    ASSERT_EQ(after.relations.size(), 1u) << c.what;
+    const double v = occt_mass_properties(*back).volume, ref = closed_form(after, cone, hole, pin, sphere);
+    std::printf("%-40s OCCT volume %.9f, closed form %.9f (relative %.1e); sphere r %.9f, pin r %.9f, centre z %.9f\n",
+                c.what.c_str(), v, ref, std::abs(v - ref) / ref, after.faces[sphere].primitive.radius,
+                after.faces[pin].primitive.radius, after.faces[sphere].primitive.location.z());
+    EXPECT_NEAR(v, ref, 1e-9 * ref) << c.what;
+    EXPECT_GT(std::abs(v - occt_mass_properties(*s.part).volume), 10) << c.what;  // the change is not lost
+    // Tangency kept on the written part up to the write-back's threshold: moves below
+    // Precision::Confusion (1e-7) are not written (measured: the centre move leaves the pin's
+    // radius 1.5e-8 from the sphere's, the followers' drift in the projection).
+    EXPECT_NEAR(after.faces[sphere].primitive.radius, after.faces[pin].primitive.radius, 1e-7) << c.what;
+  }
+  // Known limit: the cone moved off its hole's axis. Cone and hole share one seam vertex on the
+  // circle where they meet; off-axis, the cone's seam line no longer passes through a point of
+  // the new intersection curve on the hole's seam, and the write-back refuses the part, naming
+  // the vertex (the optimizer counts it as an invalid model). Coaxiality is not a face-model
+  // relation: tie or fix the cone's axis (a countersink stays on its hole).
+  const int axis_y = parameter_index(s.sp, cone, "axis point y");
+  const optimize::ProjectionResult off = s.projected({{axis_y, s.start.p[axis_y] + 0.01}});
+  ASSERT_TRUE(off.done) << off.message;
+  const ModifyResult refused = modify_part(*s.part, s.model, s.sp, off.p);
+  EXPECT_FALSE(refused.done);
+  EXPECT_NE(refused.message.find("off the new curve of edge"), std::string::npos) << refused.message;
+}
+
 TEST(ShapeDerivatives, BoundaryQuadratureMatchesOcctMoments) {
   for (const std::string name : {"l_bracket", "wheel", "wrench", "housing"}) {
     PartSetup s(name);
@@ -356,6 +439,18 @@ TEST(ShapeDerivatives, GradientsMatchFiniteDifferencesOfOcctMassProperties) {
       {"wheel", [](const PartSetup& s) { return parameter_index(s.sp, cylinder_at(s.model, 50, 0, 0), "radius"); }},
       {"wrench", [](const PartSetup& s) { return parameter_index(s.sp, cylinder_at(s.model, 5, 0, 0), "axis point x"); }},
       {"housing", [](const PartSetup& s) { return parameter_index(s.sp, plane_at(s.model, Vec3::UnitX(), 10), "offset"); }},
+      {"countersunk_pin_block", [](const PartSetup& s) {
+         return parameter_index(s.sp, find_face(s.model, SurfaceType::cone, [](const Primitive&) { return true; }), "half-angle");
+       }},
+      {"countersunk_pin_block", [](const PartSetup& s) {
+         return parameter_index(s.sp, find_face(s.model, SurfaceType::cone, [](const Primitive&) { return true; }), "radius");
+       }},
+      {"countersunk_pin_block", [](const PartSetup& s) {
+         return parameter_index(s.sp, find_face(s.model, SurfaceType::sphere, [](const Primitive&) { return true; }), "radius");
+       }},
+      {"countersunk_pin_block", [](const PartSetup& s) {
+         return parameter_index(s.sp, find_face(s.model, SurfaceType::sphere, [](const Primitive&) { return true; }), "centre z");
+       }},
   };
   for (const Case& c : cases) {
     PartSetup s(c.part);
