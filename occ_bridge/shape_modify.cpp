@@ -466,6 +466,19 @@ class ParameterModification : public BRepTools_Modification {
   // not win over the continuation), then onto all its edges' curves.
   gp_Pnt new_point(const TopoDS_Vertex& V) const {
     const gp_Pnt P0 = BRep_Tool::Pnt(V);
+    // A pole (the vertex of a degenerated edge: a sphere's or cone's apex): the same (u, v) on
+    // the face's moved surface, where the degenerated edge's pcurve still maps. A projection onto
+    // the seam's new curve missed it when a sphere's centre moved off its pole axis (a pin cap
+    // whose centre moves along a turned axis: BRepCheck_UnorientableShape).
+    for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
+      if (!BRep_Tool::Degenerated(TopoDS::Edge(Es))) continue;
+      for (const TopoDS_Shape& F : edge_faces_.FindFromKey(Es)) {
+        const int f = part_.face_index(F);
+        if (f < 0 || !modified_[f] || pole_face_[f]) continue;
+        const gp_Pnt2d uv = BRep_Tool::Parameters(V, TopoDS::Face(F));
+        return surfaces_[f]->Value(uv.X(), uv.Y());
+      }
+    }
     std::vector<std::pair<double, gp_Pnt>> candidates;  // (|cos|, point)
     double best_angle = 0;
     for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
