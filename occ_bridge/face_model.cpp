@@ -385,6 +385,27 @@ std::string g1_equation(int a, int b, const std::array<Vec2, 2>& uv, const char*
   return buf;
 }
 
+bool has_axis(SurfaceType t) { return t == SurfaceType::cylinder || t == SurfaceType::cone || t == SurfaceType::torus; }
+bool of_revolution(SurfaceType t) { return has_axis(t) || t == SurfaceType::sphere; }
+
+// "coaxial" (a has an axis; b has one too, or is a sphere): b's axis parallel to a's, b's centre on
+// a's axis. Design intent of faces of revolution meeting along a sharp edge: a countersink or
+// counterbore and its hole, a shaft's steps and chamfers.
+Residuals coaxial_residuals(const Primitive& a, const Primitive& b) {
+  const Vec3 off = (b.location - a.location).cross(a.axis);
+  if (b.type == SurfaceType::sphere) return residuals({off}, {});
+  return residuals({a.axis.cross(b.axis), off}, {});
+}
+
+std::vector<std::string> coaxial_equations(int a, int b, bool sphere) {
+  std::vector<std::string> out;
+  const std::string A = std::to_string(a), B = std::to_string(b);
+  for (const char* c : {".x", ".y", ".z"})
+    if (!sphere) out.push_back("cross(d" + A + ", d" + B + ")" + c + " = 0");
+  for (const char* c : {".x", ".y", ".z"}) out.push_back("cross(c" + B + " - c" + A + ", d" + A + ")" + c + " = 0");
+  return out;
+}
+
 }  // namespace
 
 const char* to_string(SurfaceType type) {
@@ -403,6 +424,7 @@ std::vector<double> tangency_residuals(const TangencyRelation& relation, const F
     }
     return r;
   }
+  if (relation.kind == "coaxial") return coaxial_residuals(a.primitive, b.primitive);
   const RelationKind* kind = find_kind(relation.kind);
   PARAFAB_VERIFY(kind, "unknown tangency relation kind '" << relation.kind << "'");
   PARAFAB_VERIFY(a.primitive.type == kind->a && b.primitive.type == kind->b,
@@ -531,6 +553,27 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
         }
       r.residuals = tangency_residuals(r, *a, *b);
     }
+    model.relations.push_back(std::move(r));
+  }
+  // Coaxial faces of revolution meeting along sharp edges (not already tangent).
+  std::map<std::pair<int, int>, std::vector<int>> sharp;
+  for (const EdgeInfo& e : model.edges)
+    if (!e.tangent && !e.seam && e.faces[0] >= 0 && e.faces[1] >= 0 && e.faces[0] != e.faces[1] &&
+        !pairs.count({e.faces[0], e.faces[1]}))  // (a degenerated edge has one face)
+      sharp[{e.faces[0], e.faces[1]}].push_back(e.index);
+  for (const auto& [pair, edges] : sharp) {
+    const FaceInfo *a = &model.faces[pair.first], *b = &model.faces[pair.second];
+    if (!of_revolution(a->primitive.type) || !of_revolution(b->primitive.type)) continue;
+    if (!has_axis(a->primitive.type)) std::swap(a, b);
+    if (!has_axis(a->primitive.type)) continue;  // two spheres
+    const Residuals res = coaxial_residuals(a->primitive, b->primitive);
+    if (!std::all_of(res.begin(), res.end(), [&](double x) { return std::abs(x) <= tolerance; })) continue;
+    TangencyRelation r;
+    r.kind = "coaxial";
+    r.faces = {a->index, b->index};
+    r.edges = edges;
+    r.equations = coaxial_equations(a->index, b->index, b->primitive.type == SurfaceType::sphere);
+    r.residuals = res;
     model.relations.push_back(std::move(r));
   }
   return model;

@@ -87,7 +87,10 @@ struct EdgeInfo {
 struct TangencyRelation {
   /// "plane-plane", "plane-cylinder", "plane-cone", "plane-sphere", "plane-torus",
   /// "cylinder-cylinder", "cylinder-sphere", "cylinder-torus", "cylinder-torus-pipe",
-  /// "sphere-torus", or "g1" (normals parallel at edge samples, on the NURBS poles).
+  /// "sphere-torus", "g1" (normals parallel at edge samples, on the NURBS poles), or
+  /// "coaxial": not a tangency but the design intent of two faces of revolution (cylinder, cone,
+  /// torus; b may be a sphere) meeting along sharp edges on one axis, e.g. a countersink and its
+  /// hole: b's axis parallel to a's and b's centre on a's axis.
   std::string kind;
   std::array<int, 2> faces{-1, -1};  ///< face a has the first type in `kind`
   std::vector<int> edges;            ///< the shared tangent edges

@@ -294,6 +294,16 @@ int add_tangency(ConstraintSystem& system, const std::string& kind, const Parame
       const J h = dot(vec_at(x, 0) - vec_at(x, na), vec_at(x, na + 3));
       return sqrt(x[na + 6] * x[na + 6] + h * h) - (x[3] + s * x[na + 7]);
     });
+  } else if (kind == "coaxial") {
+    // b's axis parallel to a's (unless b is a sphere), b's centre on a's axis: two independent
+    // components each (those other than the largest of a's axis at p0).
+    PARAFAB_VERIFY(axis_at(a.kind) == 3 && a.kind != K::plane && (axis_at(b.kind) == 3 || b.kind == K::sphere) &&
+                       b.kind != K::plane,
+                   label << ": relation coaxial needs a cylinder, cone or torus and a face of revolution, got "
+                         << to_string(a.kind) << " and " << to_string(b.kind));
+    if (b.kind != K::sphere) add_parallel("a_a, a_b", block_vec(p0, a, 3), A(3), B(3));
+    add_parallel("c_b - c_a, a_a", block_vec(p0, a, 3),
+                 [=](const std::vector<J>& x) { return vec_at(x, na) - vec_at(x, 0); }, A(3));
   } else {
     PARAFAB_INPUT_ERROR(label << ": tangency relation '" << kind << "' has no equations in p");
   }

@@ -98,7 +98,7 @@ class OptimizeFeatureTest(unittest.TestCase):
     def assertUnchanged(self, before):
         self.assertEqual(self.snapshot(), before)
 
-    def test_face_model_lists_parameters_and_tangency_groups(self):
+    def test_face_model_lists_parameters_and_relation_groups(self):
         m = optimize_feature.face_model(self.wheel)
         self.assertEqual(len(m["faces"]), len(self.wheel.Shape.Faces))
         self.assertEqual(m["groups"], [])  # the wheel has sharp edges only
@@ -132,6 +132,22 @@ class OptimizeFeatureTest(unittest.TestCase):
                 self.assertAlmostEqual(abs(n[0].dot(n[1])), 1.0, delta=1e-9)
         self.assertEqual(sorted(radii), [5.0, 12.0])
         self.assertIn("radius", m["faces"][2]["parameters"])
+        # A countersunk hole and a round-ended pin: the cone and its hole (coaxial, a sharp
+        # edge) form one group, the pin and its tangent cap another; checked on FreeCAD's own
+        # surfaces (types and axes), not on the face model.
+        block = self.doc.addObject("Part::Feature", "Block")
+        block.Shape = Part.read(os.path.join(_REPO, "samples", "parts", "countersunk_pin_block.step"))
+        m = optimize_feature.face_model(block)
+        self.assertEqual(m["relations"], 2)
+        faces = {"Face%d" % (i + 1): f for i, f in enumerate(block.Shape.Faces)}
+        kinds = sorted(sorted(type(faces[n].Surface).__name__ for n in g) for g in m["groups"])
+        self.assertEqual(kinds, [["Cone", "Cylinder"], ["Cylinder", "Sphere"]])
+        for g in m["groups"]:
+            cone = [faces[n].Surface for n in g if isinstance(faces[n].Surface, Part.Cone)]
+            if cone:
+                hole = [faces[n].Surface for n in g if isinstance(faces[n].Surface, Part.Cylinder)][0]
+                self.assertAlmostEqual(abs(cone[0].Axis.dot(hole.Axis)), 1.0, delta=1e-12)
+                self.assertAlmostEqual(axis_distance(cone[0].Apex, hole.Center, hole.Axis), 0.0, delta=1e-9)
 
     def test_wheel_balanced_beside_the_original(self):
         before = self.snapshot()

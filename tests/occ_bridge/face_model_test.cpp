@@ -7,10 +7,12 @@
 
 #include <BRepAdaptor_Curve.hxx>
 #include <BRepAdaptor_Surface.hxx>
+#include <BRepAlgoAPI_Cut.hxx>
 #include <BRepAlgoAPI_Fuse.hxx>
 #include <BRepClass3d_SolidClassifier.hxx>
 #include <BRepFilletAPI_MakeFillet.hxx>
 #include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCone.hxx>
 #include <BRepPrimAPI_MakeCylinder.hxx>
 #include <BRepPrimAPI_MakeSphere.hxx>
 #include <BRepPrimAPI_MakeTorus.hxx>
@@ -41,7 +43,7 @@ std::string sample(const std::string& name) {
 }
 
 const std::vector<std::string> kSamples = {"box",  "cylinder",   "l_bracket", "wrench",
-                                           "ring", "half_torus", "wheel",     "housing"};
+                                           "ring", "half_torus", "wheel",     "housing", "countersunk_pin_block"};
 
 double part_size(const PartShape& part) {
   const PartInfo info = part_info(part);
@@ -258,7 +260,7 @@ void expect_relations_hold(const FaceModel& m, double tolerance) {
     EXPECT_FALSE(r.edges.empty());
     for (double x : r.residuals) EXPECT_LT(std::abs(x), tolerance);
     EXPECT_EQ(tangency_residuals(r, m.faces[r.faces[0]], m.faces[r.faces[1]]), r.residuals);
-    for (int e : r.edges) EXPECT_TRUE(m.edges[e].tangent);
+    for (int e : r.edges) EXPECT_EQ(m.edges[e].tangent, r.kind != "coaxial");  // coaxial: sharp edges
   }
 }
 
@@ -305,6 +307,39 @@ TEST(FaceModel, RelationsHoldOnEverySample) {
   EXPECT_EQ(kinds["housing:plane-torus"], 1);       // boss base fillet
   EXPECT_EQ(kinds["housing:cylinder-torus"], 1);
   EXPECT_EQ(kinds.count("wrench:g1") + kinds.count("housing:g1"), 0u);
+  EXPECT_EQ(kinds["countersunk_pin_block:cylinder-sphere"], 1);  // the pin's cap
+  EXPECT_EQ(kinds["countersunk_pin_block:coaxial"], 1);          // the countersink and its hole
+  int coaxial = 0;
+  for (const auto& [key, n] : kinds) coaxial += key.find(":coaxial") != std::string::npos ? n : 0;
+  EXPECT_EQ(coaxial, 1);  // no other sample has faces of revolution meeting along a sharp edge
+}
+
+// Coaxial faces of revolution meeting along a sharp edge (design intent, not a tangency): a
+// shaft (cylinder r 10) with a chamfer (cone to r 8) at its top, a cross hole (r 3, along x)
+// through it, turned 11° off the axes. The cylinder and the cone are coaxial; the cross hole
+// meets the shaft along sharp saddle curves on a perpendicular axis: no relation.
+TEST(FaceModel, ChamferIsCoaxialWithItsShaftAndACrossHoleIsNot) {
+  TopoDS_Shape shaft = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(0, 0, 0), gp::DZ()), 10, 20).Shape();
+  shaft = BRepAlgoAPI_Fuse(shaft, BRepPrimAPI_MakeCone(gp_Ax2(gp_Pnt(0, 0, 20), gp::DZ()), 10, 8, 2).Shape()).Shape();
+  shaft = BRepAlgoAPI_Cut(shaft, BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(-15, 0, 10), gp::DX()), 3, 30).Shape()).Shape();
+  const auto straight = make_part(shaft, "chamfered shaft");
+  const auto part = rotated_part(*straight, Vec3(1, 2, 3), Vec3(1, 2, 3).normalized(), 11);
+  const FaceModel m = build_face_model(*part);
+  int coaxial = 0;
+  for (const TangencyRelation& r : m.relations) {
+    EXPECT_EQ(r.kind, "coaxial");
+    if (r.kind != "coaxial") continue;
+    ++coaxial;
+    EXPECT_EQ(m.faces[r.faces[0]].primitive.type, SurfaceType::cylinder);
+    EXPECT_EQ(m.faces[r.faces[1]].primitive.type, SurfaceType::cone);
+    EXPECT_EQ(r.equations.size(), 6u);
+    for (double x : r.residuals) EXPECT_LT(std::abs(x), 1e-12);
+  }
+  expect_relations_hold(m, 1e-12);
+  EXPECT_EQ(coaxial, 1);
+  int cylinders = 0;  // the shaft and the cross hole
+  for (const FaceInfo& f : m.faces) cylinders += f.primitive.type == SurfaceType::cylinder;
+  EXPECT_EQ(cylinders, 2);
 }
 
 std::shared_ptr<const PartShape> part_of(const TopoDS_Shape& shape) { return make_part(shape, "test shape"); }

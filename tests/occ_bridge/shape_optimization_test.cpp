@@ -81,7 +81,7 @@ struct PartSetup {
 };
 
 TEST(ShapeParameters, SamplePartsSatisfyTheirConstraintsAndJacobiansAreExact) {
-  for (const std::string name : {"l_bracket", "wheel", "wrench", "housing"}) {
+  for (const std::string name : {"l_bracket", "wheel", "wrench", "housing", "countersunk_pin_block"}) {
     PartSetup s(name);
     ASSERT_GT(s.sp.size(), 0) << name;
     // The part as read satisfies c_para to the face model's detection tolerance.
@@ -293,7 +293,8 @@ TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
   const int cone = find_face(s.model, SurfaceType::cone, [](const Primitive&) { return true; });
   const int sphere = find_face(s.model, SurfaceType::sphere, [](const Primitive&) { return true; });
   const int pin = cylinder_at(s.model, 6, 42, 20);
-  ASSERT_EQ(s.model.relations.size(), 1u);  // cylinder-sphere
+  const int hole = cylinder_at(s.model, 4, 15, 20);
+  ASSERT_EQ(s.model.relations.size(), 2u);  // cylinder-sphere (pin, cap), coaxial (hole, cone)
   // The part's volume from its primitives: block, minus the hole (r_h through z 0..12) and the
   // countersink beyond it (frustum from the cone's circle of radius r_h up to z = 12), plus the
   // pin (cylinder from z = 12 to the sphere's centre) and its hemisphere.
@@ -310,7 +311,6 @@ TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
     return 60.0 * 40 * 12 - M_PI * rh * rh * 12 - countersink + M_PI * rp * rp * (sp.location.z() - 12) +
            2.0 / 3 * M_PI * std::pow(sp.radius, 3);
   };
-  const int hole = cylinder_at(s.model, 4, 15, 20);
   EXPECT_NEAR(s.model.faces[cone].primitive.axis.z(), 1, 1e-12);
   EXPECT_NEAR(closed_form(s.model, cone, hole, pin, sphere), occt_mass_properties(*s.part).volume, 1e-9 * 29738);
   struct Change {
@@ -339,7 +339,7 @@ TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
     std::remove(path.c_str());
     const FaceModel after = build_face_model(*back);
     ASSERT_EQ(after.faces.size(), s.model.faces.size()) << c.what;
-    ASSERT_EQ(after.relations.size(), 1u) << c.what;
+    ASSERT_EQ(after.relations.size(), 2u) << c.what;
     const double v = occt_mass_properties(*back).volume, ref = closed_form(after, cone, hole, pin, sphere);
     std::printf("%-40s OCCT volume %.9f, closed form %.9f (relative %.1e); sphere r %.9f, pin r %.9f, centre z %.9f\n",
                 c.what.c_str(), v, ref, std::abs(v - ref) / ref, after.faces[sphere].primitive.radius,
@@ -351,17 +351,22 @@ TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
     // radius 1.5e-8 from the sphere's, the followers' drift in the projection).
     EXPECT_NEAR(after.faces[sphere].primitive.radius, after.faces[pin].primitive.radius, 1e-7) << c.what;
   }
-  // Known limit: the cone moved off its hole's axis. Cone and hole share one seam vertex on the
-  // circle where they meet; off-axis, the cone's seam line no longer passes through a point of
-  // the new intersection curve on the hole's seam, and the write-back refuses the part, naming
-  // the vertex (the optimizer counts it as an invalid model). Coaxiality is not a face-model
-  // relation: tie or fix the cone's axis (a countersink stays on its hole).
-  const int axis_y = parameter_index(s.sp, cone, "axis point y");
-  const optimize::ProjectionResult off = s.projected({{axis_y, s.start.p[axis_y] + 0.01}});
-  ASSERT_TRUE(off.done) << off.message;
-  const ModifyResult refused = modify_part(*s.part, s.model, s.sp, off.p);
-  EXPECT_FALSE(refused.done);
-  EXPECT_NE(refused.message.find("off the new curve of edge"), std::string::npos) << refused.message;
+  // The countersink moved sideways: the coaxial relation (cone and hole meet along a sharp
+  // circle on one axis) drags the hole along, and the write-back moves both (the volume stays).
+  // Without the relation the cone alone moved off the hole's axis and the write-back refused the
+  // part ("vertex 11 ... off the new curve of edge 15": the seam vertex the two faces share
+  // cannot stay on both seams).
+  const int axis_y = parameter_index(s.sp, cone, "axis point y"), hole_y = parameter_index(s.sp, hole, "axis point y");
+  const optimize::ProjectionResult side = s.projected({{axis_y, s.start.p[axis_y] + 1.5}});
+  ASSERT_TRUE(side.done) << side.message;
+  EXPECT_NEAR(side.p[hole_y] - s.start.p[hole_y], 1.5, 1e-5);
+  const ModifyResult moved = modify_part(*s.part, s.model, s.sp, side.p);
+  ASSERT_TRUE(moved.done) << moved.message;
+  const FaceModel after = build_face_model(*moved.part);
+  ASSERT_EQ(after.relations.size(), 2u);
+  EXPECT_NEAR(after.faces[hole].primitive.location.y(), 21.5, 1e-5);
+  EXPECT_NEAR(occt_mass_properties(*moved.part).volume, occt_mass_properties(*s.part).volume, 1e-9 * 29738);
+  EXPECT_NEAR(occt_mass_properties(*moved.part).volume, closed_form(after, cone, hole, pin, sphere), 1e-9 * 29738);
 }
 
 TEST(ShapeDerivatives, BoundaryQuadratureMatchesOcctMoments) {
@@ -444,6 +449,9 @@ TEST(ShapeDerivatives, GradientsMatchFiniteDifferencesOfOcctMassProperties) {
        }},
       {"countersunk_pin_block", [](const PartSetup& s) {
          return parameter_index(s.sp, find_face(s.model, SurfaceType::cone, [](const Primitive&) { return true; }), "radius");
+       }},
+      {"countersunk_pin_block", [](const PartSetup& s) {  // the coaxial countersink follows
+         return parameter_index(s.sp, cylinder_at(s.model, 4, 15, 20), "axis point y");
        }},
       {"countersunk_pin_block", [](const PartSetup& s) {
          return parameter_index(s.sp, find_face(s.model, SurfaceType::sphere, [](const Primitive&) { return true; }), "radius");

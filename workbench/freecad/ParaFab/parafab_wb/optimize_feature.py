@@ -2,8 +2,9 @@
 
 Non-GUI core of the "Optimize shape" command (the task panel is :mod:`parafab_wb.optimize_panel`):
 
-* :func:`face_model` -- the faces of a solid, their parameter names and the tangency groups
-  (faces linked by the face model's tangency relations: moving one drags the others along).
+* :func:`face_model` -- the faces of a solid, their parameter names and the relation groups
+  (faces linked by the face model's tangency or coaxial relations: moving one drags the others
+  along).
 * :func:`build_job` -- the ``parafab optimize`` job (README "Shape optimization") from panel
   options that name faces the FreeCAD way (``FaceN`` = ParaFab face N − 1).
 * :func:`optimize_shape` -- export the solid, run ``parafab.optimize`` in-process and add the
@@ -181,11 +182,12 @@ def face_index(name, n_faces, what):
 
 
 def face_model(obj):
-    """Faces and tangency groups of ``obj``'s solid, from ``parafab.inspect_part``.
+    """Faces and relation groups of ``obj``'s solid, from ``parafab.inspect_part``.
 
     Returns ``{"faces": [{"name": "FaceN", "index", "type", "parameters": [names]}],
-    "groups": [[FaceN, ...]]}``: a group is a set of faces connected by tangency relations
-    (two or more faces; faces in no relation are in no group)."""
+    "groups": [[FaceN, ...]]}``: a group is a set of faces connected by the face model's
+    relations, tangencies and coaxial faces of revolution (two or more faces; faces in no
+    relation are in no group)."""
     import parafab
     shape, _ = _local_shape(obj)
     tmp = tempfile.mkdtemp(prefix="parafab_inspect_")

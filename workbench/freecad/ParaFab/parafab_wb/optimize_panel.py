@@ -1,7 +1,7 @@
 """Task panel of "Optimize shape" (the command ``ParaFab_OptimizeShape`` on a selected solid).
 
-Shows the solid's faces grouped by the face model's tangency relations (a tangency group moves
-together: a moved plane drags its fillet along) with each face's parameters (offset, normal,
+Shows the solid's faces grouped by the face model's relations (a group moves together: a moved
+plane drags its fillet along, a countersink its hole) with each face's parameters (offset, normal,
 radius, axis, ...), checkable as design parameters with optional Min / Max bounds (double-click
 a cell), or "all parameters" (``"auto"``); the
 objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density, or for "Target
@@ -98,7 +98,7 @@ class OptimizeTaskPanel(object):
 
         params = QtGui.QGroupBox("Design parameters")
         lay = QtGui.QVBoxLayout(params)
-        hint = QtGui.QLabel("%s: %d faces, %d tangency relations, %d tangency groups (a group "
+        hint = QtGui.QLabel("%s: %d faces, %d relations (tangent or coaxial faces), %d groups (a group "
                             "moves together)." % (
                                 self.obj.Label, len(self.model["faces"]), self.model["relations"],
                                 len(self.model["groups"])))
