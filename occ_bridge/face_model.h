@@ -92,8 +92,8 @@ struct TangencyRelation {
   /// torus; b may be a sphere) meeting along sharp edges on one axis, e.g. a countersink and its
   /// hole: b's axis parallel to a's and b's centre on a's axis.
   std::string kind;
-  std::array<int, 2> faces{-1, -1};  ///< face a has the first type in `kind`
-  std::vector<int> edges;            ///< the shared tangent edges
+  std::array<int, 2> faces{-1, -1};  ///< face a has the first type in `kind` ("coaxial": a has an axis)
+  std::vector<int> edges;            ///< the shared tangent edges ("coaxial": the shared sharp edges)
   int sign = 1;  ///< ±1 fixed at detection: which side (convex/concave fillet, inner/outer)
   /// "g1" only: the (u, v) of each edge sample on face a and on face b.
   std::vector<std::array<Vec2, 2>> samples;

@@ -218,6 +218,11 @@ class ParameterModification : public BRepTools_Modification {
     }
     if (BRep_Tool::Degenerated(E)) {  // a pole: same (u, v) line on the moved surface
       C = Handle(Geom2d_Curve)::DownCast(old->Copy());
+      // A cone's apex line v = −R/sin α moves with the radius and half-angle.
+      if (const auto cone = Handle(Geom_ConicalSurface)::DownCast(surfaces_[f])) {
+        const double v = -cone->RefRadius() / std::sin(cone->SemiAngle());
+        C->Translate(gp_Vec2d(0, v - old->Value(0.5 * (of + ol)).Y()));
+      }
       return Standard_True;
     }
     double first, last;
@@ -466,15 +471,17 @@ class ParameterModification : public BRepTools_Modification {
   // not win over the continuation), then onto all its edges' curves.
   gp_Pnt new_point(const TopoDS_Vertex& V) const {
     const gp_Pnt P0 = BRep_Tool::Pnt(V);
-    // A pole (the vertex of a degenerated edge: a sphere's or cone's apex): the same (u, v) on
-    // the face's moved surface, where the degenerated edge's pcurve still maps. A projection onto
-    // the seam's new curve missed it when a sphere's centre moved off its pole axis (a pin cap
-    // whose centre moves along a turned axis: BRepCheck_UnorientableShape).
+    // A pole (the vertex of a degenerated edge): a cone's apex is the moved cone's apex (its v
+    // changes with the radius and half-angle, see NewCurve2d); a sphere's pole is the same (u, v)
+    // on the moved sphere (its frame keeps the pole axis). A projection onto the seam's new curve
+    // missed it when a sphere's centre moved off its pole axis (a pin cap whose centre moves
+    // along a turned axis: BRepCheck_UnorientableShape).
     for (const TopoDS_Shape& Es : vertex_edges_.FindFromKey(V)) {
       if (!BRep_Tool::Degenerated(TopoDS::Edge(Es))) continue;
       for (const TopoDS_Shape& F : edge_faces_.FindFromKey(Es)) {
         const int f = part_.face_index(F);
         if (f < 0 || !modified_[f] || pole_face_[f]) continue;
+        if (const auto cone = Handle(Geom_ConicalSurface)::DownCast(surfaces_[f])) return cone->Apex();
         const gp_Pnt2d uv = BRep_Tool::Parameters(V, TopoDS::Face(F));
         return surfaces_[f]->Value(uv.X(), uv.Y());
       }

@@ -650,7 +650,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       for (double v : r.residuals) result.tangency_residual_max = std::max(result.tangency_residual_max, std::abs(v));
     if (final_model.relations.size() != model.relations.size())
       result.notes.push_back("the final part has " + std::to_string(final_model.relations.size()) +
-                             " tangency relations, the original " + std::to_string(model.relations.size()));
+                             " relations (tangent or coaxial faces), the original " + std::to_string(model.relations.size()));
   } catch (const Error& e) {
     result.tangency_residual_max = tangency_residual_max(model, sp, accepted.p);
     result.notes.push_back(std::string("tangency residual from the parameters (face model of the result: ") +

@@ -195,7 +195,13 @@ ShapeParameters build_shape_parameters(const FaceModel& model, const ShapeParame
     for (int k = 0; k < b.size(); ++k) {
       sp.names[b.offset + k] = "face " + std::to_string(b.face) + " " + optimize::to_string(b.kind) + " " + names[k];
       if (names[k].find("radius") != std::string::npos) sp.lower[b.offset + k] = options.min_radius;
-      if (names[k] == "half-angle") sp.lower[b.offset + k] = 1e-3, sp.upper[b.offset + k] = M_PI / 2 - 1e-3;
+      // OCCT's half-angle is negative for a cone narrowing along its axis (MakeCone(R1 > R2)):
+      // the bounds keep its sign (a positive range clamped such a cone flat, its apex 10 m away).
+      if (names[k] == "half-angle") {
+        const bool narrowing = sp.initial[b.offset + k] < 0;
+        sp.lower[b.offset + k] = narrowing ? -(M_PI / 2 - 1e-3) : 1e-3;
+        sp.upper[b.offset + k] = narrowing ? -1e-3 : M_PI / 2 - 1e-3;
+      }
     }
   }
   for (const PoleBlock& b : sp.pole_blocks)

@@ -77,7 +77,7 @@ struct ShapeParameters {
   optimize::ConstraintSystem constraints;
   std::vector<int> fixed_faces;                  ///< fixed by the options or by a relation with a free-form face
   std::vector<std::string> notes;                ///< what was not expressible and what was done about it
-  int relation_equations = 0;                    ///< tangency equations in `constraints`
+  int relation_equations = 0;                    ///< tangency and coaxial equations in `constraints`
   /// Rows of `constraints` from here on are the user's (ties, mirrors, rotations, orthogonal);
   /// the rows before (unit axes, tangencies) make the B-rep valid. When no p satisfies all,
   /// the user rows give way (optimize_shape's nearest valid model).

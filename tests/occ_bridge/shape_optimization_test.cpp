@@ -304,7 +304,7 @@ TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
     const Primitive& pc = m.faces[pin_face].primitive;
     const Primitive& sp = m.faces[sphere_face].primitive;
     const double rh = h.radius, t = std::tan(c.semi_angle);
-    // Cone radius r(z) = c.radius + (z − z_c) tan α along its axis +z (checked below).
+    // Cone radius r(z) = c.radius + (z − z_c) tan α along its axis +z (checked on the part as read).
     const double z0 = c.location.z() + (rh - c.radius) / t, r_top = c.radius + (12 - c.location.z()) * t;
     const double countersink = M_PI / 3 * (12 - z0) * (r_top * r_top + r_top * rh + rh * rh) - M_PI * rh * rh * (12 - z0);
     const double rp = pc.radius;
@@ -367,6 +367,45 @@ TEST(ShapeModify, ConeAndSpherePartsKeepTheClosedFormVolume) {
   EXPECT_NEAR(after.faces[hole].primitive.location.y(), 21.5, 1e-5);
   EXPECT_NEAR(occt_mass_properties(*moved.part).volume, occt_mass_properties(*s.part).volume, 1e-9 * 29738);
   EXPECT_NEAR(occt_mass_properties(*moved.part).volume, closed_form(after, cone, hole, pin, sphere), 1e-9 * 29738);
+}
+
+// A pointed cone (base r 10 at z = 0, apex at z = 20): its apex is the vertex of a degenerated
+// edge. Radius and half-angle changes move the apex (v = −R/sin α on the cone); OCCT's volume of
+// the written part against the cone's closed form π R² h / 3, h = R / tan α, both read from the
+// written part's own face model.
+TEST(ShapeModify, PointedConeMovesItsApex) {
+  const auto part = make_part(BRepPrimAPI_MakeCone(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), 10, 0, 20).Shape(), "cone");
+  const FaceModel model = build_face_model(*part);
+  const ShapeParameters sp = build_shape_parameters(model);
+  const int lateral = find_face(model, SurfaceType::cone, [](const Primitive&) { return true; });
+  const Primitive& c0 = model.faces[lateral].primitive;
+  std::printf("cone as read: location z %.9g, radius %.9g, half-angle %.9g, axis z %.3g\n", c0.location.z(), c0.radius,
+              c0.semi_angle, c0.axis.z());
+  auto closed_form = [&](const Primitive& c) {
+    // Base radius at z = 0 from the cone's reference circle, height to the apex.
+    const Vec3 apex = c.location - c.radius / std::tan(c.semi_angle) * c.axis;
+    const double h = std::abs(apex.z());
+    const double R = h * std::tan(c.semi_angle);
+    return M_PI * R * R * h / 3;
+  };
+  EXPECT_NEAR(closed_form(c0), M_PI * 100 * 20 / 3, 1e-9 * 2094);
+  for (const auto& [parameter, delta] : std::vector<std::pair<std::string, double>>{{"radius", 0.5}, {"half-angle", 0.05}}) {
+    const int i = parameter_index(sp, lateral, parameter);
+    Eigen::VectorXd t = sp.initial;
+    t[i] += delta;
+    optimize::ProjectionOptions o;
+    o.weights = projection_weights(sp, {i}, 1e-6, 30);
+    const optimize::ProjectionResult p = optimize::project(sp.constraints, t, sp.initial, sp.lower, sp.upper, {}, o);
+    ASSERT_TRUE(p.done) << parameter << ": " << p.message;
+    const ModifyResult m = modify_part(*part, model, sp, p.p);
+    ASSERT_TRUE(m.done) << parameter << ": " << m.message;
+    const Primitive c = build_face_model(*m.part).faces[lateral].primitive;
+    const double v = occt_mass_properties(*m.part).volume, ref = closed_form(c);
+    std::printf("pointed cone %s %+g: OCCT volume %.9f, closed form %.9f (relative %.1e)\n", parameter.c_str(), delta, v,
+                ref, std::abs(v - ref) / ref);
+    EXPECT_NEAR(v, ref, 1e-9 * ref) << parameter;
+    EXPECT_GT(std::abs(v - M_PI * 100 * 20 / 3), 10) << parameter;  // the change is not lost
+  }
 }
 
 TEST(ShapeDerivatives, BoundaryQuadratureMatchesOcctMoments) {

@@ -159,7 +159,7 @@ class Optimize(unittest.TestCase):
         # followers' 1e-4, so a tilt is not free but not zero either): the hole's foot moves 2.7e-6
         # more than the closed form of a pure translation (measured), the cone's top 6e-6 less.
         self.assertAlmostEqual(moved, expected, delta=1e-5)
-        for k in range(3):  # one axis: directions equal, and the relation's residuals vanish
+        for k in range(3):  # one axis: directions equal (measured: to the last digit), residuals vanish
             self.assertAlmostEqual(after["faces"][cone]["parameters"]["d"][k], after["faces"][hole]["parameters"]["d"][k],
                                    delta=1e-12)
         self.assertEqual(sorted(r["kind"] for r in after["relations"]), ["coaxial", "cylinder-sphere"])
