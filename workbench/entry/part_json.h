@@ -1,5 +1,5 @@
 // The part inspection JSON shared by the CLI (`parafab inspect`): faces with types, mid-level
-// parameters, NURBS and trimming loops, edges, tangency relations (thesis §6.2.1, §6.5.1).
+// parameters, NURBS and trimming loops, edges, tangency and coaxial relations (thesis §6.2.1, §6.5.1).
 #pragma once
 
 #include <nlohmann/json.hpp>
