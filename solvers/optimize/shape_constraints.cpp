@@ -297,8 +297,7 @@ int add_tangency(ConstraintSystem& system, const std::string& kind, const Parame
   } else if (kind == "coaxial") {
     // b's axis parallel to a's (unless b is a sphere), b's centre on a's axis: two independent
     // components each (those other than the largest of a's axis at p0).
-    PARAFAB_VERIFY(axis_at(a.kind) == 3 && a.kind != K::plane && (axis_at(b.kind) == 3 || b.kind == K::sphere) &&
-                       b.kind != K::plane,
+    PARAFAB_VERIFY(axis_at(a.kind) == 3 && (axis_at(b.kind) == 3 || b.kind == K::sphere),
                    label << ": relation coaxial needs a cylinder, cone or torus and a face of revolution, got "
                          << to_string(a.kind) << " and " << to_string(b.kind));
     if (b.kind != K::sphere) add_parallel("a_a, a_b", block_vec(p0, a, 3), A(3), B(3));

@@ -51,17 +51,26 @@ struct ProjectedEntry {
   std::shared_ptr<const PartShape> part_at(double s) const { return line->at(s); }
 };
 
-// The state at an entry's projected start and the exact route there (one solve, boundary
-// integrals); the gradient is left undone when the start failed.
+// A design entry of `space` projected as the optimizer moves it, the state at its start and the
+// exact route there (one solve, boundary integrals); failure() says which step failed ("" when
+// none did).
 struct ExactAtEntry {
+  ProjectedEntry entry;
   ComplianceState at;
   ComplianceGradient gradient;
   double along = 0;  ///< dC/dp̃ along the entry: gradient · column of dp⊥/dp̃
-  ExactAtEntry(const ProjectedEntry& entry, const ComplianceSetup& setup, const ShapeParameters& sp)
-      : at(compliance_start(entry.part_at(0), setup)) {
+  ExactAtEntry(const PartShape& part, const testing::DesignSpace& space, int index, const ComplianceSetup& setup)
+      : entry(part, space.model, space.parameters, space.start.p, index, space.size) {
+    if (!entry.p0.done) return;
+    at = compliance_start(entry.part_at(0), setup);
     if (!at.done) return;
-    gradient = compliance_gradient(at, setup, sp, entry.p0.p);
+    gradient = compliance_gradient(at, setup, space.parameters, entry.p0.p);
     if (gradient.done) along = gradient.gradient.dot(entry.column);
+  }
+  std::string failure() const {
+    if (!entry.p0.done) return "projection: " + entry.p0.message;
+    if (!at.done) return "start: " + at.message;
+    return gradient.done ? "" : "gradient: " + gradient.message;
   }
 };
 
@@ -148,16 +157,13 @@ TEST(ShapeCompliance, ExactGradientMatchesFiniteDifferencesOfTheFullPipeline) {
          dead_weight ? 3e-8 : 1e-8},
     };
     for (const Case& k : cases) {
-      const ProjectedEntry entry(*c.part, model, sp, start.p, k.index, L);
-      ASSERT_TRUE(entry.p0.done);
-      auto part_at = [&](double s) { return entry.part_at(s); };
-      const ExactAtEntry e(entry, c.setup, sp);
+      const ExactAtEntry e(*c.part, space, k.index, c.setup);
+      ASSERT_EQ(e.failure(), "") << k.what;
+      auto part_at = [&](double s) { return e.entry.part_at(s); };
       const ComplianceState& at = e.at;
       const ComplianceGradient& g = e.gradient;
-      ASSERT_TRUE(at.done) << at.message;
-      ASSERT_TRUE(g.done) << g.message;
       const double exact = e.along;
-      const bool flagged = !exact_along(g, entry.column);
+      const bool flagged = !exact_along(g, e.entry.column);
       EXPECT_EQ(!flagged, k.exact) << k.what;
       const double fd = richardson([&](double H) { return compliance_on(part_at(H), at, c.setup); }, 2e-4 * L);
       std::printf("%s, %s: C = %.10g, exact %.10g%s, FD %.10g, relative difference %.2e, %d elements, %d points, %.3f s\n",
@@ -273,15 +279,12 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
       {"fin side plane offset", parameter_index(sp, fin, "offset"), 2e-8},
   };
   for (const EntryCase& k : cases) {
-    const ProjectedEntry entry(*part, model, sp, start.p, k.index, L);
-    ASSERT_TRUE(entry.p0.done);
-    auto part_at = [&](double s) { return entry.part_at(s); };
-    const ExactAtEntry e(entry, setup, sp);
+    const ExactAtEntry e(*part, space, k.index, setup);
+    ASSERT_EQ(e.failure(), "") << k.what;
+    auto part_at = [&](double s) { return e.entry.part_at(s); };
     const ComplianceState& at = e.at;
     const ComplianceGradient& g = e.gradient;
-    ASSERT_TRUE(at.done) << at.message;
-    ASSERT_TRUE(g.done) << g.message;
-    EXPECT_TRUE(exact_along(g, entry.column)) << k.what;
+    EXPECT_TRUE(exact_along(g, e.entry.column)) << k.what;
     const double exact = e.along;
     const double fd = richardson([&](double H) { return compliance_on(part_at(H), at, setup); }, 2e-4 * L);
     std::printf("housing hanging by its boss, %s: C = %.10g, exact %.10g, FD %.10g, relative difference %.2e, %d edge points\n",
@@ -503,16 +506,13 @@ TEST(ShapeCompliance, ConeAndSphereEntriesHaveExactGradients) {
       {"sphere centre z (along the pin's axis)", parameter_index(sp, sphere, "centre z"), 1.5e-4},
   };
   for (const EntryCase& k : cases) {
-    const ProjectedEntry entry(*part, model, sp, start.p, k.index, L);
-    ASSERT_TRUE(entry.p0.done);
-    auto part_at = [&](double s) { return entry.part_at(s); };
-    const ExactAtEntry e(entry, setup, sp);
+    const ExactAtEntry e(*part, space, k.index, setup);
+    ASSERT_EQ(e.failure(), "") << k.what;
+    auto part_at = [&](double s) { return e.entry.part_at(s); };
     const ComplianceState& at = e.at;
     const ComplianceGradient& g = e.gradient;
-    ASSERT_TRUE(at.done) << at.message;
-    ASSERT_TRUE(g.done) << g.message;
     const double exact = e.along;
-    EXPECT_TRUE(exact_along(g, entry.column)) << k.what;
+    EXPECT_TRUE(exact_along(g, e.entry.column)) << k.what;
     // Steps in the entry's own unit: radians for the half-angle (2e-4·L would be 1°), mm otherwise.
     const double H = sp.names[k.index].find("half-angle") != std::string::npos ? 2e-4 : 2e-4 * L;
     double coarse = 0;
