@@ -16,7 +16,9 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <algorithm>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "common/error.h"
@@ -31,43 +33,31 @@ namespace {
 
 xfem::Vec3 to_vec(const gp_Pnt& P) { return {P.X(), P.Y(), P.Z()}; }
 
-// The faces of the part within `tol` of X; the outward normal of the first one.
+// The faces of the part within `tol` of X, with the solid's outward normals there.
 GapEnd locate(const PartShape& part, const std::vector<Bnd_Box>& boxes, const xfem::Vec3& X, double tol) {
   GapEnd end;
   end.point = X;
   const gp_Pnt P(X.x(), X.y(), X.z());
   const TopoDS_Vertex v = BRepBuilderAPI_MakeVertex(P).Vertex();
-  std::vector<int> on;
   for (int f = 0; f < part.face_count(); ++f) {
     if (boxes[f].IsOut(P)) continue;
     BRepExtrema_DistShapeShape dist(v, part.face(f));
-    if (dist.IsDone() && dist.Value() <= tol) on.push_back(f);
+    if (!dist.IsDone() || dist.Value() > tol) continue;
+    const TopoDS_Face& face = part.face(f);
+    GeomAPI_ProjectPointOnSurf projection(P, BRep_Tool::Surface(face));
+    xfem::Vec3 normal = xfem::Vec3::Zero();  // stays zero without a foot point or a normal
+    if (projection.NbPoints() > 0) {
+      double u, w;
+      projection.LowerDistanceParameters(u, w);
+      gp_Pnt Q;
+      gp_Vec du, dv;
+      BRep_Tool::Surface(face)->D1(u, w, Q, du, dv);
+      const gp_Vec n = du.Crossed(dv);
+      if (n.Magnitude() > 0) normal = xfem::Vec3(n.X(), n.Y(), n.Z()).normalized() * (face.Orientation() == TopAbs_REVERSED ? -1 : 1);
+    }
+    end.faces.push_back(f);
+    end.normals.push_back(normal);
   }
-  if (on.empty()) return end;  // on the cell's box only
-  if (on.size() > 1) {
-    end.face = -2;
-    return end;
-  }
-  end.face = on[0];
-  const TopoDS_Face& face = part.face(on[0]);
-  GeomAPI_ProjectPointOnSurf projection(P, BRep_Tool::Surface(face));
-  if (projection.NbPoints() == 0) {
-    end.face = -2;  // no foot point: no normal, no derivative
-    return end;
-  }
-  double u, v_;
-  projection.LowerDistanceParameters(u, v_);
-  gp_Pnt Q;
-  gp_Vec du, dv;
-  BRep_Tool::Surface(face)->D1(u, v_, Q, du, dv);
-  gp_Vec n = du.Crossed(dv);
-  if (n.Magnitude() <= 0) {
-    end.face = -2;
-    return end;
-  }
-  n.Normalize();
-  if (face.Orientation() == TopAbs_REVERSED) n.Reverse();
-  end.normal = {n.X(), n.Y(), n.Z()};
   return end;
 }
 
@@ -78,87 +68,126 @@ struct OcctPiece {
 
 }  // namespace
 
+namespace {
+
+// OCCT's pieces of one cell (the solid's common with the cell box) and which is each element's.
+struct CellPieces {
+  std::vector<OcctPiece> solids;
+  std::vector<int> solid_of;  ///< per element of the cell (members order)
+};
+
+std::string cell_name(const std::array<int, 3>& c) {
+  std::ostringstream m;
+  m << "(" << c[0] << ", " << c[1] << ", " << c[2] << ")";
+  return m.str();
+}
+
+}  // namespace
+
 PieceGapResult piece_gaps(const PartShape& part, const GridModel& grid, const PieceGapOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   PieceGapResult result;
   std::map<std::array<int, 3>, std::vector<int>> pieces;  // cut cells' elements
   for (int e = 0; e < static_cast<int>(grid.elements.size()); ++e)
     if (grid.elements[e].subvolume) pieces[grid.elements[e].cell].push_back(e);
+  // Candidate pairs: two pieces of one cell; pieces of face-neighbour cells that share no grid face
+  // region (not in grid.adjacent).
+  std::set<std::pair<int, int>> adjacent;
+  for (const auto& [a, b] : grid.adjacent) adjacent.emplace(std::min(a, b), std::max(a, b));
+  std::vector<std::array<int, 2>> pairs;
+  for (const auto& [cell, members] : pieces) {
+    for (size_t i = 0; i < members.size(); ++i)
+      for (size_t j = i + 1; j < members.size(); ++j) pairs.push_back({members[i], members[j]});
+    if (!options.neighbour_cells) continue;
+    for (int axis = 0; axis < 3; ++axis) {
+      std::array<int, 3> next = cell;
+      ++next[axis];
+      const auto it = pieces.find(next);
+      if (it == pieces.end()) continue;
+      for (int a : members)
+        for (int b : it->second)
+          if (!adjacent.count({std::min(a, b), std::max(a, b)})) pairs.push_back({std::min(a, b), std::max(a, b)});
+    }
+  }
   std::vector<Bnd_Box> boxes(part.face_count());
   for (int f = 0; f < part.face_count(); ++f) {
     BRepBndLib::Add(part.face(f), boxes[f]);
     boxes[f].Enlarge(1e-6);
   }
-  for (const auto& [cell, members] : pieces) {
-    if (members.size() < 2) continue;
-    ++result.cells_checked;
-    const xfem::Box3& box = grid.elements[members[0]].box;
-    const double tol = options.face_tolerance * box.size().minCoeff();
-    BRepAlgoAPI_Common common(part.shape, BRepPrimAPI_MakeBox(gp_Pnt(box.min.x(), box.min.y(), box.min.z()),
-                                                              gp_Pnt(box.max.x(), box.max.y(), box.max.z()))
-                                              .Shape());
-    if (!common.IsDone()) {
-      std::ostringstream m;
-      m << "piece_gaps: OCCT's common of the part and cell (" << cell[0] << ", " << cell[1] << ", " << cell[2]
-        << ") failed";
-      result.message = m.str();
+  std::map<std::array<int, 3>, CellPieces> occt;
+  // Element e's OCCT piece (its cell's common computed once).
+  auto piece_of = [&](int e) -> const TopoDS_Shape* {
+    const std::array<int, 3>& cell = grid.elements[e].cell;
+    const std::vector<int>& members = pieces.at(cell);
+    auto it = occt.find(cell);
+    if (it == occt.end()) {
+      ++result.cells_checked;
+      const xfem::Box3& box = grid.elements[e].box;
+      BRepAlgoAPI_Common common(part.shape, BRepPrimAPI_MakeBox(gp_Pnt(box.min.x(), box.min.y(), box.min.z()),
+                                                                gp_Pnt(box.max.x(), box.max.y(), box.max.z()))
+                                                .Shape());
+      if (!common.IsDone()) {
+        result.message = "piece_gaps: OCCT's common of the part and cell " + cell_name(cell) + " failed";
+        return nullptr;
+      }
+      CellPieces cp;
+      for (TopExp_Explorer x(common.Shape(), TopAbs_SOLID); x.More(); x.Next()) {
+        GProp_GProps g;
+        BRepGProp::VolumeProperties(x.Current(), g);
+        if (g.Mass() > 0) cp.solids.push_back({x.Current(), to_vec(g.CentreOfMass())});
+      }
+      if (cp.solids.empty()) {
+        result.message = "piece_gaps: OCCT finds no material in cell " + cell_name(cell) + ", which the cut gives " +
+                         std::to_string(members.size()) + " pieces";
+        return nullptr;
+      }
+      // Each element's OCCT piece: the one with the nearest centroid (the rule's centroid is the
+      // piece's to the rule's accuracy; a merged piece sits between its parts').
+      cp.solid_of.assign(members.size(), 0);
+      for (size_t i = 0; i < members.size(); ++i) {
+        const xfem::QuadratureRule3& rule = grid.elements[members[i]].rule;
+        double w = 0;
+        xfem::Vec3 c = xfem::Vec3::Zero();
+        for (size_t q = 0; q < rule.points.size(); ++q) w += rule.weights[q], c += rule.weights[q] * rule.points[q];
+        if (w > 0) c /= w;
+        double best = std::numeric_limits<double>::infinity();
+        for (size_t k = 0; k < cp.solids.size(); ++k) {
+          const double dist = (cp.solids[k].centroid - c).norm();
+          if (dist < best) best = dist, cp.solid_of[i] = static_cast<int>(k);
+        }
+        result.max_centroid_mismatch = std::max(result.max_centroid_mismatch, best);
+      }
+      it = occt.emplace(cell, std::move(cp)).first;
+    }
+    const size_t i = std::find(members.begin(), members.end(), e) - members.begin();
+    return &it->second.solids[it->second.solid_of[i]].solid;
+  };
+  for (const auto& [ea, eb] : pairs) {
+    const TopoDS_Shape* sa = piece_of(ea);
+    const TopoDS_Shape* sb = sa ? piece_of(eb) : nullptr;
+    if (!sa || !sb) return result;
+    PieceGap gap;
+    gap.cell = grid.elements[ea].cell;
+    gap.cell_b = grid.elements[eb].cell;
+    gap.element_a = ea;
+    gap.element_b = eb;
+    if (sa == sb) {
+      gap.joined = true;
+      result.gaps.push_back(gap);
+      continue;
+    }
+    BRepExtrema_DistShapeShape dist(*sa, *sb);
+    if (!dist.IsDone() || dist.NbSolution() < 1) {
+      result.message = "piece_gaps: no distance between elements " + std::to_string(ea) + " (cell " + cell_name(gap.cell) +
+                       ") and " + std::to_string(eb) + " (cell " + cell_name(gap.cell_b) + ")";
       return result;
     }
-    std::vector<OcctPiece> solids;
-    for (TopExp_Explorer x(common.Shape(), TopAbs_SOLID); x.More(); x.Next()) {
-      GProp_GProps g;
-      BRepGProp::VolumeProperties(x.Current(), g);
-      if (!(g.Mass() > 0)) continue;
-      solids.push_back({x.Current(), to_vec(g.CentreOfMass())});
-    }
-    if (solids.empty()) {
-      std::ostringstream m;
-      m << "piece_gaps: OCCT finds no material in cell (" << cell[0] << ", " << cell[1] << ", " << cell[2]
-        << "), which the cut gives " << members.size() << " pieces";
-      result.message = m.str();
-      return result;
-    }
-    // Each element's OCCT piece: the one with the nearest centroid (the rule's centroid is the
-    // piece's to the rule's accuracy; a merged piece sits between its parts').
-    std::vector<int> solid_of(members.size());
-    for (size_t i = 0; i < members.size(); ++i) {
-      const xfem::QuadratureRule3& rule = grid.elements[members[i]].rule;
-      double w = 0;
-      xfem::Vec3 c = xfem::Vec3::Zero();
-      for (size_t q = 0; q < rule.points.size(); ++q) w += rule.weights[q], c += rule.weights[q] * rule.points[q];
-      if (w > 0) c /= w;
-      double best = std::numeric_limits<double>::infinity();
-      for (size_t s = 0; s < solids.size(); ++s) {
-        const double dist = (solids[s].centroid - c).norm();
-        if (dist < best) best = dist, solid_of[i] = static_cast<int>(s);
-      }
-      result.max_centroid_mismatch = std::max(result.max_centroid_mismatch, best);
-    }
-    for (size_t i = 0; i < members.size(); ++i)
-      for (size_t j = i + 1; j < members.size(); ++j) {
-        PieceGap gap;
-        gap.cell = cell;
-        gap.element_a = members[i];
-        gap.element_b = members[j];
-        if (solid_of[i] == solid_of[j]) {
-          gap.joined = true;
-          result.gaps.push_back(gap);
-          continue;
-        }
-        BRepExtrema_DistShapeShape dist(solids[solid_of[i]].solid, solids[solid_of[j]].solid);
-        if (!dist.IsDone() || dist.NbSolution() < 1) {
-          std::ostringstream m;
-          m << "piece_gaps: no distance between pieces " << members[i] << " and " << members[j] << " of cell ("
-            << cell[0] << ", " << cell[1] << ", " << cell[2] << ")";
-          result.message = m.str();
-          return result;
-        }
-        gap.distance = dist.Value();
-        if (options.critical_distance > 0 && gap.distance >= options.critical_distance) continue;
-        gap.a = locate(part, boxes, to_vec(dist.PointOnShape1(1)), tol);
-        gap.b = locate(part, boxes, to_vec(dist.PointOnShape2(1)), tol);
-        result.gaps.push_back(gap);
-      }
+    gap.distance = dist.Value();
+    if (options.critical_distance > 0 && gap.distance >= options.critical_distance) continue;
+    const double tol = options.face_tolerance * grid.elements[ea].box.size().minCoeff();
+    gap.a = locate(part, boxes, to_vec(dist.PointOnShape1(1)), tol);
+    gap.b = locate(part, boxes, to_vec(dist.PointOnShape2(1)), tol);
+    result.gaps.push_back(gap);
   }
   result.done = true;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -175,18 +204,34 @@ Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const Shap
     bool whole = !gap.joined && gap.distance > 0;
     if (whole) {
       const xfem::Vec3 t = (gap.b.point - gap.a.point) / gap.distance;
-      // End e with its outward normal n moves by Vₙ/(n·s) along s, s pointing from it to the other end.
+      // An end moves by Vₙ/(n·s) along s (pointing from it to the other end), from the one face
+      // at it that is not along s.
       auto add = [&](const GapEnd& end, const xfem::Vec3& s) {
-        if (end.face == -1) return;  // on the cell's box: fixed
-        if (end.face < 0 || sp.poles(end.face)) {
+        int moving = -1;
+        for (size_t k = 0; k < end.faces.size(); ++k) {
+          if (end.normals[k].isZero()) {
+            whole = false;  // no normal there
+            return;
+          }
+          if (std::abs(end.normals[k].dot(s)) < 1e-9) continue;  // the gap runs along this face
+          if (moving >= 0) {
+            whole = false;  // an edge or vertex of the part: two faces move it
+            return;
+          }
+          moving = static_cast<int>(k);
+        }
+        if (moving < 0) return;  // on the cell's box (or along faces only): fixed
+        const int face = end.faces[moving];
+        const xfem::Vec3& n = end.normals[moving];
+        if (sp.poles(face)) {
           whole = false;
           return;
         }
-        const optimize::ParameterBlock* block = sp.block(end.face);
+        const optimize::ParameterBlock* block = sp.block(face);
         if (!block) return;  // a face without parameters does not move
-        const double ns = end.normal.dot(s);
-        if (!(ns > 1e-9)) {
-          whole = false;  // the gap leaves along the face: no first-order motion
+        const double ns = n.dot(s);
+        if (!(ns > 0)) {
+          whole = false;  // the solid's normal points away from the gap: not a closest point of this face
           return;
         }
         const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, end.point);
@@ -197,7 +242,7 @@ Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const Shap
           whole = false;
           return;
         }
-        const double sign = grad.dot(end.normal) >= 0 ? 1.0 : -1.0;
+        const double sign = grad.dot(n) >= 0 ? 1.0 : -1.0;
         for (int k = 0; k < nb; ++k) g(static_cast<Eigen::Index>(i), block->offset + k) -= (-sign * phi.g[k] / gn) / ns;
       };
       add(gap.a, t);
@@ -207,6 +252,29 @@ Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const Shap
     if (complete) (*complete)[i] = whole;
   }
   return g;
+}
+
+double merge_penalty_b(double d, double critical, double cap, double* derivative) {
+  PARAFAB_VERIFY(critical > 0 && cap > 0, "merge penalty: critical distance " << critical << ", cap " << cap);
+  if (derivative) *derivative = 0;
+  if (d >= critical) return 0;
+  if (!(d > 0)) return cap;
+  const double l = std::log(d / critical);
+  const double b = l * l;
+  if (b >= cap) return cap;
+  if (derivative) *derivative = 2 * l / d;
+  return b;
+}
+
+std::vector<xfem::PieceTie> piece_ties(const std::vector<PieceGap>& gaps, const GridModel& grid, double youngs_modulus,
+                                       const MergePenaltyOptions& options) {
+  std::vector<xfem::PieceTie> ties;
+  for (const PieceGap& gap : gaps) {
+    const double h = grid.elements[gap.element_a].box.size().minCoeff();
+    const double b = merge_penalty_b(gap.joined ? 0.0 : gap.distance, options.critical_fraction * h, options.cap);
+    if (b > 0) ties.push_back({gap.element_a, gap.element_b, youngs_modulus * h * b});
+  }
+  return ties;
 }
 
 }  // namespace parafab::occ

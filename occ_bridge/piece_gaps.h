@@ -4,8 +4,8 @@
 // b(d)‖x¹ − x²‖² whose weight grows as a distance d goes to zero at the join. This file gives
 // that d for every pair of pieces of a cell, the exact Euclidean gap between the two pieces
 // (OCCT: the solid's common with the cell box, BRepExtrema between its solids), and its shape
-// derivative from the normal velocity of the faces at the closest points. The penalty itself
-// is not applied yet.
+// derivative from the normal velocity of the faces at the closest points; piece_ties turns the
+// gaps into the penalty's weights (xfem::PieceTie).
 #pragma once
 
 #include <Eigen/Core>
@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "xfem/cut_geometry.h"
+#include "xfem/linear_xfem.h"
 
 namespace parafab::occ {
 
@@ -26,19 +27,22 @@ struct PieceGapOptions {
   double critical_distance = 0;
   /// A closest point lies on a face of the part when within this × the cell's smallest side.
   double face_tolerance = 1e-6;
+  /// Also pairs of pieces of face-neighbour cells that share no part of that face (not in
+  /// GridModel::adjacent): when they come to touch, their copies of the face's nodes become one.
+  bool neighbour_cells = true;
 };
 
-/// Where a closest point lies: on one face of the part (face ≥ 0, with the solid's outward
-/// normal there), on the cell's box only (face −1: it does not move with the shape), or on an
-/// edge or vertex between faces of the part (face −2: no derivative here).
+/// A closest point and the faces of the part it lies on (none: on the cell's box only, it does
+/// not move with the shape), each with the solid's outward normal there.
 struct GapEnd {
   xfem::Vec3 point{0, 0, 0};
-  int face = -1;
-  xfem::Vec3 normal{0, 0, 0};  ///< outward normal of the solid at point (face ≥ 0)
+  std::vector<int> faces;
+  std::vector<xfem::Vec3> normals;
 };
 
 struct PieceGap {
-  std::array<int, 3> cell{0, 0, 0};
+  std::array<int, 3> cell{0, 0, 0};    ///< element a's cell
+  std::array<int, 3> cell_b{0, 0, 0};  ///< element b's: the same, or a face neighbour
   int element_a = -1, element_b = -1;  ///< indices into GridModel::elements, a < b
   double distance = 0;
   GapEnd a, b;  ///< closest points on piece a and on piece b
@@ -51,22 +55,40 @@ struct PieceGapResult {
   bool done = false;
   std::string message;  ///< why not done (a failed Boolean names its cell)
   std::vector<PieceGap> gaps;
-  int cells_checked = 0;           ///< cells with two or more pieces
+  int cells_checked = 0;  ///< cells whose pieces OCCT made (a cell with two or more, or a neighbour's)
   double max_centroid_mismatch = 0;  ///< largest distance between an element's rule centroid and its OCCT piece's
   double seconds = 0;
 };
 
 /// The gaps between the pieces of every cut cell of `grid` (the model of `part`) with two or
-/// more pieces.
+/// more pieces, and (options.neighbour_cells) between pieces of face-neighbour cut cells that
+/// are not adjacent.
 PieceGapResult piece_gaps(const PartShape& part, const GridModel& grid, const PieceGapOptions& options = {});
 
 /// ∂d/∂p of each gap (rows) for the parameter vector p of `parameters` (columns): a closest
 /// point on face f moves with the face's normal velocity Vₙ = ∂X/∂p·n, and along the gap
 /// direction t = (b − a)/d by Vₙ/(n·t) (t ∥ n inside a face; on the section of a face with the
 /// cell's box, t lies in the box face and the section moves by Vₙ/|n projected|), so
-/// d' = −Vₙ,a/(n_a·t) − Vₙ,b/(n_b·(−t)). `complete[i]` is 0 where row i misses a term: an end
-/// on an edge between faces of the part, on a B-spline face, a joined pair, or a zero gap.
+/// d' = −Vₙ,a/(n_a·t) − Vₙ,b/(n_b·(−t)). Faces at an end with n ⟂ t (|n·t| < 1e-9: the gap runs
+/// along them) do not move it. `complete[i]` is 0 where row i misses a term: an end on two faces
+/// not along t (an edge or vertex of the part), on a B-spline face, a joined pair, or a zero gap.
 Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const ShapeParameters& parameters,
                                    const Eigen::VectorXd& p, std::vector<char>* complete = nullptr);
+
+/// Eq. 6.24's penalty: weight E·h·b(d) on each pair of tied DOF nodes, b(d) = log²(min{1, d/d_crit})
+/// capped at `cap` (the thesis cuts b off "at a high value" for the conditioning), h the cell's
+/// smallest side. b and b' vanish at d = d_crit: a pair enters and leaves smoothly.
+struct MergePenaltyOptions {
+  bool enabled = false;
+  double critical_fraction = 0.05;  ///< d_crit / h
+  double cap = 1e3;                 ///< largest b
+};
+
+/// b(d) (and b'(d) in `derivative`: 0 beyond d_crit and on the cap).
+double merge_penalty_b(double d, double critical, double cap, double* derivative = nullptr);
+
+/// The ties of the gaps closer than d_crit (a joined pair: d = 0, the cap), weight E·h·b(d).
+std::vector<xfem::PieceTie> piece_ties(const std::vector<PieceGap>& gaps, const GridModel& grid, double youngs_modulus,
+                                       const MergePenaltyOptions& options);
 
 }  // namespace parafab::occ

@@ -86,7 +86,24 @@ ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& mode
     s.message = "ok";
     return s;
   }
-  s.solution = xfem::solve_linear(m->elements, m->adjacent, setup.material, setup.dirichlet, s.tractions, setup.solver);
+  if (setup.merge.enabled) {  // Eq. 6.24: the gaps of pieces about to join, and their ties
+    PieceGapOptions go;
+    go.critical_distance = setup.merge.critical_fraction * m->elements.front().box.size().minCoeff();
+    const PieceGapResult gr = piece_gaps(*s.part, *m, go);
+    s.gap_seconds = gr.seconds;
+    if (!gr.done) {
+      s.model = std::move(m);
+      s.message = "the merge penalty's gaps failed: " + gr.message;
+      return s;
+    }
+    for (const PieceGap& gap : gr.gaps) {
+      const std::vector<xfem::PieceTie> tie = piece_ties({gap}, *m, setup.material.youngs_modulus, setup.merge);
+      if (tie.empty()) continue;
+      s.gaps.push_back(gap);
+      s.ties.push_back(tie[0]);
+    }
+  }
+  s.solution = xfem::solve_linear(m->elements, m->adjacent, setup.material, setup.dirichlet, s.tractions, setup.solver, s.ties);
   s.model = std::move(m);
   if (!s.solution.solved) {
     s.message = "the linear XFEM solve failed: " + s.solution.message;
@@ -690,6 +707,29 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   for (const auto& [key, dA] : area_change) {
     const int load = key / np, i = key % np;
     r.gradient[i] -= 2 * load_work[load] * dA / load_area[load];
+  }
+  // Eq. 6.24's ties: the energy ½Σ w‖u_a − u_b‖² with w = E·h·b(d(p)), so
+  // dC = −Σ E·h·b'(d) d' ‖u_a − u_b‖² (d' from the faces at the gap's ends: piece_gap_gradient).
+  if (!at.ties.empty()) {
+    std::vector<char> complete;
+    const Eigen::MatrixXd dd = piece_gap_gradient(at.gaps, sp, p, &complete);
+    for (size_t i = 0; i < at.ties.size(); ++i) {
+      const PieceGap& gap = at.gaps[i];
+      const double h = at.model->elements[gap.element_a].box.size().minCoeff();
+      double db = 0;
+      merge_penalty_b(gap.joined ? 0.0 : gap.distance, setup.merge.critical_fraction * h, setup.merge.cap, &db);
+      if (db == 0) continue;
+      if (!complete[i]) {
+        ++r.ties_without_derivative;
+        for (const GapEnd* end : {&gap.a, &gap.b})
+          for (int f : end->faces) flag(f);
+        continue;
+      }
+      double squared = 0;
+      for (const auto& [ia, ib] : xfem::tied_nodes(at.model->elements, at.solution.node, at.ties[i]))
+        squared += (at.solution.u.segment<3>(3 * ia) - at.solution.u.segment<3>(3 * ib)).squaredNorm();
+      r.gradient -= setup.material.youngs_modulus * h * db * squared * dd.row(static_cast<Eigen::Index>(i)).transpose();
+    }
   }
   r.done = true;
   r.message = "ok";

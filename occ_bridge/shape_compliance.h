@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "grid_model.h"
+#include "piece_gaps.h"
 #include "shape_parameters.h"
 #include "xfem/linear_xfem.h"
 #include "xfem/materials.h"
@@ -40,6 +41,8 @@ struct ComplianceSetup {
   /// target shape, shape_target.h) may use it.
   std::shared_ptr<const xfem::Material> hyperelastic;
   int load_steps = 1;
+  /// Thesis §6.4.4 (Eq. 6.24): pieces about to join tied by a penalty (linear elasticity only).
+  MergePenaltyOptions merge;
 };
 
 /// One evaluated model: the part, its grid model and the solution (with the kept factorization).
@@ -57,6 +60,10 @@ struct ComplianceState {
   /// model's objective differs from its own-switch value; the optimizer then re-evaluates it).
   int frozen_elements = 0;
   bool switches_own = true;
+  /// setup.merge: the pairs of pieces closer than d_crit and their ties (same order).
+  std::vector<PieceGap> gaps;
+  std::vector<xfem::PieceTie> ties;
+  double gap_seconds = 0;
 };
 
 /// The start: cuts `part` on a new grid (the grid of the whole optimization) and solves.
@@ -125,6 +132,10 @@ struct ComplianceGradient {
   int elements = 0;              ///< cut elements with a patch on a moving face, a support or a load
   int points = 0;                ///< boundary quadrature points (patches and edges)
   int edge_points = 0;           ///< of which on edges of supports and loads
+  /// Eq. 6.24's ties whose gap has no derivative (an end on an edge of the part, a B-spline
+  /// face): the entries of their faces are flagged incomplete (the semi-analytic route has no
+  /// tie term: there those entries miss the change of the tie's weight).
+  int ties_without_derivative = 0;
   double seconds = 0;
 };
 ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,

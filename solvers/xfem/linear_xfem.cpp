@@ -805,9 +805,28 @@ LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const ElasticMaterial& material,
                               const std::vector<DirichletCondition>& dirichlet,
                               const std::vector<TractionCondition>& tractions,
-                              const LinearXfemOptions& options) {
+                              const LinearXfemOptions& options, const std::vector<PieceTie>& ties) {
   LinearXfemSolver solver;
-  return solver.solve(elements, adjacent, material, dirichlet, tractions, options);
+  return solver.solve(elements, adjacent, material, dirichlet, tractions, options, ties);
+}
+
+std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& elements,
+                                           const std::vector<std::vector<int>>& node, const PieceTie& tie) {
+  const int n = static_cast<int>(elements.size());
+  PARAFAB_VERIFY(tie.element_a >= 0 && tie.element_a < n && tie.element_b >= 0 && tie.element_b < n,
+                 "piece tie (" << tie.element_a << ", " << tie.element_b << ") out of range (" << n << " elements)");
+  const int nn = static_cast<int>(node[tie.element_a].size());
+  auto grid_node = [&](int e, int k) {  // in half cells
+    const auto& c = elements[e].cell;
+    const auto o = node_offset(nn, k);
+    return std::array<int, 3>{2 * c[0] + o[0], 2 * c[1] + o[1], 2 * c[2] + o[2]};
+  };
+  std::vector<std::array<int, 2>> pairs;
+  for (int ka = 0; ka < nn; ++ka)
+    for (int kb = 0; kb < nn; ++kb)
+      if (grid_node(tie.element_a, ka) == grid_node(tie.element_b, kb) && node[tie.element_a][ka] != node[tie.element_b][kb])
+        pairs.push_back({node[tie.element_a][ka], node[tie.element_b][kb]});
+  return pairs;
 }
 
 namespace {
@@ -909,7 +928,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
                                          const ElasticMaterial& material,
                                          const std::vector<DirichletCondition>& dirichlet,
                                          const std::vector<TractionCondition>& tractions,
-                                         const LinearXfemOptions& options) {
+                                         const LinearXfemOptions& options, const std::vector<PieceTie>& ties) {
   LinearXfemResult r;
   const auto t_start = std::chrono::steady_clock::now();
   auto t0 = t_start;
@@ -994,6 +1013,25 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
   t0 = std::chrono::steady_clock::now();
   const int reduced_count = static_cast<int>(T.cols() / 3);
   ReducedSystem assembled = assemble_reduced(system_of, r.node, next->reduced, reduced_count, T);
+  if (!ties.empty()) {  // Eq. 6.24: + Σ w‖x_a − x_b‖², rows √w (e_a − e_b) per component, through T
+    std::vector<Eigen::Triplet<double>> rows;
+    int m = 0;
+    for (const PieceTie& tie : ties) {
+      PARAFAB_VERIFY(tie.weight >= 0 && std::isfinite(tie.weight), "piece tie weight " << tie.weight);
+      if (tie.weight == 0) continue;
+      const double w = std::sqrt(tie.weight);
+      for (const auto& [ia, ib] : tied_nodes(elements, r.node, tie)) {
+        ++r.tied_node_pairs;
+        for (int d = 0; d < 3; ++d, ++m) rows.emplace_back(m, 3 * ia + d, w), rows.emplace_back(m, 3 * ib + d, -w);
+      }
+    }
+    if (m > 0) {
+      Eigen::SparseMatrix<double> D(m, 3 * count);
+      D.setFromTriplets(rows.begin(), rows.end());
+      const Eigen::SparseMatrix<double> DT = T.rows() > 0 ? Eigen::SparseMatrix<double>(D * T) : D;
+      assembled.K += Eigen::SparseMatrix<double>(DT.transpose() * DT);
+    }
+  }
   // K is shared by the factorization, the preconditioner and the next solve's comparison, never
   // copied (a hex27 system of 10⁴ unknowns holds ~50 MB).
   const auto K = std::make_shared<const Eigen::SparseMatrix<double>>(std::move(assembled.K));

@@ -159,6 +159,7 @@ struct LinearXfemResult {
   double assemble_seconds = 0, solve_seconds = 0;
   double energy = 0;                     ///< ½ uᵀKu − fᵀu at the solution
   int aggregated_nodes = 0;              ///< DOF nodes tied to a neighbour (small cut cells)
+  int tied_node_pairs = 0;               ///< pairs of DOF nodes under a PieceTie penalty
   /// Elements whose stiffness was copied from the one uncut interior cell integrated (all
   /// interior cells of a grid have the same box size and rule, hence the same matrix).
   int reused_element_matrices = 0;
@@ -347,12 +348,26 @@ Eigen::SparseMatrix<double> aggregation_map(const std::vector<GridElement>& elem
 bool switches_match_own_fractions(const std::vector<GridElement>& elements,
                                   const std::vector<std::array<int, 2>>& adjacent, const LinearXfemOptions& options);
 
+/// Thesis §6.4.4, Eq. 6.24: two elements about to join (two pieces of one cell, or pieces of
+/// face-neighbour cells that share no part of their face) hold different DOF nodes at the grid
+/// positions they share; at the join these become one. The penalty weight·‖x_a − x_b‖² on each
+/// such pair of DOF nodes, added to the energy, makes that transition continuous as the weight
+/// grows to its cap at the join (occ::piece_ties sets it from the pieces' gap d: E·h·b(d)).
+struct PieceTie {
+  int element_a = -1, element_b = -1;
+  double weight = 0;
+};
+/// The pairs of DOF nodes (node[a][k], node[b][l]) a tie holds together: the grid positions
+/// elements a and b share (hex8 corners, hex27 nodes) where their DOF nodes differ.
+std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& elements,
+                                           const std::vector<std::vector<int>>& node, const PieceTie& tie);
+
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<std::array<int, 2>>& adjacent,
                               const ElasticMaterial& material,
                               const std::vector<DirichletCondition>& dirichlet,
                               const std::vector<TractionCondition>& tractions,
-                              const LinearXfemOptions& options = {});
+                              const LinearXfemOptions& options = {}, const std::vector<PieceTie>& ties = {});
 
 /// solve_linear with state kept between solves (options.reuse), for a re-solve after a
 /// re-cut or a load change:
@@ -369,7 +384,8 @@ class LinearXfemSolver {
   ~LinearXfemSolver();
   LinearXfemResult solve(const std::vector<GridElement>& elements, const std::vector<std::array<int, 2>>& adjacent,
                          const ElasticMaterial& material, const std::vector<DirichletCondition>& dirichlet,
-                         const std::vector<TractionCondition>& tractions, const LinearXfemOptions& options = {});
+                         const std::vector<TractionCondition>& tractions, const LinearXfemOptions& options = {},
+                         const std::vector<PieceTie>& ties = {});
   /// The factorization of the last factorized system; analyses and factorizations count over
   /// the solver's life.
   const SparseCholesky& cholesky() const { return *cholesky_; }

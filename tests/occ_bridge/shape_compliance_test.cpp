@@ -513,10 +513,10 @@ TEST(PieceGaps, GapOfTheJoiningPiecesGoesToZeroWhereTheCutJoinsThem) {
     const At at = gap_at(a - ds);
     d.push_back(at.gap.distance);
     std::printf("s = a - %g: gap %.10g (/sqrt %.6g), ends on faces %d %d\n", ds, at.gap.distance,
-                at.gap.distance / std::sqrt(ds), at.gap.a.face, at.gap.b.face);
+                at.gap.distance / std::sqrt(ds), at.gap.a.faces.size() == 1 ? at.gap.a.faces[0] : -1, at.gap.b.faces.size() == 1 ? at.gap.b.faces[0] : -1);
     EXPECT_FALSE(at.gap.joined);
-    EXPECT_EQ(at.gap.a.face, line.c.fillet);
-    EXPECT_EQ(at.gap.b.face, line.c.fillet);
+    EXPECT_EQ(at.gap.a.faces, std::vector<int>{line.c.fillet});
+    EXPECT_EQ(at.gap.b.faces, std::vector<int>{line.c.fillet});
   }
   // Measured 0.06111, 0.01933, 0.006139: each decade of a − s a factor √10 (3.162) within 0.3 %.
   EXPECT_NEAR(d[0] / d[1], std::sqrt(10.0), 0.01);
@@ -535,6 +535,101 @@ TEST(PieceGaps, GapOfTheJoiningPiecesGoesToZeroWhereTheCutJoinsThem) {
   std::printf("at a - 0.01: gap %.10g, d' exact %.10g, differences %.10g, relative difference %.2e\n", at.gap.distance, exact,
               fd, std::abs(exact - fd) / std::abs(fd));
   EXPECT_NEAR(exact, fd, 5e-5 * std::abs(fd));  // measured 1.25e-5 (central differences, step 1e-4 mm)
+}
+
+// The bracket's join above on a line whose setup has `merge` on (crit 5 % of the cell), in the
+// basis given: the switch bracketed to 1e-8 mm from the pieces per cell.
+struct MergeLine : BracketLine {
+  double a = 0.6015, b = 0.6016;
+  MergeLine(bool merge, double aggregation, bool modes) : BracketLine(&BracketCase::upright_inner, "offset") {
+    c.setup.merge.enabled = merge;
+    c.setup.solver.aggregation_fraction = aggregation;
+    c.setup.solver.incompatible_modes = modes;
+    base = compliance_start(line.at(0), c.setup);
+    EXPECT_TRUE(base.done) << base.message;
+    auto pieces = [&](double s) {
+      std::map<std::array<int, 3>, int> n;
+      for (const xfem::GridElement& el : state_at(s).model->elements)
+        if (el.subvolume) ++n[el.cell];
+      return n;
+    };
+    const auto left = pieces(a);
+    while (b - a > 1e-8) {
+      const double m = 0.5 * (a + b);
+      (pieces(m) == left ? a : b) = m;
+    }
+  }
+};
+
+// Thesis §6.4.4, Eq. 6.24 in the plain trilinear basis (no incompatible modes, no aggregation):
+// the pieces that join at +0.6015615 mm are tied by E·h·b(d) before the join (d: their gap, from
+// piece_gaps) and C passes the join continuously: its step there is the slope times the interval
+// (without the ties: a jump of 1.15e-4 relative). The exact gradient inside the ties' range (gap
+// 0.19 mm < d_crit 0.3 mm), with the tie term −E·h·b'(d)·d'·‖u_a − u_b‖², against Richardson
+// differences of the whole pipeline.
+TEST(ShapeCompliance, MergePenaltyMakesTheJoinContinuousInThePlainBasis) {
+  const MergeLine tied(true, 0, false), plain(false, 0, false);
+  const ComplianceState ta = tied.state_at(tied.a), tb = tied.state_at(tied.b);
+  const ComplianceState pa = plain.state_at(tied.a), pb = plain.state_at(tied.b);
+  const double slope = (tied.state_at(tied.a - 0.01).compliance - tied.state_at(tied.a - 0.011).compliance) / 0.001;
+  const double step = std::abs(slope) * (tied.b - tied.a);
+  std::printf("join at + %.8f mm: without ties C %.10g -> %.10g (jump %.3e relative); with %zu tie(s) C %.10g -> %.10g "
+              "(%zu after; step %.3e relative); slope x interval %.2e relative\n",
+              tied.a, pa.compliance, pb.compliance, (pb.compliance - pa.compliance) / pa.compliance, ta.ties.size(),
+              ta.compliance, tb.compliance, tb.ties.size(), (tb.compliance - ta.compliance) / ta.compliance, step / ta.compliance);
+  EXPECT_NEAR(tied.a, plain.a, 1e-8);
+  EXPECT_EQ(ta.ties.size(), 1u);
+  EXPECT_EQ(tb.ties.size(), 0u);
+  EXPECT_EQ(pb.compliance, tb.compliance);  // no tie after the join: the same model
+  // Measured: without ties 1.154e-4 relative; with them -5.4e-9, the slope times the interval
+  // 5.4e-9 (C falls along the line).
+  EXPECT_NEAR((pb.compliance - pa.compliance) / pa.compliance, -1.154e-4, 0.01e-4);
+  EXPECT_LT(std::abs(tb.compliance - ta.compliance), 1.5 * step);
+  // The gradient where the tie's weight changes (b' ≠ 0): the part at a − 0.001 mm on the line's
+  // grid, its entry moved as the optimizer moves it.
+  const auto part = tied.line.at(tied.a - 0.001);
+  const testing::DesignSpace space(*part, {tied.c.setup.dirichlet[0].face, tied.c.setup.tractions[0].face});
+  ASSERT_TRUE(space.start.done);
+  const ProjectedEntry entry(*part, space.model, space.parameters, space.start.p,
+                             parameter_index(space.parameters, tied.c.upright_inner, "offset"), space.size);
+  ASSERT_TRUE(entry.p0.done);
+  const ComplianceState at = compliance_at(entry.part_at(0), tied.base, tied.c.setup);
+  ASSERT_TRUE(at.done) << at.message;
+  ASSERT_EQ(at.ties.size(), 1u);
+  const ComplianceGradient g = compliance_gradient(at, tied.c.setup, space.parameters, entry.p0.p);
+  ASSERT_TRUE(g.done) << g.message;
+  EXPECT_TRUE(exact_along(g, entry.column));
+  EXPECT_EQ(g.ties_without_derivative, 0);
+  const double exact = g.gradient.dot(entry.column);
+  ComplianceState bare = at;  // the same solution without the tie term in the gradient
+  bare.ties.clear(), bare.gaps.clear();
+  const double without = compliance_gradient(bare, tied.c.setup, space.parameters, entry.p0.p).gradient.dot(entry.column);
+  const double fd = richardson([&](double s) { return compliance_on(entry.part_at(s), at, tied.c.setup); }, 1e-4);
+  std::printf("gap %.6g mm (d_crit %.6g): C %.10g, exact %.10g (tie term %.4g), FD %.10g, relative difference %.2e\n",
+              at.gaps[0].distance, 0.05 * at.model->elements[0].box.size().minCoeff(), at.compliance, exact, exact - without,
+              fd, std::abs(exact - fd) / std::abs(fd));
+  // Measured: relative difference 1.2e-8; the tie term is 1.2e4 times the difference.
+  EXPECT_LT(std::abs(exact - fd), 2e-4 * std::abs(exact - without));
+  EXPECT_LT(std::abs(exact - fd), 5e-8 * std::abs(fd));
+}
+
+// Known failure: in ParaFab's default basis the ties do not make the join continuous. The
+// incompatible modes are condensed per piece (the two pieces keep two sets of modes, each with
+// its own mean shift, where the joined piece has one), and aggregated pieces' nodes follow their
+// hosts' fields (the tie then couples two hosts' extrapolations where the joined piece follows one
+// host). Measured jumps at the join, relative: modes only 3.59e-4 (5.55e-5 without ties),
+// modes and aggregation 2.53e-2 (3.61e-4 without): worse than no ties, so `merge` stays off by
+// default and the CLI refuses it with either.
+TEST(ShapeCompliance, MergePenaltyDoesNotMakeTheJoinContinuousWithModesOrAggregation) {
+  for (const auto& [aggregation, expected] : {std::pair{0.0, 3.59e-4}, std::pair{0.05, 2.53e-2}}) {
+    const MergeLine tied(true, aggregation, true);
+    const ComplianceState ta = tied.state_at(tied.a), tb = tied.state_at(tied.b);
+    const double jump = (tb.compliance - ta.compliance) / ta.compliance;
+    std::printf("modes on, aggregation fraction %.2f: C %.10g -> %.10g at the join, %.3e relative\n", aggregation,
+                ta.compliance, tb.compliance, jump);
+    EXPECT_EQ(ta.ties.size(), 1u);
+    EXPECT_NEAR(jump, expected, 0.02 * expected);
+  }
 }
 
 }  // namespace
