@@ -254,15 +254,23 @@ Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const Shap
   return g;
 }
 
-double merge_penalty_b(double d, double critical, double cap, double* derivative) {
-  PARAFAB_VERIFY(critical > 0 && cap > 0, "merge penalty: critical distance " << critical << ", cap " << cap);
+double merge_penalty_b(double d, double critical, const MergePenaltyOptions& options, double* derivative) {
+  const bool log2 = options.law == MergePenaltyOptions::Law::Log2;
+  const double cap = options.cap > 0 ? options.cap : log2 ? 1e3 : 1e4;
+  PARAFAB_VERIFY(critical > 0, "merge penalty: critical distance " << critical);
   if (derivative) *derivative = 0;
   if (d >= critical) return 0;
   if (!(d > 0)) return cap;
-  const double l = std::log(d / critical);
-  const double b = l * l;
+  double b, db;
+  if (log2) {
+    const double l = std::log(d / critical);
+    b = l * l, db = 2 * l / d;
+  } else {
+    const double q = critical / d - 1;
+    b = q * q, db = -2 * q * critical / (d * d);
+  }
   if (b >= cap) return cap;
-  if (derivative) *derivative = 2 * l / d;
+  if (derivative) *derivative = db;
   return b;
 }
 
@@ -271,8 +279,8 @@ std::vector<xfem::PieceTie> piece_ties(const std::vector<PieceGap>& gaps, const 
   std::vector<xfem::PieceTie> ties;
   for (const PieceGap& gap : gaps) {
     const double h = grid.elements[gap.element_a].box.size().minCoeff();
-    const double b = merge_penalty_b(gap.joined ? 0.0 : gap.distance, options.critical_fraction * h, options.cap);
-    if (b > 0) ties.push_back({gap.element_a, gap.element_b, youngs_modulus * h * b});
+    const double b = merge_penalty_b(gap.joined ? 0.0 : gap.distance, options.critical_fraction * h, options);
+    if (b > 0) ties.push_back({gap.element_a, gap.element_b, youngs_modulus * h * b, 1 - std::exp(-b)});
   }
   return ties;
 }

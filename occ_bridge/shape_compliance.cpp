@@ -717,17 +717,22 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       const PieceGap& gap = at.gaps[i];
       const double h = at.model->elements[gap.element_a].box.size().minCoeff();
       double db = 0;
-      merge_penalty_b(gap.joined ? 0.0 : gap.distance, setup.merge.critical_fraction * h, setup.merge.cap, &db);
+      merge_penalty_b(gap.joined ? 0.0 : gap.distance, setup.merge.critical_fraction * h, setup.merge, &db);
       if (db == 0) continue;
-      if (!complete[i]) {
+      const std::vector<char>& floating = at.solution.floating;
+      const std::vector<std::array<int, 2>> pairs = xfem::tied_nodes(at.model->elements, at.solution.node, at.ties[i]);
+      bool blended = false;  // a floating node blended towards an unknown: T changes with d (no term here)
+      for (const auto& [ia, ib] : pairs) blended |= !floating.empty() && floating[ia] != floating[ib];
+      if (!complete[i] || blended) {
         ++r.ties_without_derivative;
         for (const GapEnd* end : {&gap.a, &gap.b})
           for (int f : end->faces) flag(f);
         continue;
       }
       double squared = 0;
-      for (const auto& [ia, ib] : xfem::tied_nodes(at.model->elements, at.solution.node, at.ties[i]))
-        squared += (at.solution.u.segment<3>(3 * ia) - at.solution.u.segment<3>(3 * ib)).squaredNorm();
+      for (const auto& [ia, ib] : pairs)
+        if (floating.empty() || (!floating[ia] && !floating[ib]))  // as the solve ties them
+          squared += (at.solution.u.segment<3>(3 * ia) - at.solution.u.segment<3>(3 * ib)).squaredNorm();
       r.gradient -= setup.material.youngs_modulus * h * db * squared * dd.row(static_cast<Eigen::Index>(i)).transpose();
     }
   }

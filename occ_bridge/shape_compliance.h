@@ -132,9 +132,10 @@ struct ComplianceGradient {
   int elements = 0;              ///< cut elements with a patch on a moving face, a support or a load
   int points = 0;                ///< boundary quadrature points (patches and edges)
   int edge_points = 0;           ///< of which on edges of supports and loads
-  /// Eq. 6.24's ties whose gap has no derivative (an end on an edge of the part, a B-spline
-  /// face): the entries of their faces are flagged incomplete (the semi-analytic route has no
-  /// tie term: there those entries miss the change of the tie's weight).
+  /// Eq. 6.24's ties whose weight's change is not differentiated: the gap has no derivative (an
+  /// end on an edge of the part, a B-spline face) or the tie blends a floating node (the
+  /// aggregation map then changes with d). The entries of their faces are flagged incomplete (the
+  /// semi-analytic route has no tie term either: there those entries miss the tie's change).
   int ties_without_derivative = 0;
   double seconds = 0;
 };

@@ -159,7 +159,9 @@ struct LinearXfemResult {
   double assemble_seconds = 0, solve_seconds = 0;
   double energy = 0;                     ///< ½ uᵀKu − fᵀu at the solution
   int aggregated_nodes = 0;              ///< DOF nodes tied to a neighbour (small cut cells)
-  int tied_node_pairs = 0;               ///< pairs of DOF nodes under a PieceTie penalty
+  int tied_node_pairs = 0;               ///< pairs of unknown DOF nodes under a PieceTie penalty
+  int blended_nodes = 0;                 ///< floating DOF nodes a PieceTie blends towards an unknown
+  std::vector<char> floating;            ///< per DOF node: aggregated (follows a host); empty when none is
   /// Elements whose stiffness was copied from the one uncut interior cell integrated (all
   /// interior cells of a grid have the same box size and rule, hence the same matrix).
   int reused_element_matrices = 0;
@@ -353,9 +355,15 @@ bool switches_match_own_fractions(const std::vector<GridElement>& elements,
 /// positions they share; at the join these become one. The penalty weight·‖x_a − x_b‖² on each
 /// such pair of DOF nodes, added to the energy, makes that transition continuous as the weight
 /// grows to its cap at the join (occ::piece_ties sets it from the pieces' gap d: E·h·b(d)).
+/// A floating (aggregated) node is not penalized (that would couple two hosts' extrapolations):
+/// paired with an unknown node, its row of the aggregation map T is blended towards that node,
+/// (1 − θ)·T_floating + θ·T_unknown (θ = `blend`, 1 at the join, where the joined piece's node is
+/// that unknown); two floating nodes keep their hosts. The incompatible modes stay per piece (two
+/// sets where the joined piece has one): with them the transition is not continuous.
 struct PieceTie {
   int element_a = -1, element_b = -1;
   double weight = 0;
+  double blend = 0;  ///< θ ∈ [0, 1]
 };
 /// The pairs of DOF nodes (node[a][k], node[b][l]) a tie holds together: the grid positions
 /// elements a and b share (hex8 corners, hex27 nodes) where their DOF nodes differ.

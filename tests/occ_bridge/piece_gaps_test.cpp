@@ -3,12 +3,20 @@
 
 #include <Eigen/Geometry>
 
+#include <BRepAlgoAPI_Common.hxx>
 #include <BRepAlgoAPI_Cut.hxx>
+#include <BRepGProp.hxx>
+#include <GProp_GProps.hxx>
 #include <BRepAlgoAPI_Fuse.hxx>
 #include <BRepBuilderAPI_Transform.hxx>
 #include <BRepPrimAPI_MakeBox.hxx>
 #include <BRepPrimAPI_MakeCylinder.hxx>
 #include <cmath>
+#include <limits>
+#include <set>
+#include <functional>
+#include <map>
+#include <numeric>
 #include <cstdio>
 
 #include "face_lookup.h"
@@ -17,7 +25,9 @@
 #include "occt_shape.h"
 #include "part_reader.h"
 #include "piece_gaps.h"
+#include "shape_compliance.h"
 #include "shape_parameters.h"
+#include "turned_bracket.h"
 
 namespace parafab::occ {
 namespace {
@@ -139,32 +149,134 @@ TEST(PieceGaps, SlotEndGapMatchesTheClosedFormAndItsDerivatives) {
 
 namespace parafab::occ {
 namespace {
-TEST(PieceGapsScratch, Cost) {
-  for (const char* name : {"plate_holes", "wrench", "wheel", "housing", "l_bracket"}) {
-    const auto part = read_part(std::string(PARAFAB_SAMPLES_DIR) + "/parts/" + name + ".step");
-    for (int cells : {10, 16, 32}) {
-      GridModelOptions o;
-      o.grid.cells_longest = cells;
-      const GridModel m = build_grid_model(*part, o);
-      const PieceGapResult g = piece_gaps(*part, m);
-      int close = 0;
-      double h = m.elements[0].box.size().minCoeff();
-      for (const auto& q : g.gaps) {
-        close += q.distance < 0.25 * h;
-        if (q.distance < 0.25 * h && std::string(name) == "plate_holes" && close < 6)
-          std::printf("  (%d %d %d)-(%d %d %d) fractions %.3g %.3g: %.3g joined %d faces %d %d at %.3f %.3f %.3f\n", q.cell[0], q.cell[1], q.cell[2],
-                      q.cell_b[0], q.cell_b[1], q.cell_b[2], xfem::volume_fraction(m.elements[q.element_a]),
-                      xfem::volume_fraction(m.elements[q.element_b]), q.distance, q.joined, int(q.a.faces.size()), int(q.b.faces.size()), q.a.point.x(), q.a.point.y(), q.a.point.z());
+
+// Eq. 6.24 where large pieces join: the slotted block clamped at x = 60, one prong (the end face
+// x = 0, y < 18) pushed down (−z turned) by 1 kN, steel, plain hex8 (no incompatible modes, no
+// aggregation: the basis where the ties apply in full). As the slot's end x0 + r passes the grid
+// plane x = 32.00025 (the grid's shift), the two pieces of each cell x ∈ [27, 32] the slot splits
+// (volume fractions 0.05 … 0.68) join around the slot's tip; on the split side (x0 > a) ties hold
+// them. Measured, relative to C: without ties a jump of 4.8e-2; with the ties 1e-9 mm from the
+// join 4.7e-4 (1/d²) and 9.4e-4 (the thesis's log²: still soft there, b = 57). The step left is
+// not the ties': the partition of DOF nodes they make equals the joined model's (checked below),
+// but the split side's cut loses volume near the tangent crossing: its pieces' rules hold
+// 1e-5 … 2e-4 of a cell less than OCCT's common of the part and the cell (the joined side's agree
+// to 1e-7). A known failure of the cut at near-tangent crossings, found here; not fixed.
+TEST(PieceGaps, MergePenaltyAtASlotTipCrossingAGridPlane) {
+  const double r = 2, degrees = 20;
+  const Eigen::Vector3d centre(30, 20, 10);
+  auto turned = [&](const Eigen::Vector3d& X) -> Eigen::Vector3d {
+    return centre + Eigen::AngleAxisd(degrees * M_PI / 180, Eigen::Vector3d::UnitX()) * (X - centre);
+  };
+  const auto start = slotted_block(29.9, r, degrees);
+  const int support = face_at_point(*start, turned({60, 10, 5}), 1e-6);
+  const int load = face_at_point(*start, turned({0, 9, 10}), 1e-6);
+  ComplianceSetup plain = testing::steel_cantilever(*start, support, load, turned({0, 0, -1000}) - turned({0, 0, 0}));
+  plain.grid.grid.cell_size = 5;
+  plain.grid.grid.anchored = true;
+  plain.grid.grid.origin = xfem::Vec3(2, 0.3, 0.7);
+  plain.solver.incompatible_modes = false;
+  plain.solver.aggregation_fraction = 0;
+  ComplianceSetup tied = plain, thesis = plain;
+  tied.merge.enabled = thesis.merge.enabled = true;
+  thesis.merge.law = MergePenaltyOptions::Law::Log2;
+  const ComplianceState base = compliance_start(start, plain);
+  ASSERT_TRUE(base.done) << base.message;
+  auto state = [&](double x0, const ComplianceSetup& s) {
+    const ComplianceState st = compliance_at(slotted_block(x0, r, degrees), base, s);
+    EXPECT_TRUE(st.done) << "x0 = " << x0 << ": " << st.message;
+    return st;
+  };
+  auto pieces = [&](double x0) {
+    std::map<std::array<int, 3>, int> n;
+    for (const xfem::GridElement& el : state(x0, plain).model->elements)
+      if (el.subvolume) ++n[el.cell];
+    return n;
+  };
+  double a = 29.9, b = 30.1;
+  const auto left = pieces(a);
+  ASSERT_NE(left, pieces(b));
+  while (b - a > 1e-9) {
+    const double m = 0.5 * (a + b);
+    (pieces(m) == left ? a : b) = m;
+  }
+  const ComplianceState joined = state(a, plain), split = state(b, plain), ts = state(b, tied), ls = state(b, thesis);
+  auto relative = [&](const ComplianceState& st) { return (st.compliance - joined.compliance) / joined.compliance; };
+  std::printf("pieces join at x0 = %.9f: C %.10g joined; split without ties %.10g (%.3e), with %zu ties (%d node pairs) "
+              "%.10g (%.3e), with the log^2 ties %.10g (%.3e)\n",
+              a, joined.compliance, split.compliance, relative(split), ts.ties.size(), ts.solution.tied_node_pairs,
+              ts.compliance, relative(ts), ls.compliance, relative(ls));
+  EXPECT_NEAR(a, 30.00025, 1e-8);
+  EXPECT_EQ(ts.ties.size(), 15u);
+  EXPECT_EQ(joined.ties.size(), 0u);
+  EXPECT_NEAR(relative(split), 4.81e-2, 0.01e-2);
+  EXPECT_NEAR(relative(ts), 4.69e-4, 0.05e-4);
+  EXPECT_NEAR(relative(ls), 9.42e-4, 0.05e-4);
+  // The ties' DOF partition equals the joined model's: each split element mapped to the joined
+  // element of its cell it lies in (nearest rule centroid), the groups of (element, node) slots
+  // under the ties' union equal the joined model's DOF nodes, one to one.
+  const GridModel& ms = *ts.model;
+  const GridModel& mj = *joined.model;
+  auto centroid = [](const xfem::GridElement& el) {
+    double w = 0;
+    xfem::Vec3 c = xfem::Vec3::Zero();
+    for (size_t q = 0; q < el.rule.points.size(); ++q) w += el.rule.weights[q], c += el.rule.weights[q] * el.rule.points[q];
+    return xfem::Vec3(c / w);
+  };
+  std::vector<int> to(ms.elements.size(), -1);
+  for (size_t e = 0; e < ms.elements.size(); ++e) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t f = 0; f < mj.elements.size(); ++f)
+      if (mj.elements[f].cell == ms.elements[e].cell) {
+        const double d = (centroid(ms.elements[e]) - centroid(mj.elements[f])).norm();
+        if (d < best) best = d, to[e] = static_cast<int>(f);
       }
-      const ShapeParameters sp = build_shape_parameters(build_face_model(*part));
-      std::vector<char> complete;
-      piece_gap_gradient(g.gaps, sp, sp.initial, &complete);
-      int whole = 0;
-      for (char c : complete) whole += c;
-      std::printf("%s %d cells: cut %.2f s rules %.2f s; %d cells with 2+ pieces, %zu pairs, %d closer than h/4, %d with derivatives; gaps %.2f s\n", name, cells,
-                  m.cut_seconds, m.rule_seconds, g.cells_checked, g.gaps.size(), close, whole, g.seconds);
+    ASSERT_GE(to[e], 0);
+  }
+  std::vector<int> parent(ts.solution.dofs / 3);
+  std::iota(parent.begin(), parent.end(), 0);
+  std::function<int(int)> root = [&](int x) { return parent[x] == x ? x : parent[x] = root(parent[x]); };
+  for (const xfem::PieceTie& tie : ts.ties)
+    for (const auto& [ia, ib] : xfem::tied_nodes(ms.elements, ts.solution.node, tie)) parent[root(ia)] = root(ib);
+  std::map<int, int> forward, backward;
+  int mismatches = 0;
+  for (size_t e = 0; e < ms.elements.size(); ++e)
+    for (int k = 0; k < 8; ++k) {
+      const int g = root(ts.solution.node[e][k]), j = joined.solution.node[to[e]][k];
+      const auto [f, ff] = forward.emplace(g, j);
+      const auto [w, fw] = backward.emplace(j, g);
+      mismatches += f->second != j || w->second != g;
+    }
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_EQ(ms.elements.size(), mj.elements.size() + 6);  // six cells' pairs joined
+  // The volume the split side's rules lose in the joining cells, against OCCT's common.
+  std::set<std::array<int, 3>> joining;
+  for (size_t e = 0; e < ms.elements.size(); ++e)
+    for (size_t f = e + 1; f < ms.elements.size(); ++f)
+      if (to[e] == to[f]) joining.insert(ms.elements[e].cell);
+  ASSERT_EQ(joining.size(), 6u);
+  double worst_split = 0, worst_joined = 0;
+  for (const auto& cell : joining) {
+    xfem::Box3 box;
+    for (const auto& el : mj.elements)
+      if (el.cell == cell) box = el.box;
+    for (const auto& [st, worst] : {std::pair{&ts, &worst_split}, std::pair{&joined, &worst_joined}}) {
+      GProp_GProps g;
+      BRepGProp::VolumeProperties(BRepAlgoAPI_Common(st->part->shape, BRepPrimAPI_MakeBox(gp_Pnt(box.min.x(), box.min.y(), box.min.z()),
+                                                                                         gp_Pnt(box.max.x(), box.max.y(), box.max.z()))
+                                                                        .Shape())
+                                      .Shape(),
+                                  g);
+      double rules = 0;
+      for (const auto& el : st->model->elements)
+        if (el.cell == cell) rules += xfem::volume_fraction(el);
+      *worst = std::max(*worst, std::abs(rules - g.Mass() / box.volume()));
     }
   }
+  std::printf("rules' volume against OCCT in the joining cells (fraction of a cell): split side up to %.2e, joined %.2e\n",
+              worst_split, worst_joined);
+  EXPECT_GT(worst_split, 1e-4);  // measured 2.1e-4
+  EXPECT_LT(worst_joined, 1e-6);
 }
+
 }  // namespace
 }  // namespace parafab::occ
