@@ -400,12 +400,12 @@ TEST(ShapeCompliance, FrozenSwitchesRemoveTheAggregationJumpAlongALine) {
   EXPECT_LT(frozen_step, 1.5 * std::abs(slope) * (b - a));
 }
 
-// Known failure (thesis §6.4.4, not implemented): where a cut cell's material pieces join or one
-// vanishes, the DOF structure changes and C jumps. The thesis smooths this with a penalty
-// b(d)‖x¹ − x²‖² on the enriched copies of a node, d the distance to the saddle point where the
-// pieces meet (Eq. 6.24); ParaFab does not, and freezing the discrete switches along a line
-// search (above) does not cover it: what the user gets is a jump of the objective at that
-// point. Found by scanning the turned bracket's design entries (bench_piece_changes): on the upright's
+// Known failure in the default basis (hex8 with incompatible modes, merge off): where a cut
+// cell's material pieces join or one vanishes, the DOF structure changes and C jumps. The thesis
+// smooths this with a penalty b(d)‖x¹ − x²‖² on the enriched copies of a node (Eq. 6.24; ParaFab's
+// `merge` ties, which need a basis without the modes: MergePenalty* tests below), and freezing
+// the discrete switches along a line search (above) does not cover it: what the user gets is a
+// jump of the objective at that point. Found by scanning the turned bracket's design entries (bench_piece_changes): on the upright's
 // inner offset two cells change pieces at +0.6016 mm: in one, two small pieces (volume
 // fractions 1.0e-3 and 1.6e-2, both aggregated) join into one (1.7e-2); the other, cut with a
 // piece of fraction 1.000, becomes an uncut cell. (The hole radius has a smaller one at

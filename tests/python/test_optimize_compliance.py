@@ -156,5 +156,31 @@ class OptimizeCompliance(unittest.TestCase):
         self.assertIn("supports", json.dumps(err))
 
 
+    def test_merge_penalty_is_refused_where_its_ties_fail_and_runs_where_they_hold(self):
+        # Thesis Eq. 6.24 (README "Pieces that join"): with hex8's incompatible modes the ties leave
+        # a join discontinuous, so the default hex8 basis refuses it, naming the way out.
+        code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "a")], dict(JOB, merge_penalty=True))
+        self.assertEqual(code, 2, err)
+        self.assertIn("incompatible_modes", json.dumps(err))
+        code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "b")],
+                        dict(JOB, merge_penalty={"law": "cubic"}, incompatible_modes=False))
+        self.assertEqual(code, 2, err)
+        self.assertIn("merge_penalty.law", json.dumps(err))
+        code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "c")],
+                        dict(JOB, merge_penalty=True, incompatible_modes=False, objective={"type": "failure", "yield_stress": 100, "exponent": 8}))
+        self.assertEqual(code, 2, err)
+        self.assertIn("only with the compliance objective", json.dumps(err))
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "a", "optimized.step")))
+        # Plain hex8 (no modes): the run goes through with the ties and the exact route.
+        out = os.path.join(self.dir, "out")
+        code, h = cli(["optimize", self.part, "-o", out],
+                      dict(JOB, merge_penalty={"critical_fraction": 0.05}, incompatible_modes=False, max_iterations=3))
+        self.assertEqual(code, 0, h)
+        self.assertEqual(h["merge_penalty"], {"critical_fraction": 0.05, "law": "inverse_square", "cap": 0.0})
+        self.assertLess(h["final_objective"], h["initial_objective"])
+        self.assertEqual(h["gradient"], "exact")
+        self.assertTrue(os.path.exists(os.path.join(out, "optimized.step")))
+
+
 if __name__ == "__main__":
     unittest.main()

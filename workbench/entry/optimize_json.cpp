@@ -67,7 +67,7 @@ occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, co
 // or a hyperelastic law (as `parafab simulate`; load_steps, default 5) for `hyperelastic_ok`
 // objectives (the target shape alone or with moment terms).
 std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShape& part, const json& job,
-                                                             bool hyperelastic_ok) {
+                                                             bool hyperelastic_ok, bool merge_ok) {
   auto s = std::make_shared<occ::ComplianceSetup>();
   const json& m = fields::require(job, "material", "job (objective compliance)");
   s->material.youngs_modulus = number(fields::require(m, "E", "material"), "material.E");
@@ -127,6 +127,38 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
   if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
   if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
   nitsche_of_job(job, s->solver, !s->hyperelastic);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
+  if (job.contains("incompatible_modes")) {  // hex8 only (hex27 has none)
+    if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
+    s->solver.incompatible_modes = job["incompatible_modes"].get<bool>();
+  }
+  // Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (README "Pieces that join").
+  if (job.contains("merge_penalty")) {
+    const json& mp = job["merge_penalty"];
+    if (!(mp.is_boolean() || mp.is_object()))
+      PARAFAB_INPUT_ERROR("merge_penalty must be true, false or {\"critical_fraction\", \"law\", \"cap\"}, got " << mp.dump());
+    s->merge.enabled = mp.is_object() || mp.get<bool>();
+    if (mp.is_object()) {
+      fields::only(mp, "merge_penalty", {"critical_fraction", "law", "cap"});
+      s->merge.critical_fraction = number(mp.value("critical_fraction", json(s->merge.critical_fraction)), "merge_penalty.critical_fraction");
+      if (!(s->merge.critical_fraction > 0 && s->merge.critical_fraction <= 0.5))
+        PARAFAB_INPUT_ERROR("merge_penalty.critical_fraction must be in (0, 0.5] (of a cell), got " << s->merge.critical_fraction);
+      const std::string law = mp.value("law", std::string("inverse_square"));
+      if (law == "inverse_square") s->merge.law = occ::MergePenaltyOptions::Law::InverseSquare;
+      else if (law == "log2") s->merge.law = occ::MergePenaltyOptions::Law::Log2;
+      else PARAFAB_INPUT_ERROR("merge_penalty.law must be \"inverse_square\" or \"log2\" (thesis Eq. 6.24), got \"" << law << "\"");
+      s->merge.cap = number(mp.value("cap", json(0.0)), "merge_penalty.cap");
+      if (!(s->merge.cap >= 0)) PARAFAB_INPUT_ERROR("merge_penalty.cap must be >= 0 (0: the law's default), got " << s->merge.cap);
+    }
+    if (s->merge.enabled) {
+      if (!merge_ok)
+        PARAFAB_INPUT_ERROR("merge_penalty: only with the compliance objective alone (the other objectives' "
+                            "gradients have no term for the ties)");
+      if (s->hyperelastic) PARAFAB_INPUT_ERROR("merge_penalty: the hyperelastic solve has no ties; use material.model \"linear\"");
+      if (s->solver.element == xfem::ElementType::Hex8 && s->solver.incompatible_modes)
+        PARAFAB_INPUT_ERROR("merge_penalty with hex8 needs \"incompatible_modes\": false (the modes are condensed per "
+                            "piece, and with them the ties leave the join discontinuous), or \"element\": \"hex27\"");
+    }
+  }
   return s;
 }
 
@@ -305,7 +337,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     const auto elastic_term = [](const occ::ObjectiveSpec& t) { return t.type == "compliance" || t.type == "failure"; };
     const bool hyperelastic_ok = !elastic_term(o.objective) &&
                                  std::none_of(o.objective.terms.begin(), o.objective.terms.end(), elastic_term);
-    o.compliance = compliance_setup(*part, job, hyperelastic_ok);
+    o.compliance = compliance_setup(*part, job, hyperelastic_ok, o.objective.type == "compliance" && o.objective.terms.empty());
     {
       const occ::PartBoxArea size = occ::part_box_and_area(*part);
       occ::PartInfo info;
@@ -579,6 +611,10 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (o.compliance) {  // discrete switches frozen during line searches, accepted points re-evaluated
     h["freeze_switches"] = o.freeze_switches;
     h["switch_refreshes"] = r.switch_refreshes;
+    if (o.compliance->merge.enabled)
+      h["merge_penalty"] = {{"critical_fraction", o.compliance->merge.critical_fraction},
+                            {"law", o.compliance->merge.law == occ::MergePenaltyOptions::Law::Log2 ? "log2" : "inverse_square"},
+                            {"cap", o.compliance->merge.cap}};
   }
   if (r.semi_analytic_derivatives > 0) {
     h["topology_switches"] = r.topology_switches;
