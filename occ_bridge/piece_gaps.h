@@ -30,6 +30,10 @@ struct PieceGapOptions {
   /// Also pairs of pieces of face-neighbour cells that share no part of that face (not in
   /// GridModel::adjacent): when they come to touch, their copies of the face's nodes become one.
   bool neighbour_cells = true;
+  /// OCCT's solid of a cell against the volume of the cut's elements matched to it, as a
+  /// fraction of the cell: a larger difference fails (the pieces do not correspond). The cut's
+  /// rules can lose ~2e-4 near a tangent crossing (PieceGaps.MergePenaltyAtASlotTipCrossingAGridPlane).
+  double match_tolerance = 2e-3;
 };
 
 /// A closest point and the faces of the part it lies on (none: on the cell's box only, it does
@@ -38,6 +42,7 @@ struct GapEnd {
   xfem::Vec3 point{0, 0, 0};
   std::vector<int> faces;
   std::vector<xfem::Vec3> normals;
+  std::vector<int> box_axes;  ///< the cell box's planes it lies on (their axes): it moves within them
 };
 
 struct PieceGap {
@@ -66,12 +71,16 @@ struct PieceGapResult {
 PieceGapResult piece_gaps(const PartShape& part, const GridModel& grid, const PieceGapOptions& options = {});
 
 /// ∂d/∂p of each gap (rows) for the parameter vector p of `parameters` (columns): a closest
-/// point on face f moves with the face's normal velocity Vₙ = ∂X/∂p·n, and along the gap
-/// direction t = (b − a)/d by Vₙ/(n·t) (t ∥ n inside a face; on the section of a face with the
-/// cell's box, t lies in the box face and the section moves by Vₙ/|n projected|), so
-/// d' = −Vₙ,a/(n_a·t) − Vₙ,b/(n_b·(−t)). Faces at an end with n ⟂ t (|n·t| < 1e-9: the gap runs
-/// along them) do not move it. `complete[i]` is 0 where row i misses a term: an end on two faces
-/// not along t (an edge or vertex of the part), on a B-spline face, a joined pair, or a zero gap.
+/// point on face f with outward normal n moves with the face's normal velocity Vₙ = ∂X/∂p·n
+/// within the cell box's planes it lies on (P: the projector onto their common directions, I
+/// inside the box), by Vₙ·Pn/(nᵀPn), so with t = (b − a)/d the unit gap direction
+/// d' = −Vₙ,a (Pn_a·t)/(n_aᵀPn_a) − Vₙ,b (Pn_b·(−t))/(n_bᵀPn_b) (inside a face n = t: −Vₙ; on a
+/// face's section with a box plane: −Vₙ/|n projected| when t lies in that plane). Faces at an
+/// end with n ⟂ t (|n·t| < 1e-9: the gap runs along them) do not move it, nor does a box
+/// corner. `complete[i]` is 0 where row i misses a term: an end on two faces not along t (an
+/// edge or vertex of the part), on a B-spline face, a joined pair, or a zero gap. Where the
+/// closest points are not unique (OCCT's first solution is used) the gap may not be
+/// differentiable.
 Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const ShapeParameters& parameters,
                                    const Eigen::VectorXd& p, std::vector<char>* complete = nullptr);
 

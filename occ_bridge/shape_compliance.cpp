@@ -69,6 +69,7 @@ ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& mode
   if (!volume_matches(model, *s.part, s.message)) return s;
   auto m = std::make_shared<GridModel>(std::move(model));
   s.tractions = tractions_on(*s.part, setup);
+  PARAFAB_VERIFY(!(setup.merge.enabled && setup.hyperelastic), "ComplianceSetup: merge (Eq. 6.24 ties) with a hyperelastic law, whose solve has no ties");
   if (setup.hyperelastic) {
     xfem::NonlinearXfemOptions no;
     no.boundary = setup.solver;
@@ -86,7 +87,7 @@ ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& mode
     s.message = "ok";
     return s;
   }
-  if (setup.merge.enabled) {  // Eq. 6.24: the gaps of pieces about to join, and their ties
+  if (setup.merge.enabled && !m->elements.empty()) {  // Eq. 6.24: the gaps of pieces about to join, and their ties
     PieceGapOptions go;
     go.critical_distance = setup.merge.critical_fraction * m->elements.front().box.size().minCoeff();
     const PieceGapResult gr = piece_gaps(*s.part, *m, go);

@@ -200,6 +200,7 @@ TEST(PieceGaps, MergePenaltyAtASlotTipCrossingAGridPlane) {
     (pieces(m) == left ? a : b) = m;
   }
   const ComplianceState joined = state(a, plain), split = state(b, plain), ts = state(b, tied), ls = state(b, thesis);
+  EXPECT_EQ(state(a, tied).ties.size(), 0u);  // joined: nothing left to tie
   auto relative = [&](const ComplianceState& st) { return (st.compliance - joined.compliance) / joined.compliance; };
   std::printf("pieces join at x0 = %.9f: C %.10g joined; split without ties %.10g (%.3e), with %zu ties (%d node pairs) "
               "%.10g (%.3e), with the log^2 ties %.10g (%.3e)\n",
@@ -207,7 +208,6 @@ TEST(PieceGaps, MergePenaltyAtASlotTipCrossingAGridPlane) {
               ts.compliance, relative(ts), ls.compliance, relative(ls));
   EXPECT_NEAR(a, 30.00025, 1e-8);
   EXPECT_EQ(ts.ties.size(), 15u);
-  EXPECT_EQ(joined.ties.size(), 0u);
   EXPECT_NEAR(relative(split), 4.81e-2, 0.01e-2);
   EXPECT_NEAR(relative(ts), 4.69e-4, 0.05e-4);
   EXPECT_NEAR(relative(ls), 9.42e-4, 0.05e-4);
@@ -274,8 +274,42 @@ TEST(PieceGaps, MergePenaltyAtASlotTipCrossingAGridPlane) {
   }
   std::printf("rules' volume against OCCT in the joining cells (fraction of a cell): split side up to %.2e, joined %.2e\n",
               worst_split, worst_joined);
-  EXPECT_GT(worst_split, 1e-4);  // measured 2.1e-4
+  EXPECT_GT(worst_split, 1e-4);  // measured 2.1e-4 (a fix of the cut turns this red: then update the figures above)
   EXPECT_LT(worst_joined, 1e-6);
+}
+
+}  // namespace
+}  // namespace parafab::occ
+
+namespace parafab::occ {
+namespace {
+
+// Both laws of Eq. 6.24's b(d): zero with zero slope at d_crit, the cap below, and b' against
+// central differences.
+TEST(PieceGaps, MergePenaltyLawsAndTheirDerivatives) {
+  for (const auto law : {MergePenaltyOptions::Law::InverseSquare, MergePenaltyOptions::Law::Log2}) {
+    MergePenaltyOptions o;
+    o.law = law;
+    const double crit = 0.3;
+    double db = 1;
+    EXPECT_EQ(merge_penalty_b(crit, crit, o, &db), 0);
+    EXPECT_EQ(db, 0);
+    EXPECT_EQ(merge_penalty_b(0, crit, o, &db), law == MergePenaltyOptions::Law::Log2 ? 1e3 : 1e4);
+    EXPECT_EQ(db, 0);
+    for (double d : {0.29, 0.2, 0.05, 1e-3}) {
+      const double h = 1e-6 * d;
+      const double b = merge_penalty_b(d, crit, o, &db);
+      const double fd = (merge_penalty_b(d + h, crit, o) - merge_penalty_b(d - h, crit, o)) / (2 * h);
+      EXPECT_GT(b, 0);
+      EXPECT_NEAR(db, fd, 1e-6 * std::abs(fd) + 1e-9) << "d = " << d;
+    }
+    EXPECT_NEAR(merge_penalty_b(0.29999, crit, o, &db), 0, 1e-8);  // enters smoothly
+    EXPECT_NEAR(db, 0, 1e-3);
+  }
+  MergePenaltyOptions thesis;
+  thesis.law = MergePenaltyOptions::Law::Log2;
+  EXPECT_NEAR(merge_penalty_b(0.3 / std::exp(2.0), 0.3, thesis), 4, 1e-12);  // log²(e^-2)
+  EXPECT_NEAR(merge_penalty_b(0.1, 0.3, MergePenaltyOptions{}), 4, 1e-12);   // (3 − 1)²
 }
 
 }  // namespace

@@ -362,6 +362,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       if (g == "exact") o.compliance_gradient = occ::ShapeOptimizationOptions::ComplianceGradientRoute::Exact;
       else if (g == "semi-analytic") o.compliance_gradient = occ::ShapeOptimizationOptions::ComplianceGradientRoute::SemiAnalytic;
       else PARAFAB_INPUT_ERROR("objective.gradient must be \"exact\" or \"semi-analytic\", got " << g.dump());
+      if (o.compliance->merge.enabled && g == "semi-analytic")
+        PARAFAB_INPUT_ERROR("merge_penalty with objective.gradient \"semi-analytic\": that route has no term for the ties; "
+                            "use the exact route (the default)");
     }
   }
   {  // the types are valid?
