@@ -374,6 +374,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           return false;
         }
       }
+      if (!state->ties.empty()) {
+        ++result.tied_evaluations;
+        result.max_ties = std::max(result.max_ties, static_cast<int>(state->ties.size()));
+      }
       FailureValue fv;
       Eigen::VectorXd adjoint;
       if (failure) {

@@ -171,14 +171,23 @@ class OptimizeCompliance(unittest.TestCase):
         self.assertEqual(code, 2, err)
         self.assertIn("only with the compliance objective", json.dumps(err))
         self.assertFalse(os.path.exists(os.path.join(self.dir, "a", "optimized.step")))
-        # Plain hex8 (no modes): the run goes through with the ties and the exact route.
+        # Plain hex8 (no modes): the run goes through with the ties.
         out = os.path.join(self.dir, "out")
         code, h = cli(["optimize", self.part, "-o", out],
-                      dict(JOB, merge_penalty={"critical_fraction": 0.05}, incompatible_modes=False, max_iterations=3))
+                      dict(JOB, merge_penalty={"critical_fraction": 0.05}, incompatible_modes=False, max_iterations=3,
+                           grid={"cells": 10}))
         self.assertEqual(code, 0, h)
-        self.assertEqual(h["merge_penalty"], {"critical_fraction": 0.05, "law": "inverse_square", "cap": 0.0})
+        mp = h["merge_penalty"]
+        self.assertEqual({k: mp[k] for k in ("critical_fraction", "law", "cap")},
+                         {"critical_fraction": 0.05, "law": "inverse_square", "cap": 0.0})
+        # On 10 cells the bracket as read has pieces within d_crit (the grid's shift puts planes
+        # next to its features): measured 4 ties in the start's evaluation (1 of 5). Ties whose
+        # weight change has no derivative (a blended floating node) send their faces' entries to
+        # the semi-analytic route.
+        self.assertGreater(mp["max_ties"], 0)
+        self.assertGreaterEqual(mp["tied_evaluations"], 1)
         self.assertLess(h["final_objective"], h["initial_objective"])
-        self.assertEqual(h["gradient"], "exact")
+        self.assertIn(h["gradient"], ("exact", "exact + semi-analytic"))
         self.assertTrue(os.path.exists(os.path.join(out, "optimized.step")))
 
 

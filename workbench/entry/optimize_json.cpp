@@ -617,7 +617,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     if (o.compliance->merge.enabled)
       h["merge_penalty"] = {{"critical_fraction", o.compliance->merge.critical_fraction},
                             {"law", o.compliance->merge.law == occ::MergePenaltyOptions::Law::Log2 ? "log2" : "inverse_square"},
-                            {"cap", o.compliance->merge.cap}};
+                            {"cap", o.compliance->merge.cap},
+                            {"tied_evaluations", r.tied_evaluations},
+                            {"max_ties", r.max_ties}};
   }
   if (r.semi_analytic_derivatives > 0) {
     h["topology_switches"] = r.topology_switches;
