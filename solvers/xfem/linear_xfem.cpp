@@ -534,17 +534,25 @@ Vec3 node_position(const Box3& box, int nodes, int k) {
   return box.min + 0.5 * Vec3(o[0], o[1], o[2]).cwiseProduct(box.size());
 }
 
+namespace {
+
+// Node k's grid position in half cells (hex8 corners, hex27 nodes): the key by which elements
+// share DOF nodes.
+std::array<int, 3> half_cell_position(const GridElement& element, int nodes, int k) {
+  const auto& c = element.cell;
+  const auto o = node_offset(nodes, k);
+  return {2 * c[0] + o[0], 2 * c[1] + o[1], 2 * c[2] + o[2]};
+}
+
+}  // namespace
+
 std::vector<std::vector<int>> number_dof_nodes(const std::vector<GridElement>& elements,
                                                const std::vector<std::array<int, 2>>& adjacent,
                                                int& count, ElementType element) {
   const int n = static_cast<int>(elements.size());
   const int nn = nodes_per_element(element);
   UnionFind uf(nn * n);
-  auto grid_node = [&](int e, int k) {  // in half cells
-    const auto& c = elements[e].cell;
-    const auto o = node_offset(nn, k);
-    return std::array<int, 3>{2 * c[0] + o[0], 2 * c[1] + o[1], 2 * c[2] + o[2]};
-  };
+  auto grid_node = [&](int e, int k) { return half_cell_position(elements[e], nn, k); };
   for (const auto& [a, b] : adjacent) {
     PARAFAB_VERIFY(a >= 0 && a < n && b >= 0 && b < n, "element pair (" << a << ", " << b << ") out of range");
     for (int ka = 0; ka < nn; ++ka) {
@@ -817,11 +825,7 @@ std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& eleme
   PARAFAB_VERIFY(tie.element_a >= 0 && tie.element_a < n && tie.element_b >= 0 && tie.element_b < n,
                  "piece tie (" << tie.element_a << ", " << tie.element_b << ") out of range (" << n << " elements)");
   const int nn = static_cast<int>(node[tie.element_a].size());
-  auto grid_node = [&](int e, int k) {  // in half cells
-    const auto& c = elements[e].cell;
-    const auto o = node_offset(nn, k);
-    return std::array<int, 3>{2 * c[0] + o[0], 2 * c[1] + o[1], 2 * c[2] + o[2]};
-  };
+  auto grid_node = [&](int e, int k) { return half_cell_position(elements[e], nn, k); };
   std::vector<std::array<int, 2>> pairs;
   for (int ka = 0; ka < nn; ++ka)
     for (int kb = 0; kb < nn; ++kb)
