@@ -613,7 +613,7 @@ TEST(ShapeCompliance, MergePenaltyMakesTheJoinContinuousInThePlainBasis) {
               fd, std::abs(exact - fd) / std::abs(fd));
   // Measured: relative difference 1.5e-9; the tie term (-4.3e-4) is 7e4 times the difference.
   EXPECT_LT(std::abs(exact - fd), 2e-4 * std::abs(exact - without));
-  EXPECT_LT(std::abs(exact - fd), 5e-8 * std::abs(fd));
+  EXPECT_LT(std::abs(exact - fd), 5e-9 * std::abs(fd));
 }
 
 // Known failure: with the incompatible modes (ParaFab's default hex8 basis) the ties do not make
