@@ -500,6 +500,23 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   };
   std::vector<Terms> terms(work.size());
   const int np = sp.size();
+  // Pieces whose incompatible modes a tie condenses jointly: their ψ is the pair's.
+  const std::vector<char> modes_tied = xfem::mode_tied(elements, at.ties, setup.solver);
+  std::map<int, std::pair<int, int>> tied_side;  // element → (tie, 0 for element_a, 1 for element_b)
+  for (size_t t = 0; t < at.ties.size(); ++t)
+    if (modes_tied[t]) {
+      tied_side[at.ties[t].element_a] = {static_cast<int>(t), 0};
+      tied_side[at.ties[t].element_b] = {static_cast<int>(t), 1};
+    }
+  auto bulk_density = [&](int e, const Eigen::VectorXd& ue, const std::vector<xfem::Vec3>& points) {
+    const auto it = tied_side.find(e);
+    if (it == tied_side.end()) return xfem::bulk_shape_density(elements[e], ue, ue, setup.material, setup.solver, points);
+    const xfem::PieceTie& tie = at.ties[it->second.first];
+    return xfem::tied_mode_shape_terms(elements, tie, element_values(at.solution.u, at.solution.node[tie.element_a]),
+                                       element_values(at.solution.u, at.solution.node[tie.element_b]), setup.material,
+                                       setup.solver, it->second.second, points)
+        .density;
+  };
   tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
     const int e = work[w];
     const xfem::GridElement& el = elements[e];
@@ -526,7 +543,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         if (!sr.points.empty()) {
           out.used = true;
           out.points += static_cast<int>(sr.points.size());
-          const std::vector<double> psi = xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+          const std::vector<double> psi = bulk_density(e, ue, sr.points);
           const std::vector<double> psi_mode =
               simple ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
                      : std::vector<double>{};
@@ -557,7 +574,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         out.used = out.used || !sr.points.empty();
         out.points += static_cast<int>(sr.points.size());
         const std::vector<double> psi = sr.points.empty() ? std::vector<double>{}
-                                                          : xfem::bulk_shape_density(el, ue, ue, setup.material, setup.solver, sr.points);
+                                                          : bulk_density(e, ue, sr.points);
         const std::vector<double> psi_mode =
             simple && !sr.points.empty()
                 ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
@@ -711,6 +728,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   }
   // Eq. 6.24's ties: the energy ½Σ w‖u_a − u_b‖² with w = E·h·b(d(p)), so
   // dC = −Σ E·h·b'(d) d' ‖u_a − u_b‖² (d' from the faces at the gap's ends: piece_gap_gradient).
+  // A mode-tied pair adds ‖α_a − α_b‖² to that factor and −θ'·∂(uᵀKu)/∂θ, θ = 1 − e^(−b).
   if (!at.ties.empty()) {
     std::vector<char> complete;
     const Eigen::MatrixXd dd = piece_gap_gradient(at.gaps, sp, p, &complete);
@@ -718,7 +736,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       const PieceGap& gap = at.gaps[i];
       const double h = at.model->elements[gap.element_a].box.size().minCoeff();
       double db = 0;
-      merge_penalty_b(gap.joined ? 0.0 : gap.distance, setup.merge.critical_fraction * h, setup.merge, &db);
+      const double b = merge_penalty_b(gap.joined ? 0.0 : gap.distance, setup.merge.critical_fraction * h, setup.merge, &db);
       if (db == 0) continue;
       const std::vector<char>& floating = at.solution.floating;
       const std::vector<std::array<int, 2>> pairs = xfem::tied_nodes(at.model->elements, at.solution.node, at.ties[i]);
@@ -734,7 +752,17 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       for (const auto& [ia, ib] : pairs)
         if (floating.empty() || (!floating[ia] && !floating[ib]))  // as the solve ties them
           squared += (at.solution.u.segment<3>(3 * ia) - at.solution.u.segment<3>(3 * ib)).squaredNorm();
-      r.gradient -= setup.material.youngs_modulus * h * db * squared * dd.row(static_cast<Eigen::Index>(i)).transpose();
+      double blend_factor = 0;  // ∂(uᵀKu)/∂θ · dθ/db
+      if (modes_tied[i]) {
+        const xfem::PieceTie& tie = at.ties[i];
+        const xfem::TiedModeShapeTerms m = xfem::tied_mode_shape_terms(
+            elements, tie, element_values(at.solution.u, at.solution.node[tie.element_a]),
+            element_values(at.solution.u, at.solution.node[tie.element_b]), setup.material, setup.solver, 0, {});
+        squared += m.d_weight;
+        blend_factor = m.d_blend * std::exp(-b);
+      }
+      r.gradient -= (setup.material.youngs_modulus * h * squared + blend_factor) * db *
+                    dd.row(static_cast<Eigen::Index>(i)).transpose();
     }
   }
   r.done = true;

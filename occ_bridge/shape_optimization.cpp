@@ -377,6 +377,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       if (!state->ties.empty()) {
         ++result.tied_evaluations;
         result.max_ties = std::max(result.max_ties, static_cast<int>(state->ties.size()));
+        result.max_mode_tied_pairs = std::max(result.max_mode_tied_pairs, state->solution.mode_tied_pairs);
       }
       FailureValue fv;
       Eigen::VectorXd adjoint;

@@ -180,8 +180,9 @@ struct ShapeOptimizationResult {
   int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
   /// Accepted iterates evaluated again with their own discrete switches (freeze_switches).
   int switch_refreshes = 0;
-  /// compliance with merge (Eq. 6.24): evaluations with at least one tie, and the most ties in one.
-  int tied_evaluations = 0, max_ties = 0;
+  /// compliance with merge (Eq. 6.24): evaluations with at least one tie, the most ties in one,
+  /// and the most of them whose pieces' incompatible modes were condensed jointly (xfem::mode_tied).
+  int tied_evaluations = 0, max_ties = 0, max_mode_tied_pairs = 0;
   int gradient_cells = 0;      ///< compliance: cells differenced, summed over gradients
   /// "failure": max σ_vm over the material quadrature points at the start and at the end.
   double initial_max_von_mises = 0, final_max_von_mises = 0;

@@ -130,32 +130,116 @@ struct IncompatibleModes {
   }
 };
 
+// The rule's volume and mean of the mode gradients (γ̄ = Σ w γ / V).
+void mode_mean(const GridElement& el, double& volume, Vec3& mean) {
+  volume = 0, mean.setZero();
+  for (size_t q = 0; q < el.rule.points.size(); ++q) {
+    volume += el.rule.weights[q];
+    mean += el.rule.weights[q] * IncompatibleModes::gradient(el.box, el.rule.points[q]);
+  }
+  if (volume > 0) mean /= volume;
+}
+
+// K_aa and K_au of element el's modes with their gradients shifted by `mean`.
+void mode_matrices(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D, const Vec3& mean,
+                   Eigen::Matrix<double, 9, 9>& Kaa, Eigen::Matrix<double, 9, 24>& Kau) {
+  Kaa.setZero(), Kau.setZero();
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  for (size_t q = 0; q < el.rule.points.size(); ++q) {
+    const Vec3& X = el.rule.points[q];
+    trilinear_shape(el.box, X, N, G);
+    const Mat6x24 Bu = strain_matrix<8>(G);
+    const Eigen::Matrix<double, 6, 9> Ba = IncompatibleModes::strain(IncompatibleModes::gradient(el.box, X) - mean);
+    Kaa.noalias() += el.rule.weights[q] * Ba.transpose() * D * Ba;
+    Kau.noalias() += el.rule.weights[q] * Ba.transpose() * D * Bu;
+  }
+}
+
 IncompatibleModes incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D, double min_fraction) {
   IncompatibleModes im;
   for (double w : el.rule.weights) im.volume += w;
   if (!(switching_fraction(el) > min_fraction)) return im;  // tiny pieces: K_aa near singular
   if (!(im.volume > 0)) return im;
-  const size_t nq = el.rule.points.size();
-  std::vector<Vec3> grad(nq);
-  for (size_t q = 0; q < nq; ++q) {
-    grad[q] = IncompatibleModes::gradient(el.box, el.rule.points[q]);
-    im.mean += el.rule.weights[q] * grad[q];
-  }
-  im.mean /= im.volume;
-  Eigen::Matrix<double, 9, 9> Kaa = Eigen::Matrix<double, 9, 9>::Zero();
-  im.Kau.setZero();
-  Eigen::Matrix<double, 8, 1> N;
-  Eigen::Matrix<double, 8, 3> G;
-  for (size_t q = 0; q < nq; ++q) {
-    trilinear_shape(el.box, el.rule.points[q], N, G);
-    const Mat6x24 Bu = strain_matrix<8>(G);
-    const Eigen::Matrix<double, 6, 9> Ba = IncompatibleModes::strain(grad[q] - im.mean);
-    Kaa.noalias() += el.rule.weights[q] * Ba.transpose() * D * Ba;
-    im.Kau.noalias() += el.rule.weights[q] * Ba.transpose() * D * Bu;
-  }
+  mode_mean(el, im.volume, im.mean);
+  Eigen::Matrix<double, 9, 9> Kaa;
+  mode_matrices(el, D, im.mean, Kaa, im.Kau);
   im.Kaa.compute(Kaa);
   im.used = im.Kaa.info() == Eigen::Success && im.Kaa.vectorD().minCoeff() > 1e-10 * im.Kaa.vectorD().maxCoeff();
   return im;
+}
+
+// Eq. 6.24 with the incompatible modes: two pieces a, b of one cell under a PieceTie (weight w,
+// blend θ) condensed jointly. Their modes are the cell's (one box: the same φ_m); the energy
+// gets ½w‖α_a − α_b‖² and each piece's gradient mean moves towards the pair's,
+// γ̄_P = (1 − θ) M_P + θ M_ab (M: rule means). At the join (θ = 1, w at its cap) this is the
+// joined piece's one mode set with its one mean; with w = θ = 0 the two pieces' own.
+struct TiedModePair {
+  bool used = false;
+  double volume[2] = {0, 0}, pair_volume = 0;
+  Vec3 own_mean[2], pair_mean, mean[2];  ///< M_a, M_b, M_ab, γ̄_a, γ̄_b
+  Eigen::Matrix<double, 9, 24> Kau[2];   ///< at γ̄_P
+  Eigen::LDLT<Eigen::Matrix<double, 18, 18>> Kaa;
+  double blend = 0;
+  /// α = −K_αα⁻¹ K_αu (u_a, u_b): rows 0..8 piece a's modes, 9..17 piece b's.
+  Eigen::Matrix<double, 18, 1> condensed(const Eigen::VectorXd& ua, const Eigen::VectorXd& ub) const {
+    Eigen::Matrix<double, 18, 1> rhs;
+    rhs << Kau[0] * ua, Kau[1] * ub;
+    return -Kaa.solve(rhs);
+  }
+};
+
+TiedModePair tied_mode_pair(const GridElement& a, const GridElement& b, const Eigen::Matrix<double, 6, 6>& D,
+                            double weight, double blend) {
+  TiedModePair pair;
+  pair.blend = blend;
+  const GridElement* el[2] = {&a, &b};
+  for (int i = 0; i < 2; ++i) mode_mean(*el[i], pair.volume[i], pair.own_mean[i]);
+  pair.pair_volume = pair.volume[0] + pair.volume[1];
+  if (!(pair.volume[0] > 0 && pair.volume[1] > 0)) return pair;
+  pair.pair_mean = (pair.volume[0] * pair.own_mean[0] + pair.volume[1] * pair.own_mean[1]) / pair.pair_volume;
+  Eigen::Matrix<double, 18, 18> K = Eigen::Matrix<double, 18, 18>::Zero();
+  for (int i = 0; i < 2; ++i) {
+    pair.mean[i] = (1 - blend) * pair.own_mean[i] + blend * pair.pair_mean;
+    Eigen::Matrix<double, 9, 9> Kaa;
+    mode_matrices(*el[i], D, pair.mean[i], Kaa, pair.Kau[i]);
+    K.block<9, 9>(9 * i, 9 * i) = Kaa + weight * Eigen::Matrix<double, 9, 9>::Identity();
+  }
+  K.block<9, 9>(0, 9) = K.block<9, 9>(9, 0) = -weight * Eigen::Matrix<double, 9, 9>::Identity();
+  pair.Kaa.compute(K);
+  pair.used = pair.Kaa.info() == Eigen::Success && pair.Kaa.vectorD().minCoeff() > 1e-10 * pair.Kaa.vectorD().maxCoeff();
+  return pair;
+}
+
+// The pair's condensed modes (u_a, u_b) and T_P = 2 Σ_{q∈P} w_q (S_m α_P)ᵀ D ε_q (m = x, y, z;
+// S_m: the mode strain of a unit gradient along x_m), the factor of the means' changes.
+struct TiedModeState {
+  Eigen::Matrix<double, 18, 1> alpha;
+  Vec3 T[2];
+};
+
+Eigen::Matrix<double, 6, 1> tied_mode_strain(const GridElement& el, const Eigen::VectorXd& ue, const Vec3& mean,
+                                             const Eigen::Matrix<double, 9, 1>& alpha, const Vec3& X) {
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> G;
+  trilinear_shape(el.box, X, N, G);
+  return strain_matrix<8>(G) * ue + IncompatibleModes::strain(IncompatibleModes::gradient(el.box, X) - mean) * alpha;
+}
+
+TiedModeState tied_mode_state(const TiedModePair& pair, const GridElement* el[2], const Eigen::VectorXd* u[2],
+                              const Eigen::Matrix<double, 6, 6>& D) {
+  TiedModeState s;
+  s.alpha = pair.condensed(*u[0], *u[1]);
+  for (int i = 0; i < 2; ++i) {
+    const Eigen::Matrix<double, 9, 1> a = s.alpha.segment<9>(9 * i);
+    Eigen::Matrix<double, 6, 3> S;
+    for (int m = 0; m < 3; ++m) S.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * a;
+    s.T[i].setZero();
+    for (size_t q = 0; q < el[i]->rule.points.size(); ++q)
+      s.T[i] += 2 * el[i]->rule.weights[q] *
+                (S.transpose() * (D * tied_mode_strain(*el[i], *u[i], pair.mean[i], a, el[i]->rule.points[q])));
+  }
+  return s;
 }
 
 void add_incompatible_modes(const GridElement& el, const Eigen::Matrix<double, 6, 6>& D,
@@ -834,6 +918,61 @@ std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& eleme
   return pairs;
 }
 
+std::vector<char> mode_tied(const std::vector<GridElement>& elements, const std::vector<PieceTie>& ties,
+                            const LinearXfemOptions& options) {
+  std::vector<char> tied(ties.size(), 0);
+  if (options.element != ElementType::Hex8 || !options.incompatible_modes) return tied;
+  const int n = static_cast<int>(elements.size());
+  auto own_modes = [&](int e) {
+    return elements[e].rule.points.size() > 0 && switching_fraction(elements[e]) > options.incompatible_min_fraction;
+  };
+  std::vector<int> uses(n, 0);
+  for (size_t t = 0; t < ties.size(); ++t) {
+    const PieceTie& tie = ties[t];
+    PARAFAB_VERIFY(tie.element_a >= 0 && tie.element_a < n && tie.element_b >= 0 && tie.element_b < n,
+                   "piece tie (" << tie.element_a << ", " << tie.element_b << ") out of range (" << n << " elements)");
+    tied[t] = tie.weight > 0 && elements[tie.element_a].cell == elements[tie.element_b].cell &&
+              own_modes(tie.element_a) && own_modes(tie.element_b);
+    if (tied[t]) ++uses[tie.element_a], ++uses[tie.element_b];
+  }
+  for (size_t t = 0; t < ties.size(); ++t)
+    if (tied[t] && (uses[ties[t].element_a] > 1 || uses[ties[t].element_b] > 1)) tied[t] = 0;
+  return tied;
+}
+
+TiedModeShapeTerms tied_mode_shape_terms(const std::vector<GridElement>& elements, const PieceTie& tie,
+                                         const Eigen::VectorXd& ua, const Eigen::VectorXd& ub,
+                                         const ElasticMaterial& material, const LinearXfemOptions& options, int side,
+                                         const std::vector<Vec3>& points) {
+  PARAFAB_VERIFY(side == 0 || side == 1, "tied_mode_shape_terms: side " << side << " (0 or 1)");
+  PARAFAB_VERIFY(ua.size() == 24 && ub.size() == 24,
+                 "tied_mode_shape_terms: " << ua.size() << " and " << ub.size() << " nodal values (hex8: 24)");
+  PARAFAB_VERIFY(mode_tied(elements, {tie}, options)[0],
+                 "tied_mode_shape_terms: tie (" << tie.element_a << ", " << tie.element_b << ") does not tie modes");
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  const GridElement* el[2] = {&elements[tie.element_a], &elements[tie.element_b]};
+  const Eigen::VectorXd* u[2] = {&ua, &ub};
+  const TiedModePair pair = tied_mode_pair(*el[0], *el[1], D, tie.weight, tie.blend);
+  PARAFAB_VERIFY(pair.used, "tied_mode_shape_terms: the modes of pieces " << tie.element_a << " and " << tie.element_b
+                                                                          << " are singular together");
+  const TiedModeState st = tied_mode_state(pair, el, u, D);
+  TiedModeShapeTerms r;
+  r.d_weight = (st.alpha.head<9>() - st.alpha.tail<9>()).squaredNorm();
+  for (int i = 0; i < 2; ++i) r.d_blend -= st.T[i].dot(pair.pair_mean - pair.own_mean[i]);
+  // Moving a weight w(X) of piece i moves M_i by (γ(X) − M_i)/V_i and M_ab by (γ(X) − M_ab)/V_ab.
+  const int i = side, j = 1 - side;
+  const double theta = tie.blend;
+  r.density.resize(points.size());
+  for (size_t k = 0; k < points.size(); ++k) {
+    const Vec3& X = points[k];
+    const Eigen::Matrix<double, 6, 1> e = tied_mode_strain(*el[i], *u[i], pair.mean[i], st.alpha.segment<9>(9 * i), X);
+    const Vec3 g = IncompatibleModes::gradient(el[i]->box, X);
+    const Vec3 to_own = (g - pair.own_mean[i]) / pair.volume[i], to_pair = (g - pair.pair_mean) / pair.pair_volume;
+    r.density[k] = e.dot(D * e) - st.T[i].dot((1 - theta) * to_own + theta * to_pair) - st.T[j].dot(theta * to_pair);
+  }
+  return r;
+}
+
 namespace {
 
 // Identity of an element across solves: its cell and two independent 64-bit hashes of every
@@ -1068,6 +1207,37 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
       D.setFromTriplets(rows.begin(), rows.end());
       const Eigen::SparseMatrix<double> DT = T.rows() > 0 ? Eigen::SparseMatrix<double>(D * T) : D;
       assembled.K += Eigen::SparseMatrix<double>(DT.transpose() * DT);
+    }
+    // Pieces of one cell: their modes condensed jointly (TiedModePair) in place of each piece's
+    // own, i.e. + (joint − own_a − own_b) on their 16 nodes, through T.
+    const std::vector<char> modes = mode_tied(elements, ties, options);
+    std::vector<Eigen::Triplet<double>> correction;
+    const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+    for (size_t t = 0; t < ties.size(); ++t) {
+      if (!modes[t]) continue;
+      const PieceTie& tie = ties[t];
+      const GridElement* el[2] = {&elements[tie.element_a], &elements[tie.element_b]};
+      const TiedModePair pair = tied_mode_pair(*el[0], *el[1], D, tie.weight, tie.blend);
+      if (!pair.used) continue;
+      Eigen::Matrix<double, 18, 48> Kau = Eigen::Matrix<double, 18, 48>::Zero();
+      Kau.block<9, 24>(0, 0) = pair.Kau[0], Kau.block<9, 24>(9, 24) = pair.Kau[1];
+      Eigen::Matrix<double, 48, 48> C = -Kau.transpose() * pair.Kaa.solve(Kau);
+      for (int i = 0; i < 2; ++i) {
+        const IncompatibleModes own = incompatible_modes(*el[i], D, options.incompatible_min_fraction);
+        if (own.used) C.block<24, 24>(24 * i, 24 * i) += own.Kau.transpose() * own.Kaa.solve(own.Kau);
+      }
+      int dof[48];
+      for (int i = 0; i < 2; ++i)
+        for (int k = 0; k < 8; ++k)
+          for (int d = 0; d < 3; ++d) dof[24 * i + 3 * k + d] = 3 * r.node[i == 0 ? tie.element_a : tie.element_b][k] + d;
+      for (int x = 0; x < 48; ++x)
+        for (int y = 0; y < 48; ++y) correction.emplace_back(dof[x], dof[y], C(x, y));
+      ++r.mode_tied_pairs;
+    }
+    if (!correction.empty()) {
+      Eigen::SparseMatrix<double> C(3 * count, 3 * count);
+      C.setFromTriplets(correction.begin(), correction.end());
+      assembled.K += T.rows() > 0 ? Eigen::SparseMatrix<double>(T.transpose() * C * T) : C;
     }
   }
   // K is shared by the factorization, the preconditioner and the next solve's comparison, never

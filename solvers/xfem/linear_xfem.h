@@ -161,6 +161,7 @@ struct LinearXfemResult {
   int aggregated_nodes = 0;              ///< DOF nodes tied to a neighbour (small cut cells)
   int tied_node_pairs = 0;               ///< pairs of unknown DOF nodes under a PieceTie penalty
   int blended_nodes = 0;                 ///< floating DOF nodes a PieceTie blends towards an unknown
+  int mode_tied_pairs = 0;               ///< PieceTies whose pieces' modes were condensed jointly (mode_tied)
   std::vector<char> floating;            ///< per DOF node: aggregated (follows a host); empty when none is
   /// Elements whose stiffness was copied from the one uncut interior cell integrated (all
   /// interior cells of a grid have the same box size and rule, hence the same matrix).
@@ -358,8 +359,9 @@ bool switches_match_own_fractions(const std::vector<GridElement>& elements,
 /// A floating (aggregated) node is not penalized (that would couple two hosts' extrapolations):
 /// paired with an unknown node, its row of the aggregation map T is blended towards that node,
 /// (1 − θ)·T_floating + θ·T_unknown (θ = `blend`, 1 at the join, where the joined piece's node is
-/// that unknown); two floating nodes keep their hosts. The incompatible modes stay per piece (two
-/// sets where the joined piece has one): with them the transition is not continuous.
+/// that unknown); two floating nodes keep their hosts. Hex8's incompatible modes of two pieces of
+/// one cell are condensed jointly (see mode_tied): the joined piece has one mode set where the
+/// pieces have two.
 struct PieceTie {
   int element_a = -1, element_b = -1;
   double weight = 0;
@@ -369,6 +371,30 @@ struct PieceTie {
 /// elements a and b share (hex8 corners, hex27 nodes) where their DOF nodes differ.
 std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& elements,
                                            const std::vector<std::vector<int>>& node, const PieceTie& tie);
+
+/// Per tie: whether the incompatible modes of its two pieces are condensed jointly: hex8 with
+/// incompatible modes, weight > 0, two pieces of one cell (one box: the same mode functions),
+/// both with modes of their own (above incompatible_min_fraction), neither in another such tie
+/// (three close pieces of one cell keep their own modes: no continuity there). The energy then
+/// gets ½·weight·‖α_a − α_b‖² on the two mode sets, and each piece's mean shift of the mode
+/// gradients moves towards the pair's, (1 − θ)·M_piece + θ·M_pair (θ = blend): at the join
+/// (θ = 1, the weight at its cap) the joined piece's one set and mean.
+std::vector<char> mode_tied(const std::vector<GridElement>& elements, const std::vector<PieceTie>& ties,
+                            const LinearXfemOptions& options);
+
+/// Shape-derivative parts of a mode-tied pair (mode_tied) at nodal values ua, ub (24 each) of
+/// pieces element_a, element_b, the pair's modes condensed (envelope theorem: their change does
+/// not enter): `density` is bulk_shape_density's ψ at `points` on piece `side` (0: element_a,
+/// 1: element_b), with the means' changes as the pieces' rule weights move;
+/// d_weight = ∂(uᵀKu)/∂weight = ‖α_a − α_b‖²; d_blend = ∂(uᵀKu)/∂θ.
+struct TiedModeShapeTerms {
+  std::vector<double> density;
+  double d_weight = 0, d_blend = 0;
+};
+TiedModeShapeTerms tied_mode_shape_terms(const std::vector<GridElement>& elements, const PieceTie& tie,
+                                         const Eigen::VectorXd& ua, const Eigen::VectorXd& ub,
+                                         const ElasticMaterial& material, const LinearXfemOptions& options, int side,
+                                         const std::vector<Vec3>& points);
 
 LinearXfemResult solve_linear(const std::vector<GridElement>& elements,
                               const std::vector<std::array<int, 2>>& adjacent,

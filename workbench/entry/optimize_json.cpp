@@ -154,9 +154,6 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
         PARAFAB_INPUT_ERROR("merge_penalty: only with the compliance objective alone (the other objectives' "
                             "gradients have no term for the ties)");
       if (s->hyperelastic) PARAFAB_INPUT_ERROR("merge_penalty: the hyperelastic solve has no ties; use material.model \"linear\"");
-      if (s->solver.element == xfem::ElementType::Hex8 && s->solver.incompatible_modes)
-        PARAFAB_INPUT_ERROR("merge_penalty with hex8 needs \"incompatible_modes\": false (the modes are condensed per "
-                            "piece, and with them the ties leave the join discontinuous), or \"element\": \"hex27\"");
     }
   }
   return s;
@@ -619,7 +616,8 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
                             {"law", o.compliance->merge.law == occ::MergePenaltyOptions::Law::Log2 ? "log2" : "inverse_square"},
                             {"cap", o.compliance->merge.cap},
                             {"tied_evaluations", r.tied_evaluations},
-                            {"max_ties", r.max_ties}};
+                            {"max_ties", r.max_ties},
+                            {"max_mode_tied_pairs", r.max_mode_tied_pairs}};
   }
   if (r.semi_analytic_derivatives > 0) {
     h["topology_switches"] = r.topology_switches;
