@@ -117,21 +117,23 @@ std::vector<xfem::BoundaryLoop> face_loops(const TopoDS_Face& face_in, const Gri
   return loops;
 }
 
+// A plane at x moved off every coordinate of `avoid` within shift·h: by +1.5, −1.5, ... × shift·h
+// (deterministic); `shifted` counts moved planes.
+double clear_plane(double x, double h, const std::vector<double>& avoid, double shift, int& shifted) {
+  for (int attempt = 0; attempt < 16 && shift > 0; ++attempt) {
+    const bool clash = std::any_of(avoid.begin(), avoid.end(), [&](double a) { return std::abs(a - x) <= shift * h; });
+    if (!clash) break;
+    x += (attempt % 2 == 0 ? 1.0 : -2.0) * 1.5 * shift * h;
+    if (attempt == 0) ++shifted;
+  }
+  return x;
+}
+
 // Interior grid planes of one axis, shifted off vertices and face extremes.
 std::vector<double> grid_planes(double lo, double h, int n, const std::vector<double>& avoid,
                                 double shift, int& shifted) {
   std::vector<double> planes;
-  for (int k = 1; k < n; ++k) {
-    double x = lo + k * h;
-    for (int attempt = 0; attempt < 16 && shift > 0; ++attempt) {
-      const bool clash = std::any_of(avoid.begin(), avoid.end(),
-                                     [&](double a) { return std::abs(a - x) <= shift * h; });
-      if (!clash) break;
-      x += (attempt % 2 == 0 ? 1.0 : -2.0) * 1.5 * shift * h;  // +1.5, −1.5, ... deterministic
-      if (attempt == 0) ++shifted;
-    }
-    planes.push_back(x);
-  }
+  for (int k = 1; k < n; ++k) planes.push_back(clear_plane(lo + k * h, h, avoid, shift, shifted));
   return planes;
 }
 
@@ -847,12 +849,19 @@ GridCut recut_by_faces(const PartShape& part, const GridCut& old, const std::vec
   // stand may now pass through a new vertex or face extreme (l_bracket r 4 → 5 at 24 cells: x = 35
   // touches the hole, a tangent crossing), so it is shifted as cut_by_grid does, and the cells on
   // both sides of every moved plane are cut again (their boxes changed).
+  // With a recut_clearance the old planes stay, moved only off features closer than it.
   std::array<std::vector<double>, 3> planes;
   int shifted = 0;
   const auto avoid = plane_avoid(part);
+  const bool keep = o.recut_clearance > 0 && o.perturbation > 0;
   for (int a = 0; a < 3; ++a)
-    planes[a] = grid_planes(old.grid.min[a], old.cell_size[a], n[a], avoid[a], o.perturbation, shifted);
-  shift_off_rulings(part, avoid, o.perturbation, h, planes, shifted);
+    if (keep) {
+      planes[a] = old.planes[a];
+      for (double& x : planes[a]) x = clear_plane(x, old.cell_size[a], avoid[a], o.recut_clearance, shifted);
+    } else {
+      planes[a] = grid_planes(old.grid.min[a], old.cell_size[a], n[a], avoid[a], o.perturbation, shifted);
+    }
+  shift_off_rulings(part, avoid, keep ? o.recut_clearance : o.perturbation, h, planes, shifted);
   for (int a = 0; a < 3; ++a)
     for (size_t j = 0; j < planes[a].size(); ++j) {
       if (std::abs(planes[a][j] - old.planes[a][j]) <= 1e-9 * h) {

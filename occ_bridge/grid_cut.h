@@ -52,6 +52,14 @@ struct GridOptions {
   /// the same amount until clear (the thesis perturbs grid planes to avoid these corner cases).
   /// 0 turns the shift off (planes may then pass through vertices or along faces).
   double perturbation = 1e-4;
+  /// Re-cuts (rebuild_grid_model), when > 0 (and `perturbation` is): the old grid's planes stay
+  /// where they are, and a plane moves (by 1.5 × this × cell) only off a vertex or face extreme
+  /// of the new part closer than this × cell, instead of off everything within `perturbation`
+  /// as a fresh cut of the new part would: the model then changes with the part continuously
+  /// also where a face's extreme crosses a plane (a slot's end: the fresh cut's shifts jumped
+  /// the plane over it, 1.5e-4 of a cell each way). Shape optimization sets it
+  /// (occ::compliance_at: 1e-8). 0: the planes a fresh cut of the new part picks.
+  double recut_clearance = 0;
   /// Boundary loops: parabolic (2) or linear (1) segments, refined until the deviation from
   /// the exact pcurve is below `segment_tolerance` × the face's uv extent.
   int segment_order = 2;

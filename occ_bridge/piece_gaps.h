@@ -88,9 +88,9 @@ Eigen::MatrixXd piece_gap_gradient(const std::vector<PieceGap>& gaps, const Shap
 /// side, b capped at `cap` (the thesis cuts b off "at a high value" for the conditioning). b and
 /// b' vanish at d = d_crit: a pair enters and leaves smoothly.
 /// - Log2 (the thesis's b(d) = log²(min{1, d/d_crit})): grows so slowly that near the join the
-///   tie is still soft: on the slotted block 1e-9 mm before a join (d = 1.3e-4 mm, b = 57) C is
-///   9.4e-4 off the joined model's against 4.7e-4 with InverseSquare (of a 4.8e-2 jump without
-///   ties; the 4.7e-4 is the cut's, see PieceGaps.MergePenaltyAtASlotTipCrossingAGridPlane).
+///   tie is still soft: on the slotted block 1e-9 mm past a join C is 4.1e-7 off the joined
+///   model's against 4.1e-8 with InverseSquare (of a 4.8e-2 jump without ties;
+///   PieceGaps.MergePenaltyAtASlotTipCrossingAGridPlane).
 /// - InverseSquare (ParaFab's default): b(d) = (d_crit/d − 1)², so b ∝ 1/d²: where d ∝ √δ (δ the
 ///   shape change left to the join, a tip crossing a grid plane) the tie's softness, hence C's
 ///   remaining step, is O(δ).

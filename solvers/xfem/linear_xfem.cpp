@@ -919,20 +919,22 @@ std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& eleme
 }
 
 std::vector<char> mode_tied(const std::vector<GridElement>& elements, const std::vector<PieceTie>& ties,
-                            const LinearXfemOptions& options) {
+                            const ElasticMaterial& material, const LinearXfemOptions& options) {
   std::vector<char> tied(ties.size(), 0);
   if (options.element != ElementType::Hex8 || !options.incompatible_modes) return tied;
   const int n = static_cast<int>(elements.size());
-  auto own_modes = [&](int e) {
-    return elements[e].rule.points.size() > 0 && switching_fraction(elements[e]) > options.incompatible_min_fraction;
-  };
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  // As element_system decides (the pair's K_αα is then positive definite too: a mean other than
+  // the rule's own only adds V (M − γ̄)(M − γ̄)ᵀ to the gradients' second moments).
+  auto own_modes = [&](int e) { return incompatible_modes(elements[e], D, options.incompatible_min_fraction).used; };
   std::vector<int> uses(n, 0);
   for (size_t t = 0; t < ties.size(); ++t) {
     const PieceTie& tie = ties[t];
     PARAFAB_VERIFY(tie.element_a >= 0 && tie.element_a < n && tie.element_b >= 0 && tie.element_b < n,
                    "piece tie (" << tie.element_a << ", " << tie.element_b << ") out of range (" << n << " elements)");
-    tied[t] = tie.weight > 0 && elements[tie.element_a].cell == elements[tie.element_b].cell &&
-              own_modes(tie.element_a) && own_modes(tie.element_b);
+    tied[t] = tie.weight > 0 && tie.element_a != tie.element_b &&
+              elements[tie.element_a].cell == elements[tie.element_b].cell && own_modes(tie.element_a) &&
+              own_modes(tie.element_b);
     if (tied[t]) ++uses[tie.element_a], ++uses[tie.element_b];
   }
   for (size_t t = 0; t < ties.size(); ++t)
@@ -947,7 +949,7 @@ TiedModeShapeTerms tied_mode_shape_terms(const std::vector<GridElement>& element
   PARAFAB_VERIFY(side == 0 || side == 1, "tied_mode_shape_terms: side " << side << " (0 or 1)");
   PARAFAB_VERIFY(ua.size() == 24 && ub.size() == 24,
                  "tied_mode_shape_terms: " << ua.size() << " and " << ub.size() << " nodal values (hex8: 24)");
-  PARAFAB_VERIFY(mode_tied(elements, {tie}, options)[0],
+  PARAFAB_VERIFY(mode_tied(elements, {tie}, material, options)[0],
                  "tied_mode_shape_terms: tie (" << tie.element_a << ", " << tie.element_b << ") does not tie modes");
   const Eigen::Matrix<double, 6, 6> D = elasticity(material);
   const GridElement* el[2] = {&elements[tie.element_a], &elements[tie.element_b]};
@@ -1210,7 +1212,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
     }
     // Pieces of one cell: their modes condensed jointly (TiedModePair) in place of each piece's
     // own, i.e. + (joint − own_a − own_b) on their 16 nodes, through T.
-    const std::vector<char> modes = mode_tied(elements, ties, options);
+    const std::vector<char> modes = mode_tied(elements, ties, material, options);
     std::vector<Eigen::Triplet<double>> correction;
     const Eigen::Matrix<double, 6, 6> D = elasticity(material);
     for (size_t t = 0; t < ties.size(); ++t) {
@@ -1218,13 +1220,14 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
       const PieceTie& tie = ties[t];
       const GridElement* el[2] = {&elements[tie.element_a], &elements[tie.element_b]};
       const TiedModePair pair = tied_mode_pair(*el[0], *el[1], D, tie.weight, tie.blend);
-      if (!pair.used) continue;
+      PARAFAB_VERIFY(pair.used, "the incompatible modes of pieces " << tie.element_a << " and " << tie.element_b
+                                                                    << " are singular together (tie weight " << tie.weight << ")");
       Eigen::Matrix<double, 18, 48> Kau = Eigen::Matrix<double, 18, 48>::Zero();
       Kau.block<9, 24>(0, 0) = pair.Kau[0], Kau.block<9, 24>(9, 24) = pair.Kau[1];
       Eigen::Matrix<double, 48, 48> C = -Kau.transpose() * pair.Kaa.solve(Kau);
-      for (int i = 0; i < 2; ++i) {
+      for (int i = 0; i < 2; ++i) {  // both used (mode_tied)
         const IncompatibleModes own = incompatible_modes(*el[i], D, options.incompatible_min_fraction);
-        if (own.used) C.block<24, 24>(24 * i, 24 * i) += own.Kau.transpose() * own.Kaa.solve(own.Kau);
+        C.block<24, 24>(24 * i, 24 * i) += own.Kau.transpose() * own.Kaa.solve(own.Kau);
       }
       int dof[48];
       for (int i = 0; i < 2; ++i)

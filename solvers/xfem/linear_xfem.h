@@ -374,13 +374,14 @@ std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& eleme
 
 /// Per tie: whether the incompatible modes of its two pieces are condensed jointly: hex8 with
 /// incompatible modes, weight > 0, two pieces of one cell (one box: the same mode functions),
-/// both with modes of their own (above incompatible_min_fraction), neither in another such tie
+/// both with modes of their own (as element_system gives them: above incompatible_min_fraction,
+/// K_aa not near singular), neither in another such tie
 /// (three close pieces of one cell keep their own modes: no continuity there). The energy then
 /// gets ½·weight·‖α_a − α_b‖² on the two mode sets, and each piece's mean shift of the mode
 /// gradients moves towards the pair's, (1 − θ)·M_piece + θ·M_pair (θ = blend): at the join
 /// (θ = 1, the weight at its cap) the joined piece's one set and mean.
 std::vector<char> mode_tied(const std::vector<GridElement>& elements, const std::vector<PieceTie>& ties,
-                            const LinearXfemOptions& options);
+                            const ElasticMaterial& material, const LinearXfemOptions& options);
 
 /// Shape-derivative parts of a mode-tied pair (mode_tied) at nodal values ua, ub (24 each) of
 /// pieces element_a, element_b, the pair's modes condensed (envelope theorem: their change does

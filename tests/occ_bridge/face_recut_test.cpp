@@ -339,6 +339,49 @@ TEST(FaceRecut, AGridPlaneTouchingTheNewHoleIsMovedLikeAFreshCut) {
   check_recut(c);
 }
 
+// The same change with GridOptions::recut_clearance (the optimizer's re-cuts: 1e-8 of a cell):
+// the re-cut keeps the old planes and moves the two the new holes touch exactly by only
+// 1.5e-8 of a cell, where the fresh cut moves them by 1.5e-4; the cut there (the holes 6e-8 mm
+// off the planes, a near-tangent crossing) still matches OCCT's volume.
+TEST(FaceRecut, WithAClearanceTheRecutKeepsItsPlanesAndMovesThemOnlyOffTouchingFeatures) {
+  GridModelOptions o;
+  o.grid.method = CutMethod::FaceCut;
+  o.grid.cells_longest = 24;
+  o.grid.recut_clearance = 1e-8;
+  const auto before = read_part(sample("l_bracket")), after = read_part(sample("l_bracket_holes5"));
+  const GridModel old_model = build_grid_model(*before, o);
+  ASSERT_TRUE(old_model.done) << old_model.message;
+  RecutReport r;
+  const GridModel recut = rebuild_grid_model(*after, old_model, *before, o, &r);
+  ASSERT_TRUE(recut.done) << recut.message;
+  EXPECT_FALSE(r.full) << r.message;
+  const GridModel fresh = build_grid_model(*after, o);
+  ASSERT_TRUE(fresh.done) << fresh.message;
+  int moved = 0, fresh_moved = 0;
+  double largest = 0, fresh_smallest = 1;
+  for (int a = 0; a < 3; ++a) {
+    const double h = old_model.cut->cell_size[a];
+    for (size_t j = 0; j < old_model.cut->planes[a].size(); ++j) {
+      const double d = std::abs(recut.cut->planes[a][j] - old_model.cut->planes[a][j]) / h;
+      const double f = std::abs(fresh.cut->planes[a][j] - old_model.cut->planes[a][j]) / h;
+      if (d > 0) ++moved, largest = std::max(largest, d);
+      if (f > 0) ++fresh_moved, fresh_smallest = std::min(fresh_smallest, f);
+    }
+  }
+  double volume = 0;
+  for (const auto& e : recut.elements)
+    for (double w : e.rule.weights) volume += w;
+  const double dv = std::abs(volume - occt_volume(*after)) / occt_volume(*after);
+  std::printf("re-cut with clearance: %d planes moved (%d reported), largest by %.2e of a cell; the fresh cut moves %d, "
+              "smallest by %.2e; volume vs OCCT %.1e\n", moved, r.planes_moved, largest, fresh_moved, fresh_smallest, dv);
+  EXPECT_EQ(moved, 2);
+  EXPECT_EQ(r.planes_moved, 2);
+  EXPECT_LE(largest, 1.5e-8 * (1 + 1e-6));
+  EXPECT_EQ(fresh_moved, 2);
+  EXPECT_NEAR(fresh_smallest, 1.5e-4, 1e-9);
+  EXPECT_LT(dv, 1e-9);
+}
+
 // The safety net on the face route: an old model that does not belong to the given old part
 // (cut from r = 4, but the r = 5 part passed as the old one, so no change is seen) keeps
 // stale cells; the rules then miss OCCT's volume and the part is cut again whole, reported.
