@@ -251,6 +251,13 @@ class OptimizeFeatureTest(unittest.TestCase):
                    "supports": [{"point": [0, 20, 30]}], "loads": [{"point": [60, 20, 4], "force": [0, 0, -500]}]}
             return -2.0 * parafab.simulate(path, job)["potential"]
         c0, c1 = compliance(bracket.Shape, "original"), compliance(new.Shape, "optimized")
+        # "Smooth joins" (Eq. 6.24) reaches the job; refused, naming why, with another objective.
+        shape = bracket.Shape
+        self.assertNotIn("merge_penalty", optimize_feature.build_job(shape, options, bracket.Placement))
+        self.assertIs(optimize_feature.build_job(shape, dict(options, merge_penalty=True), bracket.Placement)["merge_penalty"],
+                      True)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "compliance objective alone"):
+            optimize_feature.build_job(shape, dict(options, merge_penalty=True, objective="failure"), bracket.Placement)
         print("\n[optimize] bracket compliance, fresh 12-cell grid: %.6g -> %.6g (ratio %.4f); optimizer's "
               "8-cell grid %.6g -> %.6g" % (c0, c1, c1 / c0, new.InitialObjective, new.FinalObjective),
               file=sys.stderr)

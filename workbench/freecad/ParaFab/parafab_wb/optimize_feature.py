@@ -254,6 +254,7 @@ def default_options():
         "min_mass": None,                     # kg; None or 0: no bound
         "cells": None,                        # grid cells along the longest side (compliance; None: engine default)
         "nitsche_penalty": "fixed",           # clamp on cut cells: "fixed" (100 E/h) or "local" (per cell)
+        "merge_penalty": False,               # compliance alone: tie pieces about to join (thesis Eq. 6.24)
         "bound": 0.3,
         "relative_improvement": 1e-9,
     }
@@ -538,6 +539,12 @@ def build_job(shape, options, placement=None):
         if penalty not in ("fixed", "local"):
             raise OptimizeError("clamp penalty must be 'fixed' or 'local', got %r" % (penalty,))
         job["nitsche_penalty"] = penalty  # explicit: the engine's default depends on the element
+    if opts.get("merge_penalty"):
+        # Only compliance's gradient has the ties' term (README "Pieces that join").
+        if objective.type != "compliance":
+            raise OptimizeError("smooth joins (merge penalty) need the compliance objective alone, got '%s'"
+                                % objective.type)
+        job["merge_penalty"] = True
     constraints = []
     if opts.get("max_volume_ratio"):
         constraints.append({"type": "volume", "max_ratio": float(opts["max_volume_ratio"])})

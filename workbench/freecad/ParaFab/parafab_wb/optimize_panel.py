@@ -209,6 +209,12 @@ class OptimizeTaskPanel(object):
                                 "penalty 100 E/h; local: from each cut cell's eigenvalue, stable but on the thinnest slivers, no "
                                 "locking (the entries near a support are then differenced, slower)")
         grid.addRow("Clamp penalty", self.penalty)
+        self.merge = QtGui.QCheckBox("Smooth joins")
+        self.merge.setChecked(bool(defaults.get("merge_penalty", False)))
+        self.merge.setToolTip("Compliance only (thesis Eq. 6.24): pieces of a cut cell closer than 5 % of a cell are "
+                              "tied, so the objective does not jump where a shape change joins or splits them "
+                              "(costs an OCCT Boolean per such cell and evaluation)")
+        grid.addRow("", self.merge)
         self.objective.currentIndexChanged.connect(self._objective_changed)
         layout.addWidget(objective)
 
@@ -330,6 +336,7 @@ class OptimizeTaskPanel(object):
         self.exponent.setEnabled("failure" in uses)
         self.target_face.setEnabled("target" in uses)
         self.target_pick.setEnabled("target" in uses)
+        self.merge.setEnabled(self.objective.currentData() == "compliance")
 
     def set_target_face(self, name):
         """Choose face ``name`` (``FaceN``) as the matched face of "Target shape"; returns whether
@@ -448,6 +455,7 @@ class OptimizeTaskPanel(object):
                 "force": tuple(b.value() for b in self.force),
                 "max_iterations": self.iterations.value(),
                 "nitsche_penalty": self.penalty.currentText(),
+                "merge_penalty": self.merge.isChecked() and self.merge.isEnabled(),
                 "max_volume_ratio": ratio if ratio > 0 else None,
                 "max_mass": self.max_mass.value() or None, "min_mass": self.min_mass.value() or None}
 
