@@ -31,8 +31,9 @@ struct PieceGapOptions {
   /// GridModel::adjacent): when they come to touch, their copies of the face's nodes become one.
   bool neighbour_cells = true;
   /// OCCT's solid of a cell against the volume of the cut's elements matched to it, as a
-  /// fraction of the cell: a larger difference fails (the pieces do not correspond). The cut's
-  /// rules can lose ~2e-4 near a tangent crossing (PieceGaps.MergePenaltyAtASlotTipCrossingAGridPlane).
+  /// fraction of the cell: a larger difference fails (the pieces do not correspond). The rules
+  /// match OCCT to ~1e-8 of a cell (PieceGaps.MergePenaltyAtASlotTipCrossingAGridPlane); the
+  /// margin is for OCCT's common, which dropped a piece 1.6e-7 mm before the bracket's join.
   double match_tolerance = 2e-3;
 };
 

@@ -249,7 +249,7 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
 
 ComplianceDerivative element_difference(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
                                         std::shared_ptr<const PartShape> minus, double h, const ComplianceSetup& setup,
-                                        const ElementTerm& term) {
+                                        const ElementTerm& term, const PairTerm& pair_term) {
   ComplianceDerivative d;
   PARAFAB_VERIFY(at.done && at.model, "element_difference: the state is not solved");
   PARAFAB_VERIFY(h > 0, "element_difference: step must be positive, got " << h);
@@ -308,6 +308,8 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
     double weight;  ///< ±1/(2h) (central) or ±1/h (one-sided); side −1: the element of `at`
   };
   std::vector<Item> items;
+  std::map<Cell, std::array<bool, 2>> cell_ok;
+  std::map<int, int> perturbed_of[2];  // element of `at` → its match in a perturbed model
   for (const Cell& c : cells) {
     const std::vector<int>& B = list(by_at, c);
     std::vector<int> matched[2];
@@ -321,6 +323,10 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
     if ((have[0] && !ok[0]) || (have[1] && !ok[1])) {
       ++d.topology_switches;
     }
+    cell_ok[c] = {ok[0], ok[1]};
+    for (int side = 0; side < 2; ++side)
+      if (ok[side])
+        for (size_t i = 0; i < B.size(); ++i) perturbed_of[side][B[i]] = matched[side][i];
     if (B.empty()) continue;
     ++d.cells_changed;
     // The perturbed elements switch (incompatible modes) as their element of `at` does.
@@ -349,6 +355,24 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
     terms[i] = it.weight * term(el, tractions, it.base);
   });
   for (double t : terms) d.derivative += t;  // in item order: deterministic
+  // Mode-tied pairs in changed cells (their weight and blend held at `at`'s).
+  if (pair_term && !at.ties.empty()) {
+    const std::vector<char> modes = xfem::mode_tied(at.model->elements, at.ties, setup.material, setup.solver);
+    for (size_t t = 0; t < at.ties.size(); ++t) {
+      const xfem::PieceTie& tie = at.ties[t];
+      const auto it = cell_ok.find(at.model->elements[tie.element_a].cell);
+      if (!modes[t] || it == cell_ok.end()) continue;
+      const auto [ok0, ok1] = it->second;
+      auto value = [&](int side) {  // −1: `at`'s own pair
+        if (side < 0) return pair_term(at.model->elements[tie.element_a], at.model->elements[tie.element_b], tie);
+        const auto& els = models[side].elements;
+        return pair_term(els[perturbed_of[side].at(tie.element_a)], els[perturbed_of[side].at(tie.element_b)], tie);
+      };
+      if (ok0 && ok1) d.derivative += (value(0) - value(1)) / (2 * h);
+      else if (ok0) d.derivative += (value(0) - value(-1)) / h;
+      else if (ok1) d.derivative += (value(-1) - value(1)) / h;
+    }
+  }
   d.done = true;
   d.one_sided = !(have[0] && have[1]);
   d.message = d.message.empty() ? "ok" : d.message + "one-sided difference";
@@ -367,6 +391,13 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
                                   xfem::element_system(el, setup.material, setup.dirichlet, tractions, setup.solver);
                               const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[base]);
                               return 2 * ue.dot(es.f) - ue.dot(es.K * ue);
+                            },
+                            // A mode-tied pair: −uᵀ C u with C its joint condensation's correction.
+                            [&](const xfem::GridElement& a, const xfem::GridElement& b, const xfem::PieceTie& tie) {
+                              Eigen::VectorXd u(48);
+                              u << element_values(at.solution.u, at.solution.node[tie.element_a]),
+                                  element_values(at.solution.u, at.solution.node[tie.element_b]);
+                              return -u.dot(xfem::tied_mode_correction(a, b, tie, setup.material, setup.solver) * u);
                             });
 }
 

@@ -153,12 +153,18 @@ bool exact_along(const ComplianceGradient& gradient, const Eigen::VectorXd& dp);
 using ElementTerm = std::function<double(const xfem::GridElement& element,
                                          const std::vector<xfem::TractionCondition>& tractions, int base)>;
 
+/// The term of a pair of pieces whose incompatible modes are condensed jointly
+/// (xfem::mode_tied on at.ties): evaluated on the pair's elements of a perturbed model (or of
+/// `at`), `tie` the state's (its weight and blend held, its elements `at`'s).
+using PairTerm = std::function<double(const xfem::GridElement& a, const xfem::GridElement& b, const xfem::PieceTie& tie)>;
+
 /// The machinery of compliance_derivative for any sum of element terms: both perturbed models
 /// re-cut from `at`, their changed cells' elements matched to `at`'s, and
-/// Σ weight·term(element) with weights ±1/2h (central) or ±1/h (one-sided).
+/// Σ weight·term(element) with weights ±1/2h (central) or ±1/h (one-sided); plus the same
+/// difference of pair_term over the mode-tied pairs in changed cells.
 ComplianceDerivative element_difference(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
                                         std::shared_ptr<const PartShape> minus, double h, const ComplianceSetup& setup,
-                                        const ElementTerm& term);
+                                        const ElementTerm& term, const PairTerm& pair_term = {});
 
 /// The residual R = ∂(energy)/∂uₑ of one element at its nodal values uₑ, the term an adjoint
 /// contracts with λ in a shape derivative (λᵀ dR/ds): Kₑuₑ − fₑ (linear), or the hyperelastic

@@ -207,7 +207,9 @@ TiedModePair tied_mode_pair(const GridElement& a, const GridElement& b, const Ei
   }
   K.block<9, 9>(0, 9) = K.block<9, 9>(9, 0) = -weight * Eigen::Matrix<double, 9, 9>::Identity();
   pair.Kaa.compute(K);
-  pair.used = pair.Kaa.info() == Eigen::Success && pair.Kaa.vectorD().minCoeff() > 1e-10 * pair.Kaa.vectorD().maxCoeff();
+  // Positive definite when both pieces' own K_aa are (mode_tied); no pivot ratio test here: the
+  // weight (up to E·h·cap) sets the largest pivots, not the conditioning of the modes.
+  pair.used = pair.Kaa.info() == Eigen::Success && pair.Kaa.vectorD().minCoeff() > 0;
   return pair;
 }
 
@@ -942,6 +944,23 @@ std::vector<char> mode_tied(const std::vector<GridElement>& elements, const std:
   return tied;
 }
 
+Eigen::MatrixXd tied_mode_correction(const GridElement& a, const GridElement& b, const PieceTie& tie,
+                                     const ElasticMaterial& material, const LinearXfemOptions& options) {
+  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  const TiedModePair pair = tied_mode_pair(a, b, D, tie.weight, tie.blend);
+  PARAFAB_VERIFY(pair.used, "the incompatible modes of pieces " << tie.element_a << " and " << tie.element_b
+                                                                << " are singular together (tie weight " << tie.weight << ")");
+  Eigen::Matrix<double, 18, 48> Kau = Eigen::Matrix<double, 18, 48>::Zero();
+  Kau.block<9, 24>(0, 0) = pair.Kau[0], Kau.block<9, 24>(9, 24) = pair.Kau[1];
+  Eigen::MatrixXd C = -Kau.transpose() * pair.Kaa.solve(Kau);
+  const GridElement* el[2] = {&a, &b};
+  for (int i = 0; i < 2; ++i) {
+    const IncompatibleModes own = incompatible_modes(*el[i], D, options.incompatible_min_fraction);
+    if (own.used) C.block<24, 24>(24 * i, 24 * i) += own.Kau.transpose() * own.Kaa.solve(own.Kau);
+  }
+  return 0.5 * (C + C.transpose());  // symmetric to round-off
+}
+
 TiedModeShapeTerms tied_mode_shape_terms(const std::vector<GridElement>& elements, const PieceTie& tie,
                                          const Eigen::VectorXd& ua, const Eigen::VectorXd& ub,
                                          const ElasticMaterial& material, const LinearXfemOptions& options, int side,
@@ -1214,21 +1233,10 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
     // own, i.e. + (joint − own_a − own_b) on their 16 nodes, through T.
     const std::vector<char> modes = mode_tied(elements, ties, material, options);
     std::vector<Eigen::Triplet<double>> correction;
-    const Eigen::Matrix<double, 6, 6> D = elasticity(material);
     for (size_t t = 0; t < ties.size(); ++t) {
       if (!modes[t]) continue;
       const PieceTie& tie = ties[t];
-      const GridElement* el[2] = {&elements[tie.element_a], &elements[tie.element_b]};
-      const TiedModePair pair = tied_mode_pair(*el[0], *el[1], D, tie.weight, tie.blend);
-      PARAFAB_VERIFY(pair.used, "the incompatible modes of pieces " << tie.element_a << " and " << tie.element_b
-                                                                    << " are singular together (tie weight " << tie.weight << ")");
-      Eigen::Matrix<double, 18, 48> Kau = Eigen::Matrix<double, 18, 48>::Zero();
-      Kau.block<9, 24>(0, 0) = pair.Kau[0], Kau.block<9, 24>(9, 24) = pair.Kau[1];
-      Eigen::Matrix<double, 48, 48> C = -Kau.transpose() * pair.Kaa.solve(Kau);
-      for (int i = 0; i < 2; ++i) {  // both used (mode_tied)
-        const IncompatibleModes own = incompatible_modes(*el[i], D, options.incompatible_min_fraction);
-        C.block<24, 24>(24 * i, 24 * i) += own.Kau.transpose() * own.Kaa.solve(own.Kau);
-      }
+      const Eigen::MatrixXd C = tied_mode_correction(elements[tie.element_a], elements[tie.element_b], tie, material, options);
       int dof[48];
       for (int i = 0; i < 2; ++i)
         for (int k = 0; k < 8; ++k)

@@ -383,6 +383,11 @@ std::vector<std::array<int, 2>> tied_nodes(const std::vector<GridElement>& eleme
 std::vector<char> mode_tied(const std::vector<GridElement>& elements, const std::vector<PieceTie>& ties,
                             const ElasticMaterial& material, const LinearXfemOptions& options);
 
+/// What a mode-tied pair (mode_tied) adds to the stiffness on its two pieces' 8 + 8 nodes
+/// (48 × 48, a's then b's): the jointly condensed modes minus each piece's own condensation.
+Eigen::MatrixXd tied_mode_correction(const GridElement& a, const GridElement& b, const PieceTie& tie,
+                                     const ElasticMaterial& material, const LinearXfemOptions& options);
+
 /// Shape-derivative parts of a mode-tied pair (mode_tied) at nodal values ua, ub (24 each) of
 /// pieces element_a, element_b, the pair's modes condensed (envelope theorem: their change does
 /// not enter): `density` is bulk_shape_density's ψ at `points` on piece `side` (0: element_a,

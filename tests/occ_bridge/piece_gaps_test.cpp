@@ -155,9 +155,12 @@ namespace {
 // aggregation). As the slot's end x0 + r passes the grid plane x = 32, the two pieces of each
 // cell x ∈ [27, 32] the slot splits (volume fractions 0.05 … 0.68) join around the slot's tip;
 // on the split side (x0 > a) ties hold them. The re-cuts keep the start's grid planes
-// (GridOptions::recut_clearance 1e-8 of a cell), so the tip crosses the plane itself, at
-// x0 = 30 + 2.5e-8. Measured, relative to C: without ties a jump of 4.8e-2; with the ties 1e-9 mm
-// from the join 4.1e-8 (1/d², at the cap) and 4.1e-7 (the thesis's log²: softer there). Until
+// (GridOptions::recut_clearance 1e-8 of a cell): the plane moves only once the tip is within
+// 5e-8 mm of it, by 7.5e-8 mm, so the pieces join at x0 = 30 + 2.5e-8. Measured, relative to C:
+// without ties a jump of 4.8e-2; with the ties 1e-9 mm from the join 4.1e-8 (1/d², at the cap)
+// and 4.1e-7 (the thesis's log²: softer there). The same 4.1e-8 was measured by hand with no
+// plane moved at all (perturbation 0, the tip 1e-10 mm either side of x = 32): it is the cap's
+// softness, not the plane's 1.5e-8-cell move. Until
 // 2026-11-29 the re-cuts shifted the plane off the tip as a fresh cut does (1.5e-4 of a cell to
 // either side, by where the tip was), so the tip never met the plane: the pieces joined at
 // x0 = 30.00025, where the plane jumped from 32.00075 to 31.99925, and C still jumped by 4.7e-4
