@@ -180,7 +180,6 @@ struct TiedModePair {
   Vec3 own_mean[2], pair_mean, mean[2];  ///< M_a, M_b, M_ab, γ̄_a, γ̄_b
   Eigen::Matrix<double, 9, 24> Kau[2];   ///< at γ̄_P
   Eigen::LDLT<Eigen::Matrix<double, 18, 18>> Kaa;
-  double blend = 0;
   /// α = −K_αα⁻¹ K_αu (u_a, u_b): rows 0..8 piece a's modes, 9..17 piece b's.
   Eigen::Matrix<double, 18, 1> condensed(const Eigen::VectorXd& ua, const Eigen::VectorXd& ub) const {
     Eigen::Matrix<double, 18, 1> rhs;
@@ -192,7 +191,6 @@ struct TiedModePair {
 TiedModePair tied_mode_pair(const GridElement& a, const GridElement& b, const Eigen::Matrix<double, 6, 6>& D,
                             double weight, double blend) {
   TiedModePair pair;
-  pair.blend = blend;
   const GridElement* el[2] = {&a, &b};
   for (int i = 0; i < 2; ++i) mode_mean(*el[i], pair.volume[i], pair.own_mean[i]);
   pair.pair_volume = pair.volume[0] + pair.volume[1];

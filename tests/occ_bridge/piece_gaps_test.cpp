@@ -11,6 +11,7 @@
 #include <BRepBuilderAPI_Transform.hxx>
 #include <BRepPrimAPI_MakeBox.hxx>
 #include <BRepPrimAPI_MakeCylinder.hxx>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -158,9 +159,9 @@ namespace {
 // (GridOptions::recut_clearance 1e-8 of a cell): the plane moves only once the tip is within
 // 5e-8 mm of it, by 7.5e-8 mm, so the pieces join at x0 = 30 + 2.5e-8. Measured, relative to C:
 // without ties a jump of 4.8e-2; with the ties 1e-9 mm from the join 4.1e-8 (1/d², at the cap)
-// and 4.1e-7 (the thesis's log²: softer there). The same 4.1e-8 was measured by hand with no
-// plane moved at all (perturbation 0, the tip 1e-10 mm either side of x = 32): it is the cap's
-// softness, not the plane's 1.5e-8-cell move. Until
+// and 4.1e-7 (the thesis's log²: softer there). With no plane moved at all (perturbation 0, the
+// tip 1e-10 mm either side of x = 32) the step is the same 4.1e-8 (checked at the end): it is
+// the cap's softness, not the plane's 1.5e-8-cell move. Until
 // 2026-11-29 the re-cuts shifted the plane off the tip as a fresh cut does (1.5e-4 of a cell to
 // either side, by where the tip was), so the tip never met the plane: the pieces joined at
 // x0 = 30.00025, where the plane jumped from 32.00075 to 31.99925, and C still jumped by 4.7e-4
@@ -283,6 +284,26 @@ TEST(PieceGaps, MergePenaltyAtASlotTipCrossingAGridPlane) {
               worst_split, worst_joined);
   EXPECT_LT(worst_split, 5e-8);  // measured 2.2e-8
   EXPECT_LT(worst_joined, 5e-9);  // measured 9.7e-10
+  // With no plane moved at all (perturbation 0: the start's and the re-cuts' planes are the
+  // lattice's, x = 32), 1e-10 mm either side of the tip touching it: the ties leave the same
+  // step, so the 4.1e-8 above is the cap's softness, not the clearance's move of the plane.
+  ComplianceSetup fixed = plain;
+  fixed.grid.grid.perturbation = 0;
+  ComplianceSetup fixed_tied = fixed;
+  fixed_tied.merge.enabled = true;
+  const ComplianceState fixed_base = compliance_start(start, fixed);
+  ASSERT_TRUE(fixed_base.done) << fixed_base.message;
+  const ComplianceState touching = compliance_at(slotted_block(30 - 1e-10, r, degrees), fixed_base, fixed_tied);
+  const ComplianceState crossing = compliance_at(slotted_block(30 + 1e-10, r, degrees), fixed_base, fixed_tied);
+  ASSERT_TRUE(touching.done && crossing.done) << touching.message << crossing.message;
+  const std::vector<double>& px = crossing.model->cut->planes[0];
+  EXPECT_TRUE(std::find(px.begin(), px.end(), 32.0) != px.end());
+  EXPECT_EQ(touching.ties.size(), 0u);
+  EXPECT_EQ(crossing.ties.size(), 16u);
+  const double fixed_step = (crossing.compliance - touching.compliance) / touching.compliance;
+  std::printf("no plane moved (x = 32): with the ties C %.10g -> %.10g across the join, %.3e relative\n",
+              touching.compliance, crossing.compliance, fixed_step);
+  EXPECT_NEAR(fixed_step, relative(ts), 0.05 * std::abs(relative(ts)));  // measured 4.13e-8 and 4.15e-8
 }
 
 }  // namespace
