@@ -126,6 +126,18 @@ def plate_holes():
     return s.removeSplitter()
 
 
+def bridge_holes():
+    # Plate 200 x 80 x 2.5 with a 20 x 8 grid of square holes, side 5.5, pitch 10 (thesis
+    # Table 6.1 and Fig. 6.18, "topology optimization": 20 x 8 square holes whose side lengths,
+    # n = 160, are the design variables; each pitch cell's solid fraction 1 - 0.55^2 = 0.6975,
+    # near the thesis's 0.7). On an 80-cell grid each pitch cell is a 4 x 4 block of elements,
+    # as in the thesis's 80 x 1 x 32 grid, and the hole walls (2.25 and 7.75 in each cell) lie
+    # off the grid planes.
+    holes = [Part.makeBox(5.5, 5.5, 2.5, V(2.25 + 10 * i, 2.25 + 10 * j, 0))
+             for i in range(20) for j in range(8)]
+    return Part.makeBox(200, 80, 2.5).cut(Part.makeCompound(holes)).removeSplitter()
+
+
 def flange():
     # Disc radius 50, 8 thick, bore radius 12, six bolt holes radius 5 on the circle of radius
     # 32 about z, one at +x and the others its copies turned by 60° steps (the rotational
@@ -196,6 +208,7 @@ def countersunk_pin_block():
 PARTS = {"box": box, "cylinder": cylinder, "l_bracket": l_bracket, "wrench": wrench,
          "ring": ring, "half_torus": half_torus, "wheel": wheel, "housing": housing,
          "l_bracket_holes5": lambda: l_bracket(5), "plate_holes": plate_holes,
+         "bridge_holes": bridge_holes,
          "flange": flange, "bump_block": bump_block, "blind_hole_block": blind_hole_block,
          "countersunk_pin_block": countersunk_pin_block}
 # PARAFAB_PARTS_ONLY="a,b" regenerates only those parts.
