@@ -31,18 +31,29 @@ using fields::vec3;
 
 namespace {
 
-int face_index(const occ::PartShape& part, const json& item, const std::string& path) {
+// The part whose faces a job names, by index or by a point on them: the locator and the
+// point tolerance (1e-6 of the part's diagonal) are built once per job, not per named face.
+struct NamedPart {
+  const occ::PartShape& part;
+  occ::FaceLocator locator;
+  double tolerance;
+  explicit NamedPart(const occ::PartShape& p) : part(p), locator(p) {
+    const occ::PartBoxArea size = occ::part_box_and_area(p);  // the tight box, without part_info's adaptive integrals
+    tolerance = 1e-6 * (size.max - size.min).norm() + 1e-9;
+  }
+};
+
+int face_index(const NamedPart& named, const json& item, const std::string& path) {
   if (item.contains("face")) {
     if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
     const int f = item["face"].get<int>();
-    occ::face_area(part, f);  // validates the index
+    occ::face_area(named.part, f);  // validates the index
     return f;
   }
   if (item.contains("point")) {
-    const occ::PartInfo info = occ::part_info(part);
     const Eigen::Vector3d X = vec3(item["point"], path + ".point");
     try {
-      return occ::face_at_point(part, X, 1e-6 * (info.bbox_max - info.bbox_min).norm() + 1e-9);
+      return named.locator.face_at(X, named.tolerance);
     } catch (const Error& e) {
       PARAFAB_INPUT_ERROR(path << ": " << e.what());  // which entry named the point
     }
@@ -50,7 +61,7 @@ int face_index(const occ::PartShape& part, const json& item, const std::string& 
   PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
 }
 
-occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, const std::string& path) {
+occ::ParameterRef parameter_ref(const NamedPart& part, const json& item, const std::string& path) {
   occ::ParameterRef r;
   r.face = face_index(part, item, path);
   const json& name = fields::require(item, "parameter", path);
@@ -66,7 +77,7 @@ occ::ParameterRef parameter_ref(const occ::PartShape& part, const json& item, co
 // penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. material.model: linear,
 // or a hyperelastic law (as `parafab simulate`; load_steps, default 5) for `hyperelastic_ok`
 // objectives (the target shape alone or with moment terms).
-std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShape& part, const json& job,
+std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& part, const json& job,
                                                              bool hyperelastic_ok, bool merge_ok) {
   auto s = std::make_shared<occ::ComplianceSetup>();
   const json& m = fields::require(job, "material", "job (objective compliance)");
@@ -117,7 +128,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const occ::PartShap
       t.traction = vec3(loads[i]["traction"], path + ".traction");
     } else if (loads[i].contains("force")) {  // the total force stays: spread over the face of every model
       force = vec3(loads[i]["force"], path + ".force");
-      t.traction = force / occ::face_area(part, t.face);
+      t.traction = force / occ::face_area(part.part, t.face);
     } else {
       PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
     }
@@ -215,7 +226,7 @@ json target_surface_json(const occ::TargetSurface& s) {
 
 // One objective (not its terms): type and the fields of the moment objectives; `path` names it
 // in errors ("objective", "objective.terms[2]").
-occ::ObjectiveSpec objective_spec(const occ::PartShape& part, const json& obj, const std::string& path,
+occ::ObjectiveSpec objective_spec(const NamedPart& part, const json& obj, const std::string& path,
                                   bool& needs_compliance) {
   if (!obj.is_object()) PARAFAB_INPUT_ERROR(path << " must be an object with a \"type\"");
   occ::ObjectiveSpec spec;
@@ -296,19 +307,20 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   std::optional<tbb::global_control> thread_limit;
   if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
   const auto part = occ::read_part(part_path);
+  const NamedPart named(*part);
   occ::ShapeOptimizationOptions o;
 
   // Objective: one type, or "sum" of weighted terms of the other types.
   const json& obj = fields::require(job, "objective", "job");
   bool needs_compliance = false;
-  o.objective = objective_spec(*part, obj, "objective", needs_compliance);
+  o.objective = objective_spec(named, obj, "objective", needs_compliance);
   if (o.objective.type == "sum") {
     const json& terms = fields::require(obj, "terms", "objective");
     if (!terms.is_array() || terms.empty())
       PARAFAB_INPUT_ERROR("objective.terms must be a non-empty list of {\"type\", \"weight\", ...}");
     for (size_t i = 0; i < terms.size(); ++i) {
       const std::string path = "objective.terms[" + std::to_string(i) + "]";
-      occ::ObjectiveSpec t = objective_spec(*part, terms[i], path, needs_compliance);
+      occ::ObjectiveSpec t = objective_spec(named, terms[i], path, needs_compliance);
       if (t.type == "sum") PARAFAB_INPUT_ERROR(path << ".type: a sum cannot be a term of a sum");
       for (const char* key : {"gradient", "step"})
         if (terms[i].contains(key))
@@ -334,7 +346,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     const auto elastic_term = [](const occ::ObjectiveSpec& t) { return t.type == "compliance" || t.type == "failure"; };
     const bool hyperelastic_ok = !elastic_term(o.objective) &&
                                  std::none_of(o.objective.terms.begin(), o.objective.terms.end(), elastic_term);
-    o.compliance = compliance_setup(*part, job, hyperelastic_ok, o.objective.type == "compliance" && o.objective.terms.empty());
+    o.compliance = compliance_setup(named, job, hyperelastic_ok, o.objective.type == "compliance" && o.objective.terms.empty());
     {
       const occ::PartBoxArea size = occ::part_box_and_area(*part);
       occ::PartInfo info;
@@ -375,7 +387,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     const json list = job.value(key, json::array());
     if (!list.is_array()) PARAFAB_INPUT_ERROR(key << " must be a list");
     for (size_t i = 0; i < list.size(); ++i)
-      o.parameterization.fixed_faces.push_back(face_index(*part, list[i], std::string(key) + "[" + std::to_string(i) + "]"));
+      o.parameterization.fixed_faces.push_back(face_index(named, list[i], std::string(key) + "[" + std::to_string(i) + "]"));
   }
   const json fixed = job.value("fixed_faces", json::array());
   for (size_t i = 0; i < fixed.size(); ++i) {
@@ -386,7 +398,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   for (size_t i = 0; i < ties.size(); ++i) {
     std::vector<occ::ParameterRef> tie;
     for (size_t k = 0; k < ties[i].size(); ++k)
-      tie.push_back(parameter_ref(*part, ties[i][k], "ties[" + std::to_string(i) + "][" + std::to_string(k) + "]"));
+      tie.push_back(parameter_ref(named, ties[i][k], "ties[" + std::to_string(i) + "][" + std::to_string(k) + "]"));
     o.parameterization.ties.push_back(tie);
   }
   const json mirrors = job.value("mirrors", json::array());
@@ -415,8 +427,8 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     occ::ShapeParameterOptions::Rotation r;
     for (size_t k = 0; k < faces.size(); ++k) {
       const std::string fp = path + ".faces[" + std::to_string(k) + "]";
-      if (faces[k].is_number_integer()) r.faces.push_back(face_index(*part, json{{"face", faces[k]}}, fp));
-      else if (faces[k].is_array()) r.faces.push_back(face_index(*part, json{{"point", faces[k]}}, fp));
+      if (faces[k].is_number_integer()) r.faces.push_back(face_index(named, json{{"face", faces[k]}}, fp));
+      else if (faces[k].is_array()) r.faces.push_back(face_index(named, json{{"point", faces[k]}}, fp));
       else PARAFAB_INPUT_ERROR(fp << " must be a face index or a point [x, y, z] on the face");
     }
     const json& axis = fields::require(rotations[i], "axis", path);
@@ -431,7 +443,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   for (size_t i = 0; i < orthogonal.size(); ++i) {
     const std::string path = "orthogonal[" + std::to_string(i) + "]";
     occ::ShapeParameterOptions::Orthogonal d;
-    d.face = face_index(*part, orthogonal[i], path);
+    d.face = face_index(named, orthogonal[i], path);
     d.axis = vec3(fields::require(orthogonal[i], "axis", path), path + ".axis");
     o.parameterization.orthogonal.push_back(d);
   }
@@ -444,7 +456,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     if (params != "auto") PARAFAB_INPUT_ERROR("parameters must be \"auto\" or a list of {\"face\", \"parameter\"}");
   } else if (params.is_array()) {
     for (size_t i = 0; i < params.size(); ++i) {
-      const occ::ParameterRef r = parameter_ref(*part, params[i], "parameters[" + std::to_string(i) + "]");
+      const occ::ParameterRef r = parameter_ref(named, params[i], "parameters[" + std::to_string(i) + "]");
       const int idx = occ::parameter_index(sp, r.face, r.parameter);
       if (!(sp.lower[idx] < sp.upper[idx]))
         PARAFAB_INPUT_ERROR("parameters[" << i << "]: face " << r.face
