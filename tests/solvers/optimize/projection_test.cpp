@@ -321,6 +321,66 @@ TEST(Projection, DerivativeMatchesFiniteDifferencesOfTheProjection) {
   EXPECT_LT(worst, 1e-6);
 }
 
+// A system of independent parts (two fillets, an entry no constraint touches, one fixed)
+// as a part with separate features has (the bridge sample's 160 holes): the projection's linear
+// algebra runs group by group (coupled_groups in projection.cpp). dp⊥/dp̃ must be what each part
+// gives alone, with nothing across parts, and match differences of the projection.
+TEST(Projection, DerivativeOfIndependentPartsIsEachPartsOwn) {
+  Fillet one;
+  const int n1 = 15, n = 2 * n1 + 2;
+  ConstraintSystem system(n);
+  for (int copy = 0; copy < 2; ++copy)
+    for (const ScalarConstraint& c : one.system.constraints()) {
+      ScalarConstraint d = c;
+      for (int& v : d.vars) v += copy * n1;
+      system.add(d);
+    }
+  Eigen::VectorXd p0(n), lower = Eigen::VectorXd::Constant(n, -1e19), upper = Eigen::VectorXd::Constant(n, 1e19);
+  p0 << one.p0, one.p0, 0.5, 2.0;
+  lower[n - 1] = upper[n - 1] = 2.0;  // the last lone entry is fixed: not free
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  w.segment(n1, n1).setConstant(3.0);  // the second fillet weighs its entries differently
+  w[n - 2] = 0.25;
+  Eigen::VectorXd target = p0;
+  target[3] += 0.3, target[14] -= 0.2, target[n1 + 7] += 0.2, target[n1 + 14] += 0.1, target[n - 2] += 0.4;
+  ProjectionOptions options;
+  options.weights = w;
+  const ProjectionResult r = project(system, target, p0, lower, upper, {}, options);
+  ASSERT_TRUE(r.done) << r.message;
+  const ProjectionDerivative d = projection_derivative(system, r, lower, upper, w);
+  EXPECT_EQ(d.free, n - 1);
+  // Each fillet alone (its own system, its own weights) gives its own block.
+  for (int copy = 0; copy < 2; ++copy) {
+    ProjectionOptions alone_options;
+    alone_options.weights = w.segment(copy * n1, n1);
+    const ProjectionResult ra = project(one.system, target.segment(copy * n1, n1), one.p0, one.lower, one.upper, {},
+                                        alone_options);
+    ASSERT_TRUE(ra.done) << ra.message;
+    EXPECT_LT((ra.p - r.p.segment(copy * n1, n1)).lpNorm<Eigen::Infinity>(), 1e-9);
+    const ProjectionDerivative da = projection_derivative(one.system, ra, one.lower, one.upper, alone_options.weights);
+    EXPECT_LT((da.jacobian - d.jacobian.block(copy * n1, copy * n1, n1, n1)).lpNorm<Eigen::Infinity>(), 1e-8) << copy;
+    EXPECT_EQ(d.jacobian.block(copy * n1, (1 - copy) * n1, n1, n1).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ(d.jacobian.block(copy * n1, 2 * n1, n1, 2).cwiseAbs().maxCoeff(), 0.0);
+  }
+  EXPECT_EQ(d.rank, 2 * projection_derivative(one.system, project(one.system, one.p0, one.p0, one.lower, one.upper),
+                                              one.lower, one.upper).rank);
+  EXPECT_DOUBLE_EQ(d.jacobian(n - 2, n - 2), 1.0);  // a lone free entry follows its target
+  EXPECT_EQ(d.jacobian.row(n - 1).cwiseAbs().maxCoeff(), 0.0);  // fixed: does not move
+  // Against central differences of the whole projection.
+  const double h = 1e-5;
+  double worst = 0;
+  for (int i = 0; i < n - 1; ++i) {
+    Eigen::VectorXd tp = target, tm = target;
+    tp[i] += h, tm[i] -= h;
+    const ProjectionResult rp = project(system, tp, r.p, lower, upper, {}, options);
+    const ProjectionResult rm = project(system, tm, r.p, lower, upper, {}, options);
+    ASSERT_TRUE(rp.done && rm.done);
+    worst = std::max(worst, (d.jacobian.col(i) - (rp.p - rm.p) / (2 * h)).lpNorm<Eigen::Infinity>());
+  }
+  EXPECT_LT(worst, 1e-6);
+  std::printf("independent parts: dp/dp~ against central differences %.2e\n", worst);
+}
+
 TEST(Lbfgs, RosenbrockAndAnActiveBound) {
   auto rosen = [](const Eigen::VectorXd& x, double& f, Eigen::VectorXd& g) {
     f = 100 * std::pow(x[1] - x[0] * x[0], 2) + std::pow(1 - x[0], 2);
