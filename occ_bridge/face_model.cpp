@@ -519,8 +519,7 @@ FaceModel build_face_model(const PartShape& part, const FaceModelOptions& option
   std::map<std::pair<int, int>, std::vector<int>> pairs;
   for (const EdgeInfo& e : model.edges)
     if (e.tangent && !e.seam && e.faces[0] != e.faces[1]) pairs[{e.faces[0], e.faces[1]}].push_back(e.index);
-  const PartInfo info = part_info(part);
-  const double tolerance = options.relation_tolerance * std::max(1.0, (info.bbox_max - info.bbox_min).norm());
+  const double tolerance = options.relation_tolerance * std::max(1.0, part_box(part).diagonal());
   for (const auto& [pair, edges] : pairs) {
     TangencyRelation r;
     r.edges = edges;

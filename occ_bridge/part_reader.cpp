@@ -415,6 +415,12 @@ PartBoxArea part_box_and_area(const PartShape& part) {
   return size;
 }
 
+PartBox part_box(const PartShape& part) {
+  PartBox box;
+  tight_box(part.shape, box.min, box.max);
+  return box;
+}
+
 PartInfo part_info(const PartShape& part) {
   PartInfo info;
   info.source = part.source;

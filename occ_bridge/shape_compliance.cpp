@@ -214,8 +214,8 @@ ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const Co
   // a part that grows a little stays inside it (leaving it forces a whole re-cut).
   GridModelOptions go = setup.grid;
   if (!go.grid.anchored) {
-    const PartInfo info = part_info(*part);
-    const xfem::Vec3 ext = info.bbox_max - info.bbox_min, mid = 0.5 * (info.bbox_max + info.bbox_min);
+    const PartBox box = part_box(*part);
+    const xfem::Vec3 ext = box.max - box.min, mid = 0.5 * (box.max + box.min);
     const double h = go.grid.cell_size > 0 ? go.grid.cell_size : ext.maxCoeff() / std::max(1, go.grid.cells_longest);
     go.grid.cell_size = h;
     go.grid.anchored = true;

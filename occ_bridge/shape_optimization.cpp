@@ -171,8 +171,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
                           "sigma_vm / sigma_y) of it swamps J); got 'hex27'");
   }
   {
-    const PartInfo info = part_info(part);
-    const double L = (info.bbox_max - info.bbox_min).norm();
+    const double L = part_box(part).diagonal();
     if (spec.length_scale <= 0) spec.length_scale = L;
     for (ObjectiveSpec& t : spec.terms)
       if (t.length_scale <= 0) t.length_scale = L;
@@ -206,10 +205,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   for (int i : design) result.design_names.push_back(sp.names[i]);
 
   optimize::ProjectionOptions popt = options.projection;
-  {
-    const PartInfo info = part_info(part);
-    popt.weights = projection_weights(sp, design, options.follower_weight, (info.bbox_max - info.bbox_min).norm());
-  }
+  popt.weights = projection_weights(sp, design, options.follower_weight, part_box(part).diagonal());
   // p and the design entries at the start and at the end of the run.
   const auto set_ends = [&](const Eigen::VectorXd& p_initial, const Eigen::VectorXd& p_final) {
     result.p_initial = p_initial, result.p_final = p_final;
@@ -292,11 +288,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   PARAFAB_VERIFY(options.max_outer >= 1, "max_outer must be >= 1, got " << options.max_outer);
   PARAFAB_VERIFY(options.volume_tolerance > 0, "volume_tolerance must be positive");
   Eigen::VectorXd warm_p = start.p;
-  double part_size = 1;
-  {
-    const PartInfo info = part_info(part);
-    part_size = (info.bbox_max - info.bbox_min).norm();
-  }
+  const double part_size = part_box(part).diagonal();
   // Compliance: the grid of the whole run is cut from the first evaluated model (the start).
   std::shared_ptr<ComplianceState> base_state;
   // The discrete switches of a line search's trial models are those of its start (the last

@@ -38,8 +38,7 @@ struct NamedPart {
   occ::FaceLocator locator;
   double tolerance;
   explicit NamedPart(const occ::PartShape& p) : part(p), locator(p) {
-    const occ::PartBoxArea size = occ::part_box_and_area(p);  // the tight box, without part_info's adaptive integrals
-    tolerance = 1e-6 * (size.max - size.min).norm() + 1e-9;
+    tolerance = 1e-6 * occ::part_box(p).diagonal() + 1e-9;  // the tight box, without part_info's integrals
   }
 };
 
