@@ -395,6 +395,13 @@ int add_rotation(ConstraintSystem& system, const ParameterBlock& a, const Parame
 
 Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
   const int nb = block_size(kind), n = nb + 3;
+  if (kind == PrimitiveKind::plane) {  // φ = n·X − d in closed form: ∂φ/∂n = X, ∂φ/∂d = −1, ∇_X φ = n
+    // (the rule derivatives call this at every boundary quadrature point: the bridge sample's 640
+    // walls made the jet arithmetic below a quarter of an evaluation)
+    Dual phi(block[0] * X.x() + block[1] * X.y() + block[2] * X.z() - block[3], n);
+    phi.g << X.x(), X.y(), X.z(), -1.0, block[0], block[1], block[2];
+    return phi;
+  }
   std::vector<Dual> x;
   for (int k = 0; k < nb; ++k) x.push_back(Dual::variable(block[k], k, n));
   const V3<Dual> P{Dual::variable(X.x(), nb, n), Dual::variable(X.y(), nb + 1, n), Dual::variable(X.z(), nb + 2, n)};
