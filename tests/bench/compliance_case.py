@@ -19,12 +19,15 @@ import parafab  # noqa: E402
 REF = os.path.join(REPO, "tests", "reference", "calculix_reference.py")
 
 
-def arguments(default_iterations, positions=False):
+def arguments(default_iterations, positions=False, extra=None):
     """--quick (1 iteration, no CalculiX), --iterations, --gradient, --out (created); with
-    positions=True also --positions (the case's extra design variables)."""
+    positions=True also --positions (the case's extra design variables); extra(parser) adds a
+    case's own options."""
     ap = argparse.ArgumentParser()
     if positions:
         ap.add_argument("--positions", action="store_true", help="also the holes' centres as design variables")
+    if extra:
+        extra(ap)
     ap.add_argument("--quick", action="store_true", help="1 iteration, no CalculiX run")
     ap.add_argument("--iterations", type=int, default=default_iterations)
     ap.add_argument("--gradient", choices=("exact", "semi-analytic"), default="exact",
