@@ -324,7 +324,7 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
       // The retry also changes the barrier update: with the monotone default, the cold start of
       // the wrench's ring hole r 5 -> 5.5 (ShapeModify.ParameterChangesGiveValidPartsWithThe-
       // ClosedFormVolume; follower weight 1e-6) crawled at inf_du 5.5e-3 with steps of 1e-11
-      // into max_iter on this machine's OpenBLAS (it passed on earlier machines: round-off);
+      // into max_iter on this machine (it passed in the previous CI run: round-off, presumably);
       // the adaptive (Mehrotra) update converges there.
       app->Options()->SetStringValue("mu_strategy", "adaptive");
       status = app->OptimizeTNLP(cold);
