@@ -483,44 +483,26 @@ ProjectionDerivative projection_derivative(const ConstraintSystem& system, const
   }
   const std::vector<Eigen::MatrixXd> J = m > 0 ? group_jacobians(system, projection.p, groups)
                                                : std::vector<Eigen::MatrixXd>(groups.entries.size());
-  // Null space of each J_g from a full QR of J_gᵀ with column pivoting (rank-revealing). The rank
-  // cut is 1e-10 of the largest pivot of all groups, not of the group's own: the QR of the whole
-  // block-diagonal J has the union of the groups' pivots, so this decides every rank as the dense
-  // QR did (a group's own scale kept a nearly dependent tangency of the L-bracket's outer fillet,
-  // moving its exact compliance derivative by 6.5e-9: ShapeCompliance.LocalPenaltyGradient...).
-  // Each group in long double: with the projection's weights (1 design, 1e-4 followers, L² on
-  // directions) ZᵀHZ has a condition number near 1e8, so double round-off moved dp⊥/dp̃ by
-  // ~1e-8 relative (the L-bracket's outer fillet: its exact compliance derivative 6.7e-9 from
-  // Richardson differences, 2.4e-10 with the former dense solve, which was as far off elsewhere).
-  // The groups are small (the bridge's: 16 entries), so this costs little.
-  using MatrixL = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
-  std::vector<Eigen::ColPivHouseholderQR<MatrixL>> qrs(groups.entries.size());
-  long double largest_pivot = 0;
-  for (size_t g = 0; g < groups.entries.size(); ++g)
-    if (J[g].rows() > 0) {
-      qrs[g].compute(J[g].transpose().cast<long double>());
-      largest_pivot = std::max(largest_pivot, qrs[g].maxPivot());
-    }
   for (size_t g = 0; g < groups.entries.size(); ++g) {
     const std::vector<int>& e = groups.entries[g];
     const int ng = static_cast<int>(e.size());
-    MatrixL Z;
+    Eigen::MatrixXd Z;
     if (J[g].rows() > 0) {
-      Eigen::ColPivHouseholderQR<MatrixL>& qr = qrs[g];
-      qr.setThreshold(qr.maxPivot() > 0 ? 1e-10L * largest_pivot / qr.maxPivot() : 1.0L);
+      // Null space of J_g from a full QR of J_gᵀ with column pivoting (rank-revealing).
+      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J[g].transpose());
+      qr.setThreshold(1e-10);
       const int rank = static_cast<int>(qr.rank());
       d.rank += rank;
       if (rank == ng) continue;  // the group is determined by its constraints: D_g = 0
-      const MatrixL Q = qr.householderQ();
+      const Eigen::MatrixXd Q = qr.householderQ();
       Z = Q.rightCols(ng - rank);
     } else {
-      Z = MatrixL::Identity(ng, ng);
+      Z = Eigen::MatrixXd::Identity(ng, ng);
     }
-    const MatrixL reduced = Z.transpose() * H[g].cast<long double>() * Z;
-    MatrixL ZtW = Z.transpose();
-    for (int i = 0; i < ng; ++i) ZtW.col(i) *= static_cast<long double>(w[e[i]]);
-    const MatrixL Dg = Z * reduced.ldlt().solve(ZtW);
-    d.jacobian(e, e) = Dg.cast<double>();
+    const Eigen::MatrixXd reduced = Z.transpose() * H[g] * Z;
+    const Eigen::VectorXd wg = w(e);
+    const Eigen::MatrixXd Dg = Z * reduced.ldlt().solve(Z.transpose() * wg.asDiagonal());
+    d.jacobian(e, e) = Dg;
   }
   return d;
 }
