@@ -12,24 +12,24 @@ import matplotlib.pyplot as plt  # noqa: E402
 out = sys.argv[1]
 with open(os.path.join(out, "job_scale.json")) as f:
     rows = sorted(json.load(f), key=lambda r: r["faces"])
-fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4.2))
-faces = [r["faces"] for r in rows]
-a.loglog(faces, [r["lookup_seconds_scan"] for r in rows], "o-", label="scan: BRepExtrema to every face")
-a.loglog(faces, [r["lookup_seconds_locator"] for r in rows], "s-", label="FaceLocator: boxes, nearest first")
-a.set_xlabel("faces of the part (one lookup per face, 100 at most)")
-a.set_ylabel("median seconds, all lookups")
-a.set_title("faces named by points")
-params = [r["parameters"] for r in rows]
-b.loglog(params, [r["derivative_seconds_dense"] for r in rows], "o-", label="dense: one QR of the whole J")
-b.loglog(params, [r["derivative_seconds_grouped"] for r in rows], "s-", label="per coupled group")
-b.set_xlabel("shape parameters")
-b.set_ylabel("median seconds")
-b.set_title("dp\u22a5/dp\u0303 at the start (Eq. 6.29)")
-for ax, key, xs in ((a, "lookup_ratio", faces), (b, "derivative_ratio", params)):
+# Per panel: x key, x label, title, (baseline key, label), (new key, label), ratio key.
+PANELS = [("faces", "faces of the part (one lookup per face, 100 at most)", "faces named by points",
+           ("lookup_seconds_scan", "scan: BRepExtrema to every face"),
+           ("lookup_seconds_locator", "FaceLocator: boxes, nearest first"), "lookup_ratio"),
+          ("parameters", "shape parameters", "dp\u22a5/dp\u0303 at the start (Eq. 6.29)",
+           ("derivative_seconds_dense", "dense: one QR of the whole J"),
+           ("derivative_seconds_grouped", "per coupled group"), "derivative_ratio")]
+fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+for ax, (xkey, xlabel, title, (old, old_label), (new, new_label), ratio) in zip(axes, PANELS):
+    xs = [r[xkey] for r in rows]
+    ax.loglog(xs, [r[old] for r in rows], "o-", label=old_label)
+    ax.loglog(xs, [r[new] for r in rows], "s-", label=new_label)
     for r, x in zip(rows, xs):
-        ax.annotate("%s x%.0f" % (r["part"], r[key]), (x, r[key.replace("ratio", "seconds_") +
-                    ("scan" if key == "lookup_ratio" else "dense")]), fontsize=7, xytext=(3, 3),
+        ax.annotate("%s x%.0f" % (r["part"], r[ratio]), (x, r[old]), fontsize=7, xytext=(3, 3),
                     textcoords="offset points")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("median seconds")
+    ax.set_title(title)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
 fig.tight_layout()
