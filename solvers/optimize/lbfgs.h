@@ -1,6 +1,7 @@
 // Quasi-Newton shape optimization over projected parameters (thesis §6.5.2: "a standard
 // quasi-Newton" on p, every evaluation at the valid model p⊥(p)): L-BFGS with bounds by
-// projection onto the box and an Armijo backtracking line search; every iterate is recorded.
+// projection onto the box and an Armijo backtracking line search (cubic interpolation of the
+// rejected trial, see backtrack_factor); every iterate is recorded.
 #pragma once
 
 #include <Eigen/Core>
@@ -16,7 +17,7 @@ struct LbfgsOptions {
   double relative_improvement = 1e-6;   ///< stop when (f_k−1 − f_k) <= this·max(|f_k|, |f_0|·1e-12)
   double gradient_tolerance = 1e-12;    ///< stop when the projected gradient's max-norm falls below
   double first_step = 1.0;              ///< max-norm length of the first step (units of x)
-  int max_line_search = 20;             ///< halvings before giving up
+  int max_line_search = 20;             ///< trial steps per line search before giving up
   double armijo = 1e-4;                 ///< sufficient decrease constant
 };
 
@@ -38,6 +39,11 @@ struct LbfgsResult {
   int evaluations = 0;
   double seconds = 0;
 };
+
+/// The factor in [0.1, 0.5] that shortens a trial step rejected by the Armijo test, from
+/// φ(0) = f(x), φ'(0) = ∇f(x)·s, φ(1) = f(x + s), φ'(1) = ∇f(x + s)·s: the minimizer of their
+/// cubic (or quadratic) interpolant, safeguarded.
+double backtrack_factor(double phi0, double slope0, double phi1, double slope1);
 
 /// f(x) and its gradient; returns false if x cannot be evaluated (the step is then shortened).
 using ObjectiveFunction = std::function<bool(const Eigen::VectorXd& x, double& f, Eigen::VectorXd& gradient)>;

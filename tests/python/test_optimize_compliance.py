@@ -117,10 +117,10 @@ class OptimizeCompliance(unittest.TestCase):
         self.assertIn("objective.terms[0].gradient", err["error"]["message"])
 
     def test_a_run_that_ends_above_the_bound_is_restored_onto_it(self):
-        # One outer iteration of two L-BFGS steps ends 3.3e-4 above V <= 1.002 V0 (measured);
+        # One outer iteration of three L-BFGS steps ends 1.5e-4 above V <= 1.002 V0 (measured);
         # the volume-only Newton restoration moves onto the bound. OCCT's volume of the STEP.
         out = os.path.join(self.dir, "out")
-        job = dict(JOB, constraints=[{"type": "volume", "max_ratio": 1.002}], max_iterations=2, max_outer=1)
+        job = dict(JOB, constraints=[{"type": "volume", "max_ratio": 1.002}], max_iterations=3, max_outer=1)
         code, h = cli(["optimize", self.part, "-o", out], job)
         self.assertEqual(code, 0, h)
         self.assertGreater(h["augmented_lagrangian"][0]["violation"], 1e-4)

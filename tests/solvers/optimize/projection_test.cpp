@@ -409,3 +409,31 @@ TEST(Lbfgs, RosenbrockAndAnActiveBound) {
   EXPECT_EQ(r.status, "cancelled");
   EXPECT_EQ(r.iterates.size(), 3u);
 }
+
+TEST(Lbfgs, BacktrackingInterpolatesTheRejectedStep) {
+  // Exact on a quadratic φ(α) = (α − 0.3)² and on a cubic φ(α) = α³ − 0.27α (minimum at 0.3).
+  EXPECT_NEAR(backtrack_factor(0.09, -0.6, 0.49, 1.4), 0.3, 1e-14);
+  EXPECT_NEAR(backtrack_factor(0.0, -0.27, 0.73, 2.73), 0.3, 1e-14);
+  // Safeguards: at most half the trial, at least a tenth.
+  EXPECT_EQ(backtrack_factor(0.64, -1.6, 0.04, 0.4), 0.5);       // (α − 0.8)²
+  EXPECT_EQ(backtrack_factor(0.0, -1.0, 1e6 - 1, 2e6 - 1), 0.1);  // 10⁶α² − α: minimum 5e-7
+  // A stiff quadratic ½(x² + 10⁴y²) from (1, 1), first step 5 in max-norm: the trial overshoots
+  // the line's minimum 5 times. The cubic finds it on the second trial; halving takes three and
+  // stops 25 % beyond it.
+  auto stiff = [](const Eigen::VectorXd& x, double& f, Eigen::VectorXd& g) {
+    f = 0.5 * (x[0] * x[0] + 1e4 * x[1] * x[1]);
+    g = Eigen::Vector2d(x[0], 1e4 * x[1]);
+    return true;
+  };
+  const Eigen::Vector2d big(1e9, 1e9);
+  LbfgsOptions o;
+  o.max_iterations = 1;
+  o.first_step = 5;
+  const LbfgsResult r = minimize_lbfgs(stiff, Eigen::Vector2d(1, 1), -big, big, o);
+  ASSERT_EQ(r.iterates.size(), 2u);
+  EXPECT_EQ(r.iterates[1].evaluations, 3);
+  // The line x = (1, 1) − t(1, 10⁴) has its minimum at t = gᵀg / gᵀHg:
+  const double t = (1 + 1e8) / (1 + 1e12);
+  EXPECT_NEAR(r.x[0], 1 - t, 1e-12);
+  EXPECT_NEAR(r.x[1], 1 - 1e4 * t, 1e-12);
+}
