@@ -1,7 +1,9 @@
-// Cost of the B-rep write-back (thesis §6.5.1, q = q(p⊥); occ_bridge/shape_modify.h) with and
-// without its self-interference test (BOPAlgo_ArgumentAnalyzer), on the sample parts: every
-// cylinder, cone and torus radius moved by +0.05 mm through the projection, the median of the
-// repeats, both variants alternated in the same run (ratio = with / without).
+// Cost of the B-rep write-back (thesis §6.5.1, q = q(p⊥); occ_bridge/shape_modify.h) without a
+// self-interference test, with the face-pair test (ModifyOptions::check_self_interference) and
+// with the full test it replaced (BOPAlgo_ArgumentAnalyzer on all sub-shapes), on the sample
+// parts: every cylinder, cone and torus radius moved by +0.05 mm through the projection (the
+// bridge, all planes: every plane offset), the median of the repeats, the three variants
+// alternated in the same run (ratios = with / without). The two tests must agree (both accept).
 // Usage: bench_write_back [--quick] --out DIR SAMPLES_DIR  -> DIR/write_back.json
 #include <algorithm>
 #include <chrono>
@@ -22,7 +24,7 @@ using namespace parafab::occ;
 
 int main(int argc, char** argv) {
   const BenchArguments args = bench_arguments(argc, argv);
-  std::vector<std::string> parts = {"flange", "l_bracket", "wrench", "wheel", "housing", "plate_holes"};
+  std::vector<std::string> parts = {"flange", "l_bracket", "wrench", "wheel", "housing", "plate_holes", "bridge_holes"};
   const int repeats = args.quick ? 3 : 15;
   if (args.quick) parts.resize(1);
   nlohmann::json result = nlohmann::json::array();
@@ -35,39 +37,47 @@ int main(int argc, char** argv) {
     int moved = 0;
     for (int k = 0; k < sp.size(); ++k)
       if (sp.names[k].find("radius") != std::string::npos) target[k] += 0.05, ++moved;
+    const bool planes = moved == 0;  // a part of planes only: its plane offsets
+    for (int k = 0; planes && k < sp.size(); ++k)
+      if (sp.names[k].find("plane offset") != std::string::npos) target[k] += 0.05, ++moved;
     const optimize::ProjectionResult p = optimize::project(sp.constraints, target, start.p, sp.lower, sp.upper);
     if (!p.done) {
       std::fprintf(stderr, "%s: projection failed: %s\n", name.c_str(), p.message.c_str());
       return 1;
     }
-    std::vector<double> seconds[2];
-    std::string message;
+    enum Variant { Without, FacePairs, Full };
+    std::vector<double> seconds[3];
     for (int r = 0; r < repeats; ++r)
-      for (int checked = 0; checked < 2; ++checked) {
+      for (const Variant v : {Without, FacePairs, Full}) {
         ModifyOptions options;
-        options.check_self_interference = checked == 1;
+        options.check_self_interference = v != Without;
+        options.full_self_interference = v == Full;
         const auto t0 = std::chrono::steady_clock::now();
         const ModifyResult m = modify_part(*part, model, sp, p.p, options);
-        seconds[checked].push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        seconds[v].push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         if (!m.done) {
-          std::fprintf(stderr, "%s: write-back failed: %s\n", name.c_str(), m.message.c_str());
+          std::fprintf(stderr, "%s: write-back (variant %d) failed: %s\n", name.c_str(), int(v), m.message.c_str());
           return 1;
         }
       }
-    double median[2];
-    for (int c = 0; c < 2; ++c) {
+    double median[3];
+    for (int c = 0; c < 3; ++c) {
       std::sort(seconds[c].begin(), seconds[c].end());
       median[c] = seconds[c][seconds[c].size() / 2];
     }
-    std::printf("%-12s %2d faces, %2d radii moved: write-back %7.2f ms, with the self-interference test %7.2f ms (x%.2f)\n",
-                name.c_str(), part->face_count(), moved, 1e3 * median[0], 1e3 * median[1], median[1] / median[0]);
+    std::printf("%-12s %3d faces, %3d %s moved: write-back %7.2f ms, + face-pair test %7.2f ms (x%.2f), + full test %7.2f ms (x%.2f)\n",
+                name.c_str(), part->face_count(), moved, planes ? "offsets" : "radii", 1e3 * median[0], 1e3 * median[1],
+                median[1] / median[0], 1e3 * median[2], median[2] / median[0]);
     result.push_back({{"part", name},
                       {"faces", part->face_count()},
-                      {"radii_moved", moved},
+                      {"moved", moved},
+                      {"moved_kind", planes ? "plane offsets" : "radii"},
                       {"repeats", repeats},
                       {"seconds_without", median[0]},
                       {"seconds_with", median[1]},
-                      {"ratio", median[1] / median[0]}});
+                      {"seconds_full", median[2]},
+                      {"ratio", median[1] / median[0]},
+                      {"ratio_full", median[2] / median[0]}});
   }
   std::printf("wrote %s\n", write_bench_file(args.out, "write_back.json", result.dump(2)).c_str());
   return 0;

@@ -458,9 +458,10 @@ TEST(ShapeModify, BlindHoleDeepensToTheClosedFormAndIsRejectedThroughTheFarWall)
   for (const double z : {0.0, -2.0}) {
     const ModifyResult m = deepened(z);
     EXPECT_FALSE(m.done) << "z = " << z;
+    std::printf("floor at z = %g: %s\n", z, m.message.c_str());
     EXPECT_NE(m.message.find("intersects itself: self-interference between"), std::string::npos) << m.message;
     EXPECT_NE(m.message.find("face " + std::to_string(block_bottom)), std::string::npos) << m.message;
-    if (z < 0)  // the hole's wall crosses the bottom (at z = 0 the floor's edge touches it: "vertex 9 and face 4")
+    if (z < 0)  // the hole's wall crosses the bottom (at z = 0 its rim touches it: also "face 4 and face 6")
       EXPECT_NE(m.message.find("face " + std::to_string(hole)), std::string::npos) << m.message;
     // What catches it: without the self-interference test the write-back accepts the part.
     ModifyOptions unchecked;
