@@ -21,6 +21,7 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "common/error.h"
@@ -425,7 +426,8 @@ double implicit_sign(const PartShape& part, int face, const optimize::ParameterB
 }  // namespace
 
 ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
-                                       const ShapeParameters& sp, const Eigen::VectorXd& p) {
+                                       const ShapeParameters& sp, const Eigen::VectorXd& p,
+                                       const std::vector<char>* moving) {
   const auto t0 = std::chrono::steady_clock::now();
   PARAFAB_VERIFY(at.done && at.model, "compliance_gradient: the state is not solved");
   PARAFAB_VERIFY(p.size() == sp.size(), "compliance_gradient: p has " << p.size() << " entries, the parameters "
@@ -434,9 +436,20 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   PARAFAB_VERIFY(static_cast<int>(sp.block_of_face.size()) == part.face_count(),
                  "compliance_gradient: the parameters describe " << sp.block_of_face.size() << " faces, the part has "
                                                                  << part.face_count());
+  PARAFAB_VERIFY(!moving || static_cast<int>(moving->size()) == sp.size(),
+                 "compliance_gradient: `moving` has " << moving->size() << " entries, p " << sp.size());
   ComplianceGradient r;
   r.gradient = Eigen::VectorXd::Zero(sp.size());
   r.incomplete.assign(sp.size(), 0);
+  // Faces whose motion is wanted: some entry of their block (or pole block) is `moving`.
+  std::vector<char> face_moves(part.face_count(), 1);
+  if (moving)
+    for (int f = 0; f < part.face_count(); ++f) {
+      int offset = 0, size = 0;
+      if (const optimize::ParameterBlock* b = sp.block(f)) offset = b->offset, size = b->size();
+      else if (const PoleBlock* pb = sp.poles(f)) offset = pb->offset, size = pb->size();
+      face_moves[f] = std::any_of(moving->begin() + offset, moving->begin() + offset + size, [](char m) { return m != 0; });
+    }
   auto flag = [&](int face) {
     if (const optimize::ParameterBlock* b = sp.block(face))
       for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
@@ -547,9 +560,14 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       tied_side[at.ties[t].element_a] = {static_cast<int>(t), 0};
       tied_side[at.ties[t].element_b] = {static_cast<int>(t), 1};
     }
-  auto bulk_density = [&](int e, const Eigen::VectorXd& ue, const std::vector<xfem::Vec3>& points) {
+  // `own`: the element's BulkShapeDensity, built on its first moving patch and kept for the rest.
+  auto bulk_density = [&](int e, const Eigen::VectorXd& ue, const std::vector<xfem::Vec3>& points,
+                          std::optional<xfem::BulkShapeDensity>& own) {
     const auto it = tied_side.find(e);
-    if (it == tied_side.end()) return xfem::bulk_shape_density(elements[e], ue, ue, setup.material, setup.solver, points);
+    if (it == tied_side.end()) {
+      if (!own) own.emplace(elements[e], ue, ue, setup.material, setup.solver);
+      return (*own)(points);
+    }
     const xfem::PieceTie& tie = at.ties[it->second.first];
     return xfem::tied_mode_shape_terms(elements, tie, element_values(at.solution.u, at.solution.node[tie.element_a]),
                                        element_values(at.solution.u, at.solution.node[tie.element_b]), setup.material,
@@ -561,6 +579,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     const xfem::GridElement& el = elements[e];
     Terms& out = terms[w];
     const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[e]);
+    std::optional<xfem::BulkShapeDensity> density;  // of this element's (u, u)
     const double h = el.box.size().minCoeff();
     const bool penalised =
         local_penalty && std::any_of(el.subvolume->patches.begin(), el.subvolume->patches.end(),
@@ -576,13 +595,14 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         out.penalised.push_back(patch.source_face);
       // Bulk: Reynolds over the patches of moving faces (a support's or load's own motion is
       // flagged above, so its patches are not integrated here).
-      const optimize::ParameterBlock* block = conditioned.count(patch.source_face) ? nullptr : sp.block(patch.source_face);
+      const bool wanted = face_moves[patch.source_face] && !conditioned.count(patch.source_face);
+      const optimize::ParameterBlock* block = wanted ? sp.block(patch.source_face) : nullptr;
       if (block) {
         const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
         if (!sr.points.empty()) {
           out.used = true;
           out.points += static_cast<int>(sr.points.size());
-          const std::vector<double> psi = bulk_density(e, ue, sr.points);
+          const std::vector<double> psi = bulk_density(e, ue, sr.points, density);
           const std::vector<double> psi_mode =
               simple ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
                      : std::vector<double>{};
@@ -607,13 +627,13 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       }
       // Bulk on a B-spline face: Vₙ = R_ij(u, v) n_c for coordinate c of pole (i, j), at the
       // rule's (u, v) on the B-rep's own surface (the patch's surface; the pole block's knots).
-      const PoleBlock* poles = conditioned.count(patch.source_face) ? nullptr : sp.poles(patch.source_face);
+      const PoleBlock* poles = wanted ? sp.poles(patch.source_face) : nullptr;
       if (poles) {
         const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
         out.used = out.used || !sr.points.empty();
         out.points += static_cast<int>(sr.points.size());
         const std::vector<double> psi = sr.points.empty() ? std::vector<double>{}
-                                                          : bulk_density(e, ue, sr.points);
+                                                          : bulk_density(e, ue, sr.points, density);
         const std::vector<double> psi_mode =
             simple && !sr.points.empty()
                 ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)

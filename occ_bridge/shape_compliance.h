@@ -139,8 +139,14 @@ struct ComplianceGradient {
   int ties_without_derivative = 0;
   double seconds = 0;
 };
+/// `moving` (optional, one flag per entry of p): the entries whose derivative is wanted, e.g. the
+/// non-zero rows of dp⊥/dp̃ over the design. The boundary integrals over the patches of faces
+/// with no such entry are skipped (the bridge's deck and floor, cut by every cell): the wanted
+/// entries are the same to the last bit, the others lack those integrals (use the gradient only
+/// along directions that move wanted entries).
 ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
-                                       const ShapeParameters& parameters, const Eigen::VectorXd& p);
+                                       const ShapeParameters& parameters, const Eigen::VectorXd& p,
+                                       const std::vector<char>* moving = nullptr);
 
 /// Whether a design direction dp (e.g. a column of dp⊥/dp̃) moves no entry flagged incomplete:
 /// |dp_i| ≤ 1e-6 ‖dp‖∞ there (the projection derivative's round-off is ~1e-10). Then

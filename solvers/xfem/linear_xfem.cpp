@@ -729,35 +729,53 @@ BoundaryTermDensity boundary_term_density(const GridElement& element, const Eige
              : boundary_term_density_n<8>(element, ue, material, options, dirichlet, traction, X, normal, local_penalty);
 }
 
-std::vector<double> bulk_shape_density(const GridElement& el, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
-                                       const ElasticMaterial& material, const LinearXfemOptions& options,
-                                       const std::vector<Vec3>& points) {
+struct BulkShapeDensity::Element {
+  const GridElement& el;
+  Eigen::VectorXd ve, ue;
+  Eigen::Matrix<double, 6, 6> D;
+  LinearXfemOptions options;
+  bool ready = false;  // the element's part below computed
+  IncompatibleModes im;
+  Eigen::Matrix<double, 9, 1> au, av;
+  Vec3 tau = Vec3::Zero();
+};
+
+BulkShapeDensity::BulkShapeDensity(const GridElement& el, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
+                                   const ElasticMaterial& material, const LinearXfemOptions& options) {
   const int nodes = nodes_per_element(options.element);
   PARAFAB_VERIFY(ve.size() == 3 * nodes && ue.size() == 3 * nodes,
                  "bulk_shape_density: " << ve.size() << " and " << ue.size() << " nodal values for a "
                                         << element_type_name(options.element) << " element (" << 3 * nodes << " expected)");
-  const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+  element_.reset(new Element{el, ve, ue, elasticity(material), options});
+}
+BulkShapeDensity::~BulkShapeDensity() = default;
+BulkShapeDensity::BulkShapeDensity(BulkShapeDensity&&) noexcept = default;
+
+std::vector<double> BulkShapeDensity::operator()(const std::vector<Vec3>& points) {
+  Element& e = *element_;
+  const GridElement& el = e.el;
+  const Eigen::Matrix<double, 6, 6>& D = e.D;
   std::vector<double> psi(points.size(), 0.0);
-  if (options.element == ElementType::Hex27) {
+  if (e.options.element == ElementType::Hex27) {
     Eigen::Matrix<double, 27, 1> N;
     Eigen::Matrix<double, 27, 3> G;
     for (size_t k = 0; k < points.size(); ++k) {
       triquadratic_shape(el.box, points[k], N, G);
       const Eigen::Matrix<double, 6, 81> B = strain_matrix<27>(G);
-      psi[k] = (B * ve).dot(D * (B * ue));
+      psi[k] = (B * e.ve).dot(D * (B * e.ue));
     }
     return psi;
   }
   Eigen::Matrix<double, 8, 1> N;
   Eigen::Matrix<double, 8, 3> G;
-  const IncompatibleModes im = options.incompatible_modes
-                                   ? incompatible_modes(el, D, options.incompatible_min_fraction)
-                                   : IncompatibleModes{};
+  const IncompatibleModes& im = e.im;
+  if (!e.ready && e.options.incompatible_modes) e.im = incompatible_modes(el, D, e.options.incompatible_min_fraction);
   if (!im.used) {
+    e.ready = true;
     for (size_t k = 0; k < points.size(); ++k) {
       trilinear_shape(el.box, points[k], N, G);
       const Mat6x24 B = strain_matrix<8>(G);
-      psi[k] = (B * ve).dot(D * (B * ue));
+      psi[k] = (B * e.ve).dot(D * (B * e.ue));
     }
     return psi;
   }
@@ -765,31 +783,39 @@ std::vector<double> bulk_shape_density(const GridElement& el, const Eigen::Vecto
   // strains are ε = B uₑ + B_a(γ − γ̄) α, and the mean γ̄ = Σ w γ / V moves with the weights:
   // ∂γ̄/∂w_j = (γ_j − γ̄)/V, hence the term −(1/V) Σ_m (γ − γ̄)_m [τ_m(v, α_u) + τ_m(u, α_v)] with
   // τ_m(v, α_u) = Σ_q w_q ε_q(v)ᵀ D S_m α_u (S_m: mode strain of a unit gradient along x_m).
-  const Eigen::Matrix<double, 9, 1> au = im.condensed(ue), av = im.condensed(ve);
   auto strains = [&](const Vec3& X, Eigen::Matrix<double, 6, 1>& eu, Eigen::Matrix<double, 6, 1>& ev) {
     trilinear_shape(el.box, X, N, G);
     const Mat6x24 B = strain_matrix<8>(G);
     const Eigen::Matrix<double, 6, 9> Ba = IncompatibleModes::strain(IncompatibleModes::gradient(el.box, X) - im.mean);
-    eu = B * ue + Ba * au;
-    ev = B * ve + Ba * av;
+    eu = B * e.ue + Ba * e.au;
+    ev = B * e.ve + Ba * e.av;
   };
-  Eigen::Matrix<double, 6, 3> Su, Sv;  // columns m: S_m α_u, S_m α_v
-  for (int m = 0; m < 3; ++m) {
-    Su.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * au;
-    Sv.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * av;
-  }
-  Vec3 tau = Vec3::Zero();
   Eigen::Matrix<double, 6, 1> eu, ev;
-  for (size_t q = 0; q < el.rule.points.size(); ++q) {
-    strains(el.rule.points[q], eu, ev);
-    tau += el.rule.weights[q] * (Su.transpose() * (D * ev) + Sv.transpose() * (D * eu));
+  if (!e.ready) {
+    e.au = im.condensed(e.ue), e.av = im.condensed(e.ve);
+    Eigen::Matrix<double, 6, 3> Su, Sv;  // columns m: S_m α_u, S_m α_v
+    for (int m = 0; m < 3; ++m) {
+      Su.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * e.au;
+      Sv.col(m) = IncompatibleModes::strain(Vec3::Unit(m)) * e.av;
+    }
+    for (size_t q = 0; q < el.rule.points.size(); ++q) {
+      strains(el.rule.points[q], eu, ev);
+      e.tau += el.rule.weights[q] * (Su.transpose() * (D * ev) + Sv.transpose() * (D * eu));
+    }
+    e.ready = true;
   }
   for (size_t k = 0; k < points.size(); ++k) {
     strains(points[k], eu, ev);
     const Vec3 shift = IncompatibleModes::gradient(el.box, points[k]) - im.mean;
-    psi[k] = ev.dot(D * eu) - shift.dot(tau) / im.volume;
+    psi[k] = ev.dot(D * eu) - shift.dot(e.tau) / im.volume;
   }
   return psi;
+}
+
+std::vector<double> bulk_shape_density(const GridElement& el, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
+                                       const ElasticMaterial& material, const LinearXfemOptions& options,
+                                       const std::vector<Vec3>& points) {
+  return BulkShapeDensity(el, ve, ue, material, options)(points);
 }
 
 LinearSystem assemble_linear(const std::vector<GridElement>& elements,

@@ -268,6 +268,23 @@ std::vector<double> bulk_shape_density(const GridElement& element, const Eigen::
                                        const ElasticMaterial& material, const LinearXfemOptions& options,
                                        const std::vector<Vec3>& points);
 
+/// bulk_shape_density of one element at any number of point sets: what depends on the element
+/// alone (the condensed incompatible modes of vₑ and uₑ and their mean-shift term, each a pass
+/// over the element's volume rule) is computed once, on the first call. The same numbers as
+/// bulk_shape_density; a cut cell's several moving patches then cost one volume pass, not one each.
+class BulkShapeDensity {
+ public:
+  BulkShapeDensity(const GridElement& element, const Eigen::VectorXd& ve, const Eigen::VectorXd& ue,
+                   const ElasticMaterial& material, const LinearXfemOptions& options);
+  ~BulkShapeDensity();
+  BulkShapeDensity(BulkShapeDensity&&) noexcept;
+  std::vector<double> operator()(const std::vector<Vec3>& points);
+
+ private:
+  struct Element;
+  std::unique_ptr<Element> element_;
+};
+
 /// The Nitsche and traction terms of element_system per unit area at a boundary point X with
 /// outward normal n, contracted with the element's nodal values uₑ: uₑᵀKₑuₑ = ∫ stiffness dA and
 /// uₑᵀfₑ = ∫ load dA over the condition's patches (bulk and gravity not included). When a
