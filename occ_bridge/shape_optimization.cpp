@@ -109,6 +109,8 @@ struct Evaluation {
   double objective = 0, penalized = 0, violation = 0, volume = 0, tangency = 0, max_von_mises = 0;
   double target_rms = 0, target_max = 0;  ///< "target": √J and max |d| of the matched face
   Eigen::VectorXd p, lambda, volume_gradient;  ///< volume_gradient: dV/dx (design entries)
+  Eigen::VectorXd gradient;                    ///< df/dx (design entries), without the volume term
+  Eigen::VectorXd x;                           ///< the design point evaluated
   std::shared_ptr<const PartShape> part;
   /// Objectives that solve: the grid model of the solve (its cut elements' fractions freeze the
   /// next line search's switches; the solution and its factorization are not kept) and whether
@@ -328,6 +330,18 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
 
   double V0 = 0, f_scale = 1;
   Evaluation last;
+  // F = f + the augmented-Lagrangian terms of the volume bounds (see Bound above) at e, and ∇F.
+  auto penalized = [&](const Evaluation& e, double& F, Eigen::VectorXd& grad) {
+    F = e.objective;
+    double dpsi_dV = 0;
+    for (const Bound& b : bounds) {
+      if (!b.on) continue;
+      const double m = std::max(0.0, b.lambda + b.rho * b.sign * (e.volume / V0 - b.ratio));
+      F += f_scale * (m * m - b.lambda * b.lambda) / (2 * b.rho);
+      dpsi_dV += f_scale * m * b.sign / V0;
+    }
+    grad = e.gradient + dpsi_dV * e.volume_gradient;
+  };
   auto evaluate = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
     ++result.evaluations;
     last = Evaluation{};
@@ -405,7 +419,14 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       // The exact route for every design entry whose direction dp⊥/dp̃ moves no face next to a
       // support or load (compliance_gradient's `incomplete`); the others are differenced.
       const bool exact_route = cw != 0 && options.compliance_gradient == ShapeOptimizationOptions::ComplianceGradientRoute::Exact;
-      const ComplianceGradient exact = exact_route ? occ::compliance_gradient(*state, *options.compliance, sp, proj.p) : ComplianceGradient{};
+      // Entries that some design direction moves (exact zeros elsewhere: the projection's
+      // derivative is block diagonal over the groups the constraints couple).
+      std::vector<char> moving(sp.size(), 0);
+      for (int k = 0; k < nd; ++k)
+        for (int i = 0; i < sp.size(); ++i)
+          if (D.jacobian(i, design[k]) != 0) moving[i] = 1;
+      const ComplianceGradient exact =
+          exact_route ? occ::compliance_gradient(*state, *options.compliance, sp, proj.p, &moving) : ComplianceGradient{};
       for (int k = 0; k < nd; ++k) {
         compliance_gradient[k] = 0;
         bool difference_compliance = cw != 0;
@@ -468,16 +489,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       if (options.volume_min > 0)
         bounds[1].ratio = std::max(options.volume_min_ratio, options.volume_min / V0);
     }
-    double violation = 0, dpsi_dV = 0;
-    F = f;
-    for (const Bound& b : bounds) {
-      if (!b.on) continue;
-      const double g = b.sign * (V / V0 - b.ratio);
-      violation = std::max(violation, g);
-      const double m = std::max(0.0, b.lambda + b.rho * g);
-      F += f_scale * (m * m - b.lambda * b.lambda) / (2 * b.rho);
-      dpsi_dV += f_scale * m * b.sign / V0;
-    }
+    double violation = 0;
+    for (const Bound& b : bounds)
+      if (b.on) violation = std::max(violation, b.sign * (V / V0 - b.ratio));
     // Chain rule through the projection (Eq. 6.29): dF/dp̃ = (dp⊥/dp̃)ᵀ dF/dp⊥.
     const Eigen::VectorXd g_target = D.jacobian.transpose() * dfdp;
     const Eigen::VectorXd v_target = D.jacobian.transpose() * md.gradient.row(0).transpose();
@@ -486,12 +500,14 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     for (int k = 0; k < nd; ++k) grad[k] = g_target[design[k]], last.volume_gradient[k] = v_target[design[k]];
     if (compliance && !volume_only) grad += compliance_gradient;
     if (result.initial_gradient.size() == 0 && !volume_only) result.initial_gradient = grad;  // of f, without the penalty
-    grad += dpsi_dV * last.volume_gradient;
-    last.ok = true;
+    last.gradient = grad;
+    last.x = x;
     last.objective = f;
+    last.volume = V;
+    penalized(last, F, grad);
+    last.ok = true;
     last.penalized = F;
     last.violation = violation;
-    last.volume = V;
     last.p = proj.p;
     last.lambda = proj.multipliers;
     last.part = mod.part;
@@ -545,11 +561,46 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   };
   optimize::LbfgsResult run;
   Eigen::VectorXd x = x0;
+  // The start evaluated before the first inner run (for the multiplier estimate), handed to
+  // that run as its first evaluation instead of being repeated.
+  Evaluation evaluated_start;
+  auto objective = [&](const Eigen::VectorXd& xk, double& F, Eigen::VectorXd& grad) {
+    if (evaluated_start.ok && xk == evaluated_start.x) {
+      last = evaluated_start;
+      evaluated_start = Evaluation{};
+      penalized(last, F, grad);
+      last.penalized = F;
+      return true;
+    }
+    evaluated_start = Evaluation{};
+    return evaluate(xk, F, grad);
+  };
   try {
+    if (bounded && options.estimate_multiplier) {
+      // Least-squares multiplier estimate of a bound that holds with equality or is violated at
+      // the start (Nocedal & Wright §17.4 / §18.3, Eq. 18.21: λ minimizing ‖∇f + s λ ∇g‖ over
+      // the entries not at a bound): the first steps of the inner run then follow the bound to
+      // first order, instead of crossing it and being cut back by the penalty. A bound that is
+      // inactive at the start keeps λ = 0.
+      double F = 0;
+      Eigen::VectorXd grad;
+      if (!evaluate(x, F, grad)) throw Error("the objective cannot be evaluated at the start");
+      evaluated_start = last;
+      for (Bound& b : bounds) {
+        if (!b.on || b.sign * (last.volume / V0 - b.ratio) < -options.volume_tolerance) continue;
+        double gf = 0, gg = 0;
+        for (int k = 0; k < nd; ++k) {
+          if (x[k] <= lower[k] || x[k] >= upper[k]) continue;
+          const double dg = b.sign * last.volume_gradient[k] / V0;
+          gf += last.gradient[k] * dg, gg += dg * dg;
+        }
+        if (gg > 0) b.lambda = std::max(0.0, -gf / (f_scale * gg));
+      }
+    }
     double previous_g = 1e300;
     for (outer_index = 0; outer_index < (bounded ? options.max_outer : 1); ++outer_index) {
-      const int evaluations_before = result.evaluations;
-      run = optimize::minimize_lbfgs(evaluate, x, lower, upper, options.lbfgs, on_iterate,
+      const int evaluations_before = outer_index == 0 ? 0 : result.evaluations;  // the start's included
+      run = optimize::minimize_lbfgs(objective, x, lower, upper, options.lbfgs, on_iterate,
                                      options.freeze_switches ? optimize::ObjectiveFunction(refresh) : optimize::ObjectiveFunction());
       x = run.x;
       if (!bounded) break;

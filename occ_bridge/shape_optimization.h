@@ -94,6 +94,14 @@ struct ShapeOptimizationOptions {
   double volume_max = 0, volume_min = 0;
   double penalty = 1e4;            ///< initial penalty weight ρ, relative to max(|f0|, tiny)
   int max_outer = 8;               ///< multiplier updates (outer iterations) at most
+  /// Start the multiplier of a bound that holds with equality (or is violated) at the start at
+  /// its least-squares estimate from ∇f and ∇V there, instead of 0 (no extra evaluation: the
+  /// first inner run starts from the one that gave the estimate). The first steps then follow
+  /// the bound; but where the optimum leaves it, the run stays near it and its line searches
+  /// fight the penalty's kink. Measured (README): the bridge on 80 cells −27.5 % in 28
+  /// evaluations against −23.6 % in 31 without; the L-bracket's 52 "auto" parameters 167
+  /// evaluations and C 21.6 against 49 and 19.2 without. Hence off by default.
+  bool estimate_multiplier = false;
   /// A run ends feasible when the relative violation (V/V0 − ratio) is at most this; if the
   /// outer iterations end above it, a volume-only Newton restoration moves onto the bound.
   double volume_tolerance = 1e-7;

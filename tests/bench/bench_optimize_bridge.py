@@ -124,10 +124,11 @@ def job(cells=80, iterations=12, side_min=1.5, side_max=9.0, gradient="exact"):
     return dict(SIM, grid={"cells": cells}, objective={"type": "compliance", "gradient": gradient},
                 parameters=params, rotations=rotations, bound=0,
                 constraints=[{"type": "volume", "max_ratio": 1.0}],
-                # first step: the largest side change 2 x 0.2 mm; the volume penalty halves it
-                # about 8 times anyway (20 cells: 11 evaluations in the first iteration, 13 with
-                # the default 1 mm)
-                first_step=0.2, max_iterations=iterations, max_outer=1, threads=1)
+                # The bound holds with equality at the start: its multiplier starts at the
+                # least-squares estimate, so the first steps follow V = V0 (80 cells, 12
+                # iterations: C -27.5 % in 28 evaluations, -23.6 % in 31 from 0). First step:
+                # the largest side change 2 x 0.2 mm.
+                estimate_multiplier=True, first_step=0.2, max_iterations=iterations, max_outer=1, threads=1)
 
 
 def main():

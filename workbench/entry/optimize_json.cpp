@@ -545,6 +545,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_INPUT_ERROR("max_outer must be a positive integer");
     o.max_outer = job["max_outer"].get<int>();
   }
+  if (job.contains("estimate_multiplier")) {
+    if (!job["estimate_multiplier"].is_boolean())
+      PARAFAB_INPUT_ERROR("estimate_multiplier must be true or false, got " << job["estimate_multiplier"].dump());
+    o.estimate_multiplier = job["estimate_multiplier"].get<bool>();
+  }
   if (job.contains("start")) {
     // Design values to start from, one per entry of "parameters" (with max_iterations 0: apply
     // them and write the STEP, the route of tests/bench/bench_optimize_routes.py).
