@@ -33,8 +33,11 @@ CELLS = 40  # 2 x 2 elements per hole pitch: every hole wall cuts cells (walls a
 
 def holes_of(path):
     """(side along x, side along y, centre x, centre y) of each hole of the part in `path`, in
-    bridge.centres() order, from the inspected planes of its walls."""
-    walls = {}
+    bridge.centres() order, from the inspected planes of its walls, each read where it crosses
+    the line through the hole's nominal centre (mid-thickness), and the largest in-plane tilt of
+    a wall's normal [rad] (a wall tilted by t, read at the plane's origin 75 mm away, would seem
+    to move by 75 t)."""
+    walls, tilt = {}, 0.0
     for f in parafab.inspect_part(path)["faces"]:
         if f["type"] != "plane":
             continue
@@ -48,13 +51,17 @@ def holes_of(path):
         if (hi[0] - i * bridge.PITCH < bridge.PITCH - 1e-6 and hi[1] - j * bridge.PITCH < bridge.PITCH - 1e-6
                 and min(lo[0] - i * bridge.PITCH, lo[1] - j * bridge.PITCH) > 1e-6 and abs(n[2]) < 1e-12):
             axis = 0 if abs(n[0]) > 0.5 else 1
-            walls.setdefault((i, j), [[], []])[axis].append(float(n @ p / n[axis]))
+            centre = np.array([(i + 0.5) * bridge.PITCH, (j + 0.5) * bridge.PITCH, bridge.THICK / 2])
+            other = centre.copy()
+            other[axis] = 0
+            walls.setdefault((i, j), [[], []])[axis].append(float((n @ p - n @ other) / n[axis]))
+            tilt = max(tilt, abs(n[1 - axis]))
     out = []
     for cx, cy in bridge.centres():
         xs, ys = walls[(int(cx // bridge.PITCH), int(cy // bridge.PITCH))]
         assert len(xs) == 2 and len(ys) == 2, (cx, cy, xs, ys)
         out.append((abs(xs[1] - xs[0]), abs(ys[1] - ys[0]), sum(xs) / 2, sum(ys) / 2))
-    return out
+    return out, tilt
 
 
 def compliance(path, cells):
@@ -74,8 +81,8 @@ class OptimizeBridge(unittest.TestCase):
     def test_160_sides_keep_the_holes_square_and_the_volume_bound(self):
         h = parafab.optimize(bridge.BRIDGE, self.job, out_dir=os.path.join(self.dir, "run"))
         self.assertEqual(len(h["parameters"]), 160)
-        holes = holes_of(h["optimized_step"])
-        start = holes_of(bridge.BRIDGE)
+        holes, tilt = holes_of(h["optimized_step"])
+        start, _ = holes_of(bridge.BRIDGE)
         sides = np.array([sx for sx, _, _, _ in holes])
         moved = np.abs(sides - bridge.SIDE)
         square = max(abs(sx - sy) for sx, sy, _, _ in holes)
@@ -87,24 +94,32 @@ class OptimizeBridge(unittest.TestCase):
         c0, c1 = compliance(bridge.BRIDGE, 60), compliance(h["optimized_step"], 60)
         print("bridge %d cells, %d iterations, %d evaluations: C %.6g -> %.6g (optimizer), fresh 60 cells %.6g -> "
               "%.6g; sides %.4f ... %.4f (moved > 1e-3 mm: %d, > 1e-2 mm: %d); not square by %.2e mm, centres "
-              "moved %.2e mm; V/V0 %.9f, OCCT vs closed form %.2e; asymmetry %.2e mm; %.1f s"
+              "moved %.2e mm, walls tilted %.2e rad; V/V0 %.9f, OCCT vs closed form %.2e; asymmetry %.2e mm; %.1f s"
               % (CELLS, len(h["iterations"]) - 1, h["evaluations"], h["initial_objective"], h["final_objective"],
                  c0, c1, sides.min(), sides.max(), int(np.sum(moved > 1e-3)), int(np.sum(moved > 0.01)), square,
-                 centre, v1 / v0, abs(v1 / closed - 1), asym, h["seconds"]))
-        # Measured (2026-12-01): 3 iterates, 10 evaluations; C 0.948229 -> 0.947734 on the optimizer's
-        # grid, 0.904956 -> 0.904479 fresh on 60 cells; 122 sides moved by more than 1e-3 mm (the
-        # volume penalty keeps the first steps short); squares to 9e-12 mm, centres 2.2e-7 mm (the
-        # projection's feasibility tolerance); OCCT's volume 2.4e-14 from the closed form, V/V0
-        # 1 - 1.6e-7; asymmetry 3.6e-10 mm.
+                 centre, tilt, v1 / v0, abs(v1 / closed - 1), asym, h["seconds"]))
+        # Measured (2026-12-01 22:20, the job's multiplier estimate): 3 iterates, 3 evaluations;
+        # C 0.948229 -> 0.729983 on the optimizer's grid, 0.904956 -> 0.763461 fresh on 60 cells;
+        # all 160 sides moved by more than 1e-2 mm (1.5012 ... 7.6465; from a multiplier of 0 the
+        # penalty kept them within 0.014 mm); squares to 9e-12 mm, centres 8.6e-12 mm (read at the
+        # holes); OCCT's volume 7e-14 from the closed form, V/V0 0.9576.
+        # The walls' normals tilt by 3.2e-7 rad: the projection's nearest model trades that tilt
+        # for its followers' offsets (weights 1e-4 on offsets, L^2 on normal components; a wall's
+        # offset changes with its normal by the hole centre's distance from the origin). Read at
+        # the planes' origins the centres seemed to move by 6.8e-5 mm.
+        # Mirrored holes agree to 2.7e-7 mm (7e-8 of the sides' change of up to 4 mm; 3.6e-10
+        # when the sides moved 0.014 mm): the 40-cell grid is symmetric about x = 100 only up to
+        # its plane shifts off face extremes.
         self.assertEqual(h["invalid_models"], 0)
-        self.assertGreater(int(np.sum(moved > 1e-3)), 100)
+        self.assertEqual(int(np.sum(moved > 1e-2)), 160)
         self.assertLess(square, 1e-10)
-        self.assertLess(centre, 1e-6)
+        self.assertLess(centre, 1e-10)
+        self.assertLess(tilt, 1e-6)
         self.assertLess(abs(v1 / closed - 1), 1e-12)
         self.assertLessEqual(v1 / v0, 1 + 1e-7)
-        self.assertLess(c1, c0)
-        self.assertLess(h["final_objective"], h["initial_objective"])
-        self.assertLess(asym, 1e-8)
+        self.assertLess(c1, 0.9 * c0)
+        self.assertLess(h["final_objective"], 0.8 * h["initial_objective"])
+        self.assertLess(asym, 1e-6)
 
     def test_a_sides_gradient_matches_central_differences(self):
         """Hole (9, 7), under the deck next to the middle, on 20 cells (its walls at 2.25 and 7.75

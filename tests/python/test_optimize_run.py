@@ -188,7 +188,7 @@ class OptimizeRun(unittest.TestCase):
         code, h = cli(["optimize", self.part, "-o", out], job)
         self.assertEqual(code, 0, h)
         # Discrete switches frozen during line searches; accepted points whose own switches
-        # differ are evaluated again (measured 4 of 10).
+        # differ are evaluated again (measured 3 of 10).
         self.assertTrue(h["freeze_switches"])
         self.assertGreaterEqual(h["switch_refreshes"], 1)
         # Every block parameter of every free face (plane: n, d; cylinder: c, a, r), none of the held ones.
@@ -197,17 +197,18 @@ class OptimizeRun(unittest.TestCase):
         self.assertEqual(designed, {f["index"] for f in free})
         self.assertEqual(h["gradient"], "exact")
         self.assertLess(h["tangency_residual_max"], 1e-12)  # measured 1.8e-15
-        # Measured: 40.729 -> 20.993 (-48 %) on the optimizer's 8-cell grid in 10 iterations, V
-        # 0.931 V0.
-        self.assertLess(h["final_objective"], 0.55 * h["initial_objective"])
-        self.assertAlmostEqual(h["final_volume"] / h["initial_volume"], 0.931, delta=0.005)
+        # Measured (2026-12-01, the line search's cubic backtracking): 40.729 -> 19.175 (-53 %) on
+        # the optimizer's 8-cell grid in 10 iterations and 49 evaluations, V 0.958 V0 (with
+        # halving: 20.993, 0.931 V0).
+        self.assertLess(h["final_objective"], 0.5 * h["initial_objective"])
+        self.assertAlmostEqual(h["final_volume"] / h["initial_volume"], 0.958, delta=0.005)
         # What the design did, read from the written STEP's planes (parafab.inspect_part): the
         # base thickens towards y = 40 (top and bottom tilt across), and the upright's inner face
-        # tilts until the upright ends in a knife edge at its top, 0.0155 mm wide at y = 20
+        # tilts until the upright ends in a knife edge at its top, 0.046 mm wide at y = 20
         # (the clamped back face x = 0 carries it; compliance does not ask for material there):
         # a valid solid (OCCT's checker and the self-interference test pass it; the planes do
-        # not cross inside the part), but not one to make. Measured: base 8.18 / 15.73 mm at
-        # (30, 0) / (30, 40); the upright's top 0.0155 mm wide at y = 20, its face 0.52 mm²
+        # not cross inside the part), but not one to make. Measured: base 8.37 / 16.35 mm at
+        # (30, 0) / (30, 40); the upright's top 0.046 mm wide at y = 20, its face 1.58 mm²
         # (320 mm² before).
         result = parafab.inspect_part(os.path.join(out, "optimized.step"))["faces"]
         planes = {f["index"]: f["parameters"] for f in result if f["type"] == "plane"}
@@ -218,15 +219,15 @@ class OptimizeRun(unittest.TestCase):
         bottom, top, inner, upright_top = (face_index_plane(faces, n, d)
                                            for n, d in (((0, 0, 1), 0), ((0, 0, 1), 8), ((1, 0, 0), 8), ((0, 0, 1), 50)))
         thickness = [coordinate(top, 2, (30, y, 0)) - coordinate(bottom, 2, (30, y, 0)) for y in (0, 40)]
-        self.assertAlmostEqual(thickness[0], 8.18, delta=0.05)
-        self.assertAlmostEqual(thickness[1], 15.73, delta=0.05)
+        self.assertAlmostEqual(thickness[0], 8.37, delta=0.05)
+        self.assertAlmostEqual(thickness[1], 16.35, delta=0.05)
         x, z = 8.0, 50.0  # the upright's inner top edge at y = 20: on the inner face and the top
         for _ in range(50):
             z = coordinate(upright_top, 2, (x, 20, 0))
             x = coordinate(inner, 0, (0, 20, z))
         self.assertGreater(x, 0)  # inside: the back face is x = 0
-        self.assertAlmostEqual(x, 0.0155, delta=0.003)
-        self.assertAlmostEqual(result[upright_top]["area"], 0.52, delta=0.05)
+        self.assertAlmostEqual(x, 0.046, delta=0.005)
+        self.assertAlmostEqual(result[upright_top]["area"], 1.58, delta=0.15)
         # The same run with each model's own switches: the same iterates (the refreshes only
         # re-decide at accepted points), fewer evaluations.
         code, own = cli(["optimize", self.part, "-o", out + "_own"], dict(job, freeze_switches=False))
@@ -244,15 +245,15 @@ class OptimizeRun(unittest.TestCase):
         self.assertLessEqual(v, self.v0 * (1 + 1e-6))
         self.assertAlmostEqual(v, h["final_volume"], delta=1e-6 * self.v0)
         # Independent: fresh hex27 simulations of both parts on 16 cells (each on its own grid).
-        # Measured 54.669 -> 29.435 (ratio 0.5384).
+        # Measured 54.669 -> 27.287 (ratio 0.4991; 0.5384 with the halving line search).
         c = []
         for p in (self.part, step):
             code, r = cli(["simulate", p], dict(ELASTIC, element="hex27", grid={"cells": 16, "method": "face"}))
             self.assertEqual(code, 0, r)
             c.append(-2 * r["potential"])
-        self.assertLess(c[1], 0.56 * c[0])
+        self.assertLess(c[1], 0.52 * c[0])
         # Independent: Gmsh + CalculiX tet10 (h = 2 mm) of both STEP files. Measured 54.826 ->
-        # 29.715 (ratio 0.5420, 0.7 % from the fresh hex27 ratio).
+        # 27.481 (ratio 0.5012, 0.4 % from the fresh hex27 ratio).
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump({k: ELASTIC[k] for k in ("material", "supports", "loads")}, f)
         try:
@@ -263,7 +264,9 @@ class OptimizeRun(unittest.TestCase):
                 ccx.append(json.loads(run.stdout)["compliance"])
         finally:
             os.unlink(f.name)
-        self.assertLess(ccx[1], 0.56 * ccx[0])
+        print("fresh hex27 %.3f -> %.3f (%.4f), CalculiX %.3f -> %.3f (%.4f)" % (c[0], c[1], c[1] / c[0], ccx[0], ccx[1],
+                                                                             ccx[1] / ccx[0]))
+        self.assertLess(ccx[1], 0.52 * ccx[0])
         self.assertAlmostEqual(ccx[1] / ccx[0], c[1] / c[0], delta=0.01)
 
 
