@@ -190,6 +190,9 @@ struct RecutReport {
   /// new vertex or face extreme (GridOptions::perturbation); the cells on both sides are re-cut.
   int planes_moved = 0;
   bool verified = true;        ///< rebuild_grid_model: the rules' volume matched OCCT's (else cut again whole)
+  /// rebuild_grid_model: OCCT's volume of the new part (adaptive precision 1e-9), measured for
+  /// that check (0 when the cut failed first); callers checking the same part reuse it.
+  double occt_volume = 0;
   int subvolumes_kept = 0, subvolumes_new = 0;
   std::vector<int> kept_from;  ///< for every subvolume of the new cut: its old index, or −1
 };

@@ -185,6 +185,7 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
   for (const auto& e : m.elements)
     for (double w : e.rule.weights) volume += w;
   const double occt_volume = occt_mass_properties(part, 1e-9).volume;
+  r.occt_volume = occt_volume;
   if (std::abs(volume - occt_volume) > 1e-6 * std::abs(occt_volume)) {
     r.verified = false;
     r.full = true;

@@ -40,12 +40,13 @@ namespace {
 
 // The rules of every element together must integrate the part's volume (OCCT's): a cut that
 // lost a piece (seen with the Boolean splitter on some perturbed bracket models, whole or
-// re-cut) is refused instead of giving a wrong compliance or difference.
-bool volume_matches(const GridModel& m, const PartShape& part, std::string& message) {
+// re-cut) is refused instead of giving a wrong compliance or difference. `occt_volume`: OCCT's
+// volume of `part` if already measured (rebuild_grid_model's RecutReport), else 0.
+bool volume_matches(const GridModel& m, const PartShape& part, std::string& message, double occt_volume = 0) {
   double v = 0;
   for (const auto& e : m.elements)
     for (double w : e.rule.weights) v += w;
-  const double ref = occt_mass_properties(part).volume;
+  const double ref = occt_volume > 0 ? occt_volume : occt_mass_properties(part).volume;
   if (std::abs(v - ref) <= 1e-6 * std::abs(ref)) return true;
   message = "the grid cut's rules integrate a volume of " + std::to_string(v) + ", OCCT " + std::to_string(ref) +
             " (a cell piece was lost)";
@@ -60,14 +61,15 @@ std::vector<xfem::TractionCondition> tractions_on(const PartShape& part, const C
   return t;
 }
 
-ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& model, const ComplianceSetup& setup) {
+ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& model, const ComplianceSetup& setup,
+                         double occt_volume = 0) {
   ComplianceState s;
   s.part = std::move(part);
   if (!model.done) {
     s.message = "the grid cut failed: " + model.message;
     return s;
   }
-  if (!volume_matches(model, *s.part, s.message)) return s;
+  if (!volume_matches(model, *s.part, s.message, occt_volume)) return s;
   auto m = std::make_shared<GridModel>(std::move(model));
   s.tractions = tractions_on(*s.part, setup);
   PARAFAB_VERIFY(!(setup.merge.enabled && setup.hyperelastic), "ComplianceSetup: merge (Eq. 6.24 ties) with a hyperelastic law, whose solve has no ties");
@@ -240,7 +242,7 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
   RecutReport r;
   GridModel m = rebuild_grid_model(*part, *base.model, *base.part, kept_planes(setup.grid), &r);
   const int frozen = switches_from && m.done ? freeze_switches(m, *switches_from, setup.solver) : 0;
-  ComplianceState s = solve_on(std::move(part), std::move(m), setup);
+  ComplianceState s = solve_on(std::move(part), std::move(m), setup, r.occt_volume);  // OCCT's volume measured once
   s.recut_full = r.full;
   s.frozen_elements = frozen;
   if (frozen > 0 && s.model)
@@ -270,7 +272,7 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
     RecutReport r;
     models[side] = rebuild_grid_model(*parts[side], *at.model, *at.part, kept_planes(setup.grid), &r);
     std::string why;
-    if (!models[side].done || !volume_matches(models[side], *parts[side], why)) {
+    if (!models[side].done || !volume_matches(models[side], *parts[side], why, r.occt_volume)) {
       d.message += (side ? "minus side: " : "plus side: ") + (models[side].done ? why : models[side].message) + "; ";
       continue;
     }
