@@ -146,6 +146,9 @@ class Bounds(unittest.TestCase):
             with self.assertRaises(ValueError) as e:
                 parafab.optimize(HOUSING, bad, out_dir=d)
             self.assertIn("parameters[2].min", str(e.exception))
+            with self.assertRaises(ValueError) as e:
+                parafab.optimize(HOUSING, dict(job(iterations=0), estimate_multiplier="yes"), out_dir=d)
+            self.assertIn('estimate_multiplier must be true or false, got "yes"', str(e.exception))
 
 
 if __name__ == "__main__":
