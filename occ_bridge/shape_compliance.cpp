@@ -458,13 +458,15 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     if (const PoleBlock* b = sp.poles(face))
       for (int k = 0; k < b->size(); ++k) r.incomplete[b->offset + k] = 1;
   };
-  // Supports and loads (their own motion is not differentiated here), and the faces sharing an
-  // edge with one of them: when such a neighbour moves, the support's or load's patch gains or
-  // loses a strip along that edge.
+  // Supports and loads, and the faces sharing an edge with one of them: when such a neighbour
+  // moves, the support's or load's patch gains or loses a strip along that edge. A support's own
+  // motion is not differentiated here (flagged); a load's is, below, where its face is analytic
+  // and not also a support, and every face across its edges has a parameter block (whose normal
+  // gives the edge's slide) and carries no condition (a neighbouring support's or load's patch
+  // would gain a strip not computed here). Loads that fail this are flagged.
   std::set<int> conditioned;
   for (const auto& d : setup.dirichlet) conditioned.insert(d.face);
   for (const auto& t : at.tractions) conditioned.insert(t.face);
-  for (int f : conditioned) flag(f);
   // The local Nitsche penalty (xfem::LinearXfemOptions::NitschePenalty::Local) of a clamped cut
   // cell is κΛ, Λ the top eigenvalue of that cell's flux matrix B against its bulk stiffness Â,
   // so it changes with every face that cuts the cell: dΛ = vᵀdBv − Λ vᵀdÂv (xfem::LocalPenaltyParts),
@@ -477,17 +479,23 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   std::set<int> supports;
   for (const auto& d : setup.dirichlet) supports.insert(d.face);
   std::map<int, std::vector<int>> neighbours;  // support/load face → moving faces sharing an edge with it
+  std::map<int, std::vector<int>> load_sides;  // load face whose own motion is differentiated → faces across its edges
   std::vector<double> sign(part.face_count(), 0.0);
   {
     TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
     TopExp::MapShapesAndAncestors(part.shape, TopAbs_EDGE, TopAbs_FACE, edge_faces);
-    std::map<int, std::set<int>> sets;
+    std::map<int, std::set<int>> sets, sides;
+    std::set<int> load_refused;  // loads with a neighbour that has no block or carries a condition
     for (int i = 1; i <= edge_faces.Extent(); ++i) {
       std::vector<int> faces;
       for (TopTools_ListOfShape::Iterator it(edge_faces(i)); it.More(); it.Next()) faces.push_back(part.face_index(it.Value()));
       for (int g : faces)
         if (conditioned.count(g))
           for (int f : faces) {
+            if (f != g && !supports.count(g)) {
+              if (!sp.block(f) || conditioned.count(f)) load_refused.insert(g);
+              else sides[g].insert(f);
+            }
             if (f != g && sp.block(f) && !conditioned.count(f)) sets[g].insert(f);
             // A B-spline face next to a support or load: the poles whose basis functions reach
             // the shared edge move it (a strip term not computed here), flagged; the others
@@ -515,6 +523,10 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       neighbours[g].assign(fs.begin(), fs.end());
       for (int f : fs)
         if (sign[f] == 0) sign[f] = implicit_sign(part, f, *sp.block(f), p);
+    }
+    for (int g : conditioned) {
+      if (supports.count(g) || !sp.block(g) || load_refused.count(g)) flag(g);
+      else load_sides[g].assign(sides[g].begin(), sides[g].end());
     }
   }
   // Loads given as total forces: traction F/A, so a change of the face's area A changes it.
@@ -546,7 +558,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     std::vector<std::pair<int, double>> gradient;   // (entry of p, dC/dp contribution)
     std::vector<std::pair<int, double>> area;       // (load index · size(p) + entry, dA contribution)
     std::vector<std::pair<int, double>> work;       // (load index, ∫ u_h·t dA)
-    std::vector<int> tangent;                       // faces met at a tangent edge of a support/load
+    std::vector<int> tangent;                       // faces met at a tangent edge of a support/load (or a moving load's own)
     std::vector<int> penalised;                     // moving faces in a cut cell with a local penalty
     std::set<int> penalised_poles;                  // entries of p: poles moving such a cell's patch
     int points = 0, edge_points = 0;
@@ -593,11 +605,12 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     const double lambda = parts.flux_eigenvalue;
     std::map<int, double> d_lambda;
     for (const xfem::CutPatch& patch : el.subvolume->patches) {
-      if (penalised && !simple && !conditioned.count(patch.source_face) && sp.block(patch.source_face))
+      const bool own_load = load_sides.count(patch.source_face) > 0;  // a load whose own motion counts
+      if (penalised && !simple && (!conditioned.count(patch.source_face) || own_load) && sp.block(patch.source_face))
         out.penalised.push_back(patch.source_face);
-      // Bulk: Reynolds over the patches of moving faces (a support's or load's own motion is
-      // flagged above, so its patches are not integrated here).
-      const bool wanted = face_moves[patch.source_face] && !conditioned.count(patch.source_face);
+      // Bulk: Reynolds over the patches of moving faces (a support's own motion, and a load's
+      // that is flagged above, are not integrated here).
+      const bool wanted = face_moves[patch.source_face] && (!conditioned.count(patch.source_face) || own_load);
       const optimize::ParameterBlock* block = wanted ? sp.block(patch.source_face) : nullptr;
       if (block) {
         const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
@@ -675,6 +688,98 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         for (size_t q = 0; q < sr.points.size(); ++q)
           sum += sr.weights[q] * xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]).load;
         out.work.emplace_back(load, sum);
+      }
+      if (own_load && wanted && tc) {
+        // The load's own motion (the surface-integral form of Eq. 6.30): with uₕ frozen,
+        //   d/ds ∫_Γ uₕ·t dA = ∫_Γ (∂ₙ(uₕ·t) + κ uₕ·t) Vₙ dA + ∮_∂Γ uₕ·t α ds,
+        // κ = div n (implicit_mean_curvature), and along an edge where Γ slides on its neighbour
+        // F, α = −Vₙ (n_Γ·n_F)/(ν·n_F) across the edge (ν the outward conormal). C gains twice
+        // that (2uᵀdf); a total force's traction F/A also changes with dA = ∫ κ Vₙ dA + ∮ α ds.
+        const optimize::ParameterBlock& b = *sp.block(g);
+        const int nb = b.size();
+        std::vector<double> sum(nb, 0.0), dA(nb, 0.0);
+        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
+        out.points += static_cast<int>(sr.points.size());
+        for (size_t q = 0; q < sr.points.size(); ++q) {
+          const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, sr.points[q]);
+          const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+          const double gn = grad.norm();
+          if (!(gn > 0)) continue;
+          const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
+          const double kappa = s * optimize::implicit_mean_curvature(b.kind, p.data() + b.offset, sr.points[q]);
+          const xfem::BoundaryTermDensity d =
+              xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]);
+          const double density = 2 * (d.load_gradient.dot(sr.normals[q]) + kappa * d.load);
+          for (int k = 0; k < nb; ++k) {
+            const double vn = -s * phi.g[k] / gn;
+            sum[k] += sr.weights[q] * density * vn;
+            dA[k] += sr.weights[q] * kappa * vn;
+          }
+        }
+        // Its edges: loop segments on a face across one of Γ's edges (all three sample points on
+        // that face's surface).
+        const std::vector<int>& sides = load_sides.at(g);
+        bool tangent = false;
+        for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
+          for (const xfem::CurveSegment2& seg : loop) {
+            xfem::Vec3 X, Xu, Xv;
+            int on = -1;
+            for (int f : sides) {
+              const optimize::ParameterBlock& bf = *sp.block(f);
+              bool all = true;
+              for (const xfem::Vec2& uv : {seg.start, seg.position(0.5), seg.end}) {
+                patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+                const optimize::Dual phf = optimize::implicit_function(bf.kind, p.data() + bf.offset, X);
+                const int nf = bf.size();
+                const double gf = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).norm();
+                if (!(gf > 0) || std::abs(phf.v) / gf > 1e-6 * h) { all = false; break; }
+              }
+              if (all) { on = f; break; }
+            }
+            if (on < 0) continue;
+            const optimize::ParameterBlock& bf = *sp.block(on);
+            const int nf = bf.size();
+            for (size_t q = 0; q < gauss.points.size() && !tangent; ++q) {
+              const double t = gauss.points[q];
+              const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
+              patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+              const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
+              const double speed = dX.norm();
+              if (!(speed > 0)) continue;
+              const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
+              const xfem::Vec3 conormal = (dX / speed).cross(n_uv);  // outward: the region is on the left
+              const xfem::Vec3 n_g = patch.orientation * n_uv;
+              const optimize::Dual phf = optimize::implicit_function(bf.kind, p.data() + bf.offset, X);
+              const xfem::Vec3 n_f = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).normalized();
+              const double across = n_f.dot(conormal);
+              if (std::abs(across) < 0.2) {  // Γ runs (nearly) tangent into F: the slide is ill-posed
+                tangent = true;
+                break;
+              }
+              const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
+              const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+              const double gn = grad.norm();
+              if (!(gn > 0)) continue;
+              const double s = grad.dot(n_g) >= 0 ? 1.0 : -1.0;
+              const double ds = gauss.weights[q] * speed;
+              const xfem::BoundaryTermDensity d =
+                  xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, X, n_g);
+              for (int k = 0; k < nb; ++k) {
+                const double alpha = -(-s * phi.g[k] / gn) * n_g.dot(n_f) / across;
+                sum[k] += 2 * d.load * alpha * ds;
+                dA[k] += alpha * ds;
+              }
+              ++out.edge_points;
+            }
+          }
+        if (tangent) {
+          out.tangent.push_back(g);
+        } else {
+          for (int k = 0; k < nb; ++k) {
+            if (sum[k] != 0) out.gradient.emplace_back(b.offset + k, sum[k]);
+            if (spread_load && dA[k] != 0) out.area.emplace_back(load * np + b.offset + k, dA[k]);
+          }
+        }
       }
       const auto it = neighbours.find(g);
       // With the local penalty and Λ not simple the strips along a support's edges are not

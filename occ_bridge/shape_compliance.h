@@ -5,7 +5,7 @@
 // integrals over the moving patches, all of p at once; the default), and the SEMI-ANALYTIC one
 // (compliance_derivative: dK, df as central differences of the element matrices of only the
 // cells the perturbed model's re-cut changes, contracted with u), for entries the exact route
-// does not cover (a support's or load's own motion, a cone or plane running tangent into one).
+// does not cover (a support's own motion, a cone or plane running tangent into a support or load).
 #pragma once
 
 #include <functional>
@@ -114,9 +114,14 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// its topology (cut cells, subvolumes, aggregation, incompatible-mode switches) frozen at `at`,
 /// as in the semi-analytic route. Where F is tangent to Γ (|n_F·ν| < 0.2) and F is a cylinder,
 /// torus or sphere (a fillet running into a support, a ball end), the edge moves with F's spine
-/// (optimize::spine_point; the null-space completion of Fig. 6.12, case 2). Not included, flagged
-/// `incomplete`: a support's or load's own motion, a cone or plane tangent to a support or
-/// load, and the
+/// (optimize::spine_point; the null-space completion of Fig. 6.12, case 2). A load face's own
+/// motion (a bolt hole's radius under its bolt load): with uₕ frozen, 2 d/ds ∫_Γ uₕ·t dA =
+/// 2∫_Γ (∂ₙ(uₕ·t) + κ uₕ·t) Vₙ dA + 2∮ uₕ·t α ds, κ the mean curvature (sum) and α =
+/// −Vₙ (n_Γ·n_F)/(ν·n_F) where Γ's edge slides along its neighbour F, plus its bulk term and, for
+/// a total force, the traction's change through dA. Not included, flagged `incomplete`: a
+/// support's own motion; a load's where its face is free-form or also a support, shares an edge
+/// with a support, another load or a face without a parameter block, or runs tangent
+/// (|n_F·ν| < 0.2) into a neighbour; a cone or plane tangent to a support or load; and the
 /// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
 /// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)). With the local Nitsche penalty a
 /// clamped cut cell's penalty κΛ changes with every face that cuts it: C changes by

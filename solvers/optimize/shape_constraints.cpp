@@ -393,19 +393,17 @@ int add_rotation(ConstraintSystem& system, const ParameterBlock& a, const Parame
   return add_isometric_copy(system, a, b, Q, point - Q * point, p0, label);
 }
 
-Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
-  const int nb = block_size(kind), n = nb + 3;
-  if (kind == PrimitiveKind::plane) {  // φ = n·X − d in closed form: ∂φ/∂n = X, ∂φ/∂d = −1, ∇_X φ = n
-    // (the rule derivatives call this at every boundary quadrature point: the bridge sample's 640
-    // walls made the jet arithmetic below a quarter of an evaluation)
-    Dual phi(block[0] * X.x() + block[1] * X.y() + block[2] * X.z() - block[3], n);
-    phi.g << X.x(), X.y(), X.z(), -1.0, block[0], block[1], block[2];
-    return phi;
-  }
-  std::vector<Dual> x;
-  for (int k = 0; k < nb; ++k) x.push_back(Dual::variable(block[k], k, n));
-  const V3<Dual> P{Dual::variable(X.x(), nb, n), Dual::variable(X.y(), nb + 1, n), Dual::variable(X.z(), nb + 2, n)};
-  auto v = [&](int at) { return V3<Dual>{x[at], x[at + 1], x[at + 2]}; };
+namespace {
+
+// φ(X; block) as a jet over (block parameters, X) in that order, or over X alone (the block held).
+template <bool H>
+JetT<H> implicit_jet(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X, bool block_variables) {
+  using J = JetT<H>;
+  const int nb = block_size(kind), first = block_variables ? nb : 0, n = first + 3;
+  std::vector<J> x;
+  for (int k = 0; k < nb; ++k) x.push_back(block_variables ? J::variable(block[k], k, n) : J(block[k], n));
+  const V3<J> P{J::variable(X.x(), first, n), J::variable(X.y(), first + 1, n), J::variable(X.z(), first + 2, n)};
+  auto v = [&](int at) { return V3<J>{x[at], x[at + 1], x[at + 2]}; };
   switch (kind) {
     case PrimitiveKind::plane:
       return dot(v(0), P) - x[3];
@@ -414,23 +412,45 @@ Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vec
     default:
       break;
   }
-  const V3<Dual> w = P - v(0);
-  const Dual alen = norm(v(3));
-  const V3<Dual> a = (1.0 / alen) * v(3);
-  const Dual h = dot(w, a);
-  const Dual rho = norm(cross(w, a));
+  const V3<J> w = P - v(0);
+  const J alen = norm(v(3));
+  const V3<J> a = (1.0 / alen) * v(3);
+  const J h = dot(w, a);
+  const J rho = norm(cross(w, a));
   switch (kind) {
     case PrimitiveKind::cylinder:
       return rho - x[6];
     case PrimitiveKind::cone:
       return (rho - x[6] - h * tan(x[7])) * cos(x[7]);
     case PrimitiveKind::torus: {
-      const Dual q = rho - x[6];
+      const J q = rho - x[6];
       return sqrt(q * q + h * h) - x[7];
     }
     default:
       PARAFAB_INPUT_ERROR("implicit_function: no formula for " << to_string(kind));
   }
+}
+
+}  // namespace
+
+Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
+  if (kind == PrimitiveKind::plane) {  // φ = n·X − d in closed form: ∂φ/∂n = X, ∂φ/∂d = −1, ∇_X φ = n
+    // (the rule derivatives call this at every boundary quadrature point: the bridge sample's 640
+    // walls made the jet arithmetic a quarter of an evaluation)
+    Dual phi(block[0] * X.x() + block[1] * X.y() + block[2] * X.z() - block[3], 7);
+    phi.g << X.x(), X.y(), X.z(), -1.0, block[0], block[1], block[2];
+    return phi;
+  }
+  return implicit_jet<false>(kind, block, X, true);
+}
+
+double implicit_mean_curvature(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
+  if (kind == PrimitiveKind::plane) return 0;
+  const Jet phi = implicit_jet<true>(kind, block, X, false);
+  const double gn = phi.g.norm();
+  PARAFAB_VERIFY(gn > 0, "implicit_mean_curvature: ∇φ = 0 at (" << X.transpose() << ") of a " << to_string(kind));
+  const Eigen::Vector3d n = phi.g / gn;
+  return (phi.h.trace() - n.dot(phi.h * n)) / gn;
 }
 
 V3<Dual> spine_point(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {

@@ -122,6 +122,12 @@ int add_rotation(ConstraintSystem& system, const ParameterBlock& a, const Parame
 /// Returns its value with the gradient over (block parameters, X) in that order.
 Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
 
+/// The mean curvature (sum of the principal curvatures) of φ's zero set at X, div(∇φ/|∇φ|) =
+/// (Δφ − n̂ᵀ∇²φ n̂)/|∇φ| from φ's exact spatial Hessian, for the normal along ∇φ (a cylinder of
+/// radius r: 1/r, a sphere: 2/r, a plane: 0). A surface integral over the face then changes by
+/// ∫ κ g Vₙ dA (plus ∂ₙg and edge terms) when the face moves by Vₙ along that normal.
+double implicit_mean_curvature(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
+
 /// The point S of a swept primitive's spine nearest X, with its gradient over the block's
 /// parameters (X held): cylinder, the axis line (S = c + a a·(X − c)/|a|²); torus, the centre
 /// circle (S = c + R ρ̂, ρ̂ the unit radial direction of X); sphere, the centre. Where such a face

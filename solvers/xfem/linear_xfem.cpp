@@ -697,7 +697,10 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
   Eigen::Matrix<double, NN, 3> G;
   shape<NN>(el.box, X, N, G);
   const Vec3 u = value_matrix<NN>(N) * ue;
-  if (tc) d.load += u.dot(tc->traction);
+  if (tc) {
+    d.load += u.dot(tc->traction);
+    for (int a = 0; a < NN; ++a) d.load_gradient += G.row(a).transpose() * ue.segment<3>(3 * a).dot(tc->traction);
+  }
   if (dc) {
     // The terms of element_system_n: K ∋ penalty NᵀMN − NᵀMT − TᵀMN, f ∋ penalty NᵀMg − TᵀMg.
     const Vec3 sigma_n = traction_operator(n) * elasticity(material) * (strain_matrix<NN>(G) * ue);

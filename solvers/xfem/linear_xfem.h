@@ -292,10 +292,13 @@ class BulkShapeDensity {
 /// by these densities times a ds. `dirichlet` and `traction` may be null.
 /// With the local penalty the element's penalty must be given (`local_penalty`, from
 /// local_penalty_parts). `flux` = |M σ(u)n|², the density of uᵀBu (B of the local penalty).
+/// `load_gradient` = ∇_X(uₕ·t) at X (zero without a traction): a load face's own motion moves
+/// its patch through the element's field.
 struct BoundaryTermDensity {
   double stiffness = 0;
   double load = 0;
   double flux = 0;
+  Vec3 load_gradient = Vec3::Zero();
 };
 BoundaryTermDensity boundary_term_density(const GridElement& element, const Eigen::VectorXd& ue,
                                           const ElasticMaterial& material, const LinearXfemOptions& options,

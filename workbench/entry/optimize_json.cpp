@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <set>
 
 #include <tbb/global_control.h>
 
@@ -381,12 +382,20 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     occ::objective_from_moments(o.objective, m, &g);
   }
 
-  // Fixed faces: supports and loads of the simulation job, and "fixed_faces".
+  // Fixed faces: supports and loads of the simulation job, and "fixed_faces". A support or load
+  // whose face the "parameters" list names moves with its face (a bolt hole's radius under its
+  // bolt load); "auto" keeps them fixed.
+  std::set<int> named_faces;
+  if (job.contains("parameters") && job["parameters"].is_array())
+    for (size_t i = 0; i < job["parameters"].size(); ++i)
+      named_faces.insert(parameter_ref(named, job["parameters"][i], "parameters[" + std::to_string(i) + "]").face);
   for (const char* key : {"supports", "loads"}) {
     const json list = job.value(key, json::array());
     if (!list.is_array()) PARAFAB_INPUT_ERROR(key << " must be a list");
-    for (size_t i = 0; i < list.size(); ++i)
-      o.parameterization.fixed_faces.push_back(face_index(named, list[i], std::string(key) + "[" + std::to_string(i) + "]"));
+    for (size_t i = 0; i < list.size(); ++i) {
+      const int face = face_index(named, list[i], std::string(key) + "[" + std::to_string(i) + "]");
+      if (!named_faces.count(face)) o.parameterization.fixed_faces.push_back(face);
+    }
   }
   const json fixed = job.value("fixed_faces", json::array());
   for (size_t i = 0; i < fixed.size(); ++i) {
@@ -459,7 +468,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       const int idx = occ::parameter_index(sp, r.face, r.parameter);
       if (!(sp.lower[idx] < sp.upper[idx]))
         PARAFAB_INPUT_ERROR("parameters[" << i << "]: face " << r.face
-                                          << " is fixed (a support, a load, fixed_faces, or tangent to a free-form face)");
+                                          << " is fixed (fixed_faces, a face without parameters, or tangent to a free-form face)");
       o.design.push_back(idx);
       // Optional absolute bounds on this entry ("min", "max"), e.g. a fin that must stay castable.
       const std::string path = "parameters[" + std::to_string(i) + "]";

@@ -162,6 +162,25 @@ TEST(ShapeConstraints, ImplicitFunctionGradientsMatchCentralDifferences) {
   EXPECT_NEAR(implicit_function(PrimitiveKind::cylinder, cyl, Eigen::Vector3d(3, 4, 7)).v, 3.0, 1e-15);
 }
 
+// The mean curvature (sum of the principal curvatures, normal along ∇φ) that the load face's own
+// motion uses (occ::compliance_gradient): closed forms on each primitive's surface.
+TEST(ShapeConstraints, MeanCurvatureOfTheZeroSetsIsTheClosedForm) {
+  const double plane[] = {0, 0.6, 0.8, 2};
+  EXPECT_EQ(implicit_mean_curvature(PrimitiveKind::plane, plane, Eigen::Vector3d(1, 0, 2.5)), 0.0);
+  const double cyl[] = {0, 0, 0, 0, 0, 3, 2};  // about z, r = 2 (an axis of length 3)
+  EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::cylinder, cyl, Eigen::Vector3d(1.2, 1.6, 5)), 0.5, 1e-14);
+  const double sph[] = {1, 2, 3, 2};
+  EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::sphere, sph, Eigen::Vector3d(1, 2, 5)), 1.0, 1e-14);
+  const double tor[] = {0, 0, 0, 0, 0, 1, 4, 1};  // R = 4, r = 1: 1/r ± 1/(R ± r) at the equators
+  EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::torus, tor, Eigen::Vector3d(5, 0, 0)), 1 + 1.0 / 5, 1e-14);
+  EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::torus, tor, Eigen::Vector3d(0, -3, 0)), 1 - 1.0 / 3, 1e-14);
+  const double cone[] = {0, 0, 0, 0, 0, 1, 2, 0.3};  // r = 2 at h = 0, half-angle 0.3: cos α / ρ
+  EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::cone, cone, Eigen::Vector3d(0, 2, 0)), std::cos(0.3) / 2, 1e-14);
+  const double h = 1.5;  // higher up the cone: ρ = r + h tan α
+  EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::cone, cone, Eigen::Vector3d(2 + h * std::tan(0.3), 0, h)),
+              std::cos(0.3) / (2 + h * std::tan(0.3)), 1e-14);
+}
+
 TEST(ShapeConstraints, SpinePointsAreTheClosedFormsAndTheirGradientsMatchCentralDifferences) {
   // Closed forms: cylinder about z through (1, 2, 0): S = (1, 2, X.z); torus about z centred at
   // (1, 2, 3), R = 4: S = (1, 2, 3) + 4 (X − c)_⊥ / |(X − c)_⊥|; sphere: the centre.
