@@ -705,7 +705,7 @@ std::string self_interference(const PartShape& part) {
     TopTools_IndexedMapOfShape vs, es;
     TopExp::MapShapes(face, TopAbs_VERTEX, vs);
     TopExp::MapShapes(face, TopAbs_EDGE, es);
-    double tol = BRep_Tool::Tolerance(TopoDS::Face(face));
+    double tol = BRep_Tool::Tolerance(face);
     for (int i = 1; i <= vs.Extent(); ++i) {
       vertices[f].push_back(part.vertices.FindIndex(vs(i)));
       tol = std::max(tol, BRep_Tool::Tolerance(TopoDS::Vertex(vs(i))));

@@ -455,4 +455,15 @@ TEST(Lbfgs, BacktrackingInterpolatesTheRejectedStep) {
   const double t = (1 + 1e8) / (1 + 1e12);
   EXPECT_NEAR(r.x[0], 1 - t, 1e-12);
   EXPECT_NEAR(r.x[1], 1 - 1e4 * t, 1e-12);
+  // Halving (the rule until 2026-12-01) on the same line, the same Armijo test: the trials
+  // 5e-4, 2.5e-4, 1.25e-4, the third accepted, 25 % beyond t.
+  const Eigen::Vector2d x0(1, 1), g0(1, 1e4);
+  double f0 = 0, fa = 0;
+  Eigen::VectorXd scratch;
+  stiff(x0, f0, scratch);
+  double alpha = o.first_step / g0.lpNorm<Eigen::Infinity>();
+  int trials = 1;
+  for (; stiff(x0 - alpha * g0, fa, scratch) && fa > f0 - o.armijo * alpha * g0.squaredNorm(); ++trials) alpha *= 0.5;
+  EXPECT_EQ(trials, 3);
+  EXPECT_NEAR(alpha / t, 1.25, 1e-4);
 }
