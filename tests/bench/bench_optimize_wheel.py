@@ -7,11 +7,13 @@ offset reached; writes DIR/optimize_wheel.json and the run's history.png/optimiz
 
 --compliance: the thesis's co-optimization, balance + compliance as a normalized sum (both
 terms weight 1, each divided by its start value). The wheel is held at its hub hole and
-loaded by 2 kN on its rim (aluminium, 16 cells), so those two faces are fixed: 12 design
-variables (spoke planes, hub and rim-inside radii). The written part is simulated afresh on a
-finer grid (24 cells) before and after, so the compliance change is not the optimizer's own
-number. Writes DIR/optimize_wheel_compliance.json.
-Usage: bench_optimize_wheel.py [--quick] [--compliance [--gradient exact|semi-analytic]] [--out DIR]"""
+loaded by 2 kN on its rim (aluminium, 16 cells). All 14 design variables, as in the thesis: the
+support moves with the hub hole's radius and the load with the rim's (the rim's derivative is
+exact, the hub hole's semi-analytic). --fixed-conditions keeps those two faces fixed (12 design
+variables, the run before 2026-12-02). The written part is simulated afresh on a finer grid
+(24 cells) before and after, so the compliance change is not the optimizer's own number. Writes
+DIR/optimize_wheel_compliance.json.
+Usage: bench_optimize_wheel.py [--quick] [--compliance [--gradient exact|semi-analytic] [--fixed-conditions]] [--out DIR]"""
 import argparse
 import json
 import math
@@ -30,6 +32,8 @@ ap.add_argument("--quick", action="store_true")
 ap.add_argument("--compliance", action="store_true")
 ap.add_argument("--gradient", choices=("exact", "semi-analytic"), default="exact",
                 help="route of the compliance term's gradient (objective.gradient)")
+ap.add_argument("--fixed-conditions", action="store_true",
+                help="with --compliance: keep the supported hub hole and the loaded rim fixed (12 variables)")
 ap.add_argument("--out", default=".")
 args = ap.parse_args()
 os.makedirs(args.out, exist_ok=True)
@@ -43,7 +47,7 @@ for f in faces:
 # Radii: hub hole (5) and rim outside (50) are one face each; the hub (12) and the rim inside
 # (42) are split by the spokes into arcs, tied into one design variable each.
 ties = []
-for r in ((12, 42) if args.compliance else (5, 12, 42, 50)):
+for r in ((12, 42) if args.compliance and args.fixed_conditions else (5, 12, 42, 50)):
     group = [{"face": f["index"], "parameter": "radius"} for f in faces
              if f["type"] == "cylinder" and abs(f["parameters"]["r"] - r) < 1e-6]
     params.append(group[0])
@@ -58,6 +62,8 @@ SIM = {"material": {"E": 70000, "nu": 0.33, "density": 2.7e-6}, "element": "hex8
        "loads": [{"face": next(f["index"] for f in faces if f["type"] == "cylinder" and abs(f["parameters"]["r"] - 50) < 1e-6),
                   "force": [0, -2000, 0]}]}
 name = "optimize_wheel_compliance" if args.compliance else "optimize_wheel"
+if args.compliance and args.fixed_conditions:
+    name += "_fixed_conditions"
 if args.compliance:
     job.update(SIM)
     job["grid"] = {"cells": 16}
@@ -98,7 +104,9 @@ if args.compliance:
     summary["exact_derivatives"] = h.get("exact_derivatives", 0)
     summary["semi_analytic_derivatives"] = h.get("semi_analytic_derivatives", 0)
     summary["initial_offset_mm"], summary["final_offset_mm"] = e0, e1  # (the history's objective is the sum)
-    summary["thesis"]["note"] = "thesis: 14 parameters, wheel 40 cm; here 12 (hub hole and rim carry support and load)"
+    summary["thesis"]["note"] = ("thesis: 14 parameters, wheel 40 cm; here 12 (hub hole and rim, which carry support "
+                                 "and load, fixed)" if args.fixed_conditions else
+                                 "thesis: 14 parameters, wheel 40 cm; here 14 (support and load move with their faces)")
 with open(os.path.join(args.out, name + ".json"), "w") as f:
     json.dump({"summary": summary, "history": h}, f, indent=2)
 print(json.dumps(summary, indent=2))

@@ -50,7 +50,8 @@ class Objective(object):
     (objective.density), "material", "supports", "loads" (simulation-job format), "failure"
     (objective.yield_stress, exponent, normalize), "target" (objective.face: the matched face,
     option ``target_face``; objective.target only when the option ``target_surface`` is given).
-    Supports and loads are always sent when given (the engine keeps their faces fixed).
+    Supports and loads are always sent when given. The engine keeps their faces fixed unless a
+    picked parameter is on one (then the support or load moves with its face).
     """
 
     def __init__(self, type, label, tooltip, uses=(), terms=()):
