@@ -6,7 +6,7 @@ radius, axis, ...), checkable as design parameters with optional Min / Max bound
 a cell), or "all parameters" (``"auto"``); the
 objective (from :data:`optimize_feature.OBJECTIVES`, with its axis or density, or for "Target
 shape" the matched face: a combo of the solid's faces or the face selected in the 3D view);
-supports and loads (their faces stay fixed); iterations, a volume bound and mass bounds (max / min in kg, the
+supports and loads (their faces stay fixed unless a checked parameter is on one: then it moves with its face); iterations, a volume bound and mass bounds (max / min in kg, the
 start mass density × ``Shape.Volume`` shown beside them, crossing bounds or a bound without a
 density named in the panel). **Run** runs ``parafab optimize``
 in a QProcess (:class:`optimize_runner.OptimizeRun`): the progress bar follows its iterates,
@@ -218,7 +218,7 @@ class OptimizeTaskPanel(object):
         self.objective.currentIndexChanged.connect(self._objective_changed)
         layout.addWidget(objective)
 
-        loads = QtGui.QGroupBox("Supports and loads (their faces stay fixed)")
+        loads = QtGui.QGroupBox("Supports and loads (fixed faces unless a checked parameter is on one)")
         lay = QtGui.QVBoxLayout(loads)
         self.supports = analysis_panel.FaceList("Supports (fixed faces)", [], [self.obj])
         self.loads = analysis_panel.FaceList("Loaded faces", [], [self.obj])
