@@ -105,7 +105,7 @@ void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused
 GridModel build_grid_model(const PartShape& part, const GridModelOptions& o) {
   GridModel m;
   const auto t0 = std::chrono::steady_clock::now();
-  m.cut = std::make_unique<GridCut>(cut_by_grid(part, o.grid));
+  m.cut = std::make_shared<GridCut>(cut_by_grid(part, o.grid));
   m.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!m.cut->done) {
     m.message = m.cut->message;
@@ -160,7 +160,7 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
   RecutReport& r = report ? *report : local;
   GridModel m;
   const auto t0 = std::chrono::steady_clock::now();
-  m.cut = std::make_unique<GridCut>(recut_by_grid(part, *old.cut, old_part, o.grid, &r));
+  m.cut = std::make_shared<GridCut>(recut_by_grid(part, *old.cut, old_part, o.grid, &r));
   m.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!m.cut->done) {
     m.message = m.cut->message;

@@ -34,7 +34,9 @@ struct RuleFailure {
 struct GridModel {
   bool done = false;
   std::string message;
-  std::unique_ptr<GridCut> cut;             ///< owns the subvolumes the elements point to
+  /// Owns the subvolumes the elements point to; shared by copies of the model (a copy may change
+  /// its elements' switches, never the cut).
+  std::shared_ptr<GridCut> cut;
   std::vector<xfem::GridElement> elements;  ///< interior cells first, then cut subvolumes
   std::vector<std::array<int, 2>> adjacent; ///< element pairs sharing a grid face
   std::vector<RuleFailure> rule_failures;   ///< ordered by subvolume

@@ -42,11 +42,12 @@ namespace {
 // lost a piece (seen with the Boolean splitter on some perturbed bracket models, whole or
 // re-cut) is refused instead of giving a wrong compliance or difference. `occt_volume`: OCCT's
 // volume of `part` if already measured (rebuild_grid_model's RecutReport), else 0.
-bool volume_matches(const GridModel& m, const PartShape& part, std::string& message, double occt_volume = 0) {
+bool volume_matches(const GridModel& m, const PartShape& part, std::string& message, double& occt_volume) {
   double v = 0;
   for (const auto& e : m.elements)
     for (double w : e.rule.weights) v += w;
-  const double ref = occt_volume > 0 ? occt_volume : occt_mass_properties(part).volume;
+  if (!(occt_volume > 0)) occt_volume = occt_mass_properties(part).volume;
+  const double ref = occt_volume;
   if (std::abs(v - ref) <= 1e-6 * std::abs(ref)) return true;
   message = "the grid cut's rules integrate a volume of " + std::to_string(v) + ", OCCT " + std::to_string(ref) +
             " (a cell piece was lost)";
@@ -70,6 +71,7 @@ ComplianceState solve_on(std::shared_ptr<const PartShape> part, GridModel&& mode
     return s;
   }
   if (!volume_matches(model, *s.part, s.message, occt_volume)) return s;
+  s.occt_volume = occt_volume;
   auto m = std::make_shared<GridModel>(std::move(model));
   s.tractions = tractions_on(*s.part, setup);
   PARAFAB_VERIFY(!(setup.merge.enabled && setup.hyperelastic), "ComplianceSetup: merge (Eq. 6.24 ties) with a hyperelastic law, whose solve has no ties");
@@ -247,6 +249,15 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
   s.frozen_elements = frozen;
   if (frozen > 0 && s.model)
     s.switches_own = xfem::switches_match_own_fractions(s.model->elements, s.model->adjacent, setup.solver);
+  return s;
+}
+
+ComplianceState compliance_own_switches(const ComplianceState& state, const ComplianceSetup& setup) {
+  PARAFAB_VERIFY(state.done && state.model, "compliance_own_switches: the state is not solved");
+  GridModel m = *state.model;
+  for (xfem::GridElement& el : m.elements) el.switch_fraction = -1;
+  ComplianceState s = solve_on(state.part, std::move(m), setup, state.occt_volume);
+  s.recut_full = state.recut_full;
   return s;
 }
 

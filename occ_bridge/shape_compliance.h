@@ -55,6 +55,7 @@ struct ComplianceState {
   xfem::LinearXfemResult solution;
   double compliance = 0;
   bool recut_full = false;    ///< the re-cut fell back to a whole cut (same grid planes)
+  double occt_volume = 0;     ///< OCCT's volume of `part`, against which the cut's rules were checked
   /// compliance_at with `switches_from`: elements whose discrete switches were frozen there, and
   /// whether the switches came out as the elements' own fractions would set them (false: this
   /// model's objective differs from its own-switch value; the optimizer then re-evaluates it).
@@ -79,6 +80,12 @@ ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const Co
 /// differs from its match's by more than half the aggregation threshold.
 ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
                               const ComplianceSetup& setup, const GridModel* switches_from = nullptr);
+
+/// `state` (a compliance_at with `switches_from`) solved again with every element on its own
+/// switches. The re-cut does not depend on the switches, so this is compliance_at of the same
+/// part from the same base without `switches_from`, less the re-cut and OCCT's volume: the
+/// optimizer's switch refresh of an accepted point.
+ComplianceState compliance_own_switches(const ComplianceState& state, const ComplianceSetup& setup);
 
 struct ComplianceDerivative {
   bool done = false;

@@ -117,6 +117,19 @@ struct Evaluation {
   /// its switches were its own.
   std::shared_ptr<const GridModel> model;
   bool switches_own = true;
+  /// What a switch refresh of this point re-solves (shape_compliance.h, compliance_own_switches)
+  /// and reuses, none of which depends on the switches: the projection, the written part, its
+  /// moments and dp⊥/dp̃, and the state (the factorization is dropped when the next evaluation
+  /// replaces `last`).
+  struct Geometry {
+    Eigen::VectorXd target;  ///< p̃: the design written into the anchor
+    optimize::ProjectionResult proj;
+    ModifyResult mod;
+    MomentDerivatives md;
+    optimize::ProjectionDerivative D;
+  };
+  std::shared_ptr<const Geometry> geometry;
+  std::shared_ptr<const ComplianceState> state;
 };
 
 }  // namespace
@@ -342,24 +355,39 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     }
     grad = e.gradient + dpsi_dV * e.volume_gradient;
   };
+  // Set by the switch refresh (below): the frozen evaluation of the same point, whose geometry
+  // and re-cut are re-solved with the elements' own switches.
+  const Evaluation* refresh_of = nullptr;
   auto evaluate = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
     ++result.evaluations;
+    const Evaluation* reuse = refresh_of;
+    refresh_of = nullptr;
     last = Evaluation{};
-    Eigen::VectorXd target = anchor;
-    for (int k = 0; k < nd; ++k) target[design[k]] = x[k];
-    const optimize::ProjectionResult proj =
-        optimize::project(sp.constraints, target, warm_p, sp.lower, sp.upper, {}, popt);  // primal warm start
-    if (!proj.done) {
-      ++result.failed_projections;
-      return false;  // never evaluate an invalid model
+    std::shared_ptr<const Evaluation::Geometry> geometry = reuse ? reuse->geometry : nullptr;
+    if (!geometry) {
+      auto g = std::make_shared<Evaluation::Geometry>();
+      g->target = anchor;
+      for (int k = 0; k < nd; ++k) g->target[design[k]] = x[k];
+      g->proj = optimize::project(sp.constraints, g->target, warm_p, sp.lower, sp.upper, {}, popt);  // primal warm start
+      if (!g->proj.done) {
+        ++result.failed_projections;
+        return false;  // never evaluate an invalid model
+      }
+      g->mod = modify_part(part, model, sp, g->proj.p);
+      if (!g->mod.done) {
+        if (result.invalid_models++ == 0) result.notes.push_back("first invalid B-rep update: " + g->mod.message);
+        return false;
+      }
+      g->md = moment_derivatives(*g->mod.part, sp, g->proj.p, options.quadrature);
+      g->D = optimize::projection_derivative(sp.constraints, g->proj, sp.lower, sp.upper, popt.weights);
+      geometry = std::move(g);
     }
-    const ModifyResult mod = modify_part(part, model, sp, proj.p);
-    if (!mod.done) {
-      if (result.invalid_models++ == 0) result.notes.push_back("first invalid B-rep update: " + mod.message);
-      return false;
-    }
-    const MomentDerivatives md = moment_derivatives(*mod.part, sp, proj.p, options.quadrature);
-    const optimize::ProjectionDerivative D = optimize::projection_derivative(sp.constraints, proj, sp.lower, sp.upper, popt.weights);
+    last.geometry = geometry;
+    const Eigen::VectorXd& target = geometry->target;
+    const optimize::ProjectionResult& proj = geometry->proj;
+    const ModifyResult& mod = geometry->mod;
+    const MomentDerivatives& md = geometry->md;
+    const optimize::ProjectionDerivative& D = geometry->D;
     Eigen::Matrix<double, 10, 1> dfdm = Eigen::Matrix<double, 10, 1>::Zero();
     double f = 0;
     Eigen::VectorXd compliance_gradient;
@@ -372,6 +400,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         state = std::make_shared<ComplianceState>(compliance_start(mod.part, *options.compliance));
         if (!state->done) PARAFAB_INPUT_ERROR("compliance at the start: " << state->message);
         base_state = state;
+      } else if (reuse && reuse->state) {
+        state = std::make_shared<ComplianceState>(compliance_own_switches(*reuse->state, *options.compliance));
+        if (!state->done) {
+          if (result.invalid_models++ == 0) result.notes.push_back("first failed compliance evaluation: " + state->message);
+          return false;
+        }
       } else {
         state = std::make_shared<ComplianceState>(compliance_at(mod.part, *base_state, *options.compliance,
                                                                 options.freeze_switches ? line_start.get() : nullptr));
@@ -412,6 +446,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       }
       last.model = state->model;
       last.switches_own = state->switches_own;
+      last.state = state;
       normalize_terms(md.moments, state->compliance, fv.objective, tv.objective);
       const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure"), tw = term_weight(spec, "target");
       f = cw * state->compliance + fw * fv.objective + tw * tv.objective + objective_from_moments(spec, md.moments, &dfdm);
@@ -524,6 +559,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     const size_t notes = result.notes.size();
     const std::shared_ptr<const GridModel> keep = line_start;
     line_start.reset();
+    refresh_of = &frozen;
     const bool ok = evaluate(x, F, grad) && std::isfinite(F);
     line_start = keep;
     if (!ok) {  // keep the frozen value (the model is valid: it was just evaluated)
