@@ -433,6 +433,15 @@ TEST(ShapeCompliance, FrozenSwitchesRemoveTheAggregationJumpAlongALine) {
   // Measured: jump 3.9e-4 (9.4e-6 relative) against slope x interval 4.0e-8; frozen 1.003 times that.
   EXPECT_GT(jump, 1000 * std::abs(slope) * (b - a));
   EXPECT_LT(frozen_step, 1.5 * std::abs(slope) * (b - a));
+  // The optimizer's switch refresh (compliance_own_switches) of the frozen state at b is the
+  // own-switch state there, to the last bit, on the frozen state's cut (not cut again).
+  const ComplianceState rb = compliance_own_switches(fb, c.setup);
+  ASSERT_TRUE(rb.done) << rb.message;
+  EXPECT_TRUE(rb.switches_own);
+  EXPECT_EQ(rb.compliance, sb.compliance);
+  EXPECT_EQ(rb.solution.aggregated_nodes, sb.solution.aggregated_nodes);
+  EXPECT_NE(rb.compliance, fb.compliance);
+  EXPECT_EQ(rb.model->cut.get(), fb.model->cut.get());
 }
 
 // Known failure in the default basis (hex8 with incompatible modes, merge off): where a cut
