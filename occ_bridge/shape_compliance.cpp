@@ -252,13 +252,13 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
   return s;
 }
 
-ComplianceState compliance_own_switches(const ComplianceState& state, const ComplianceSetup& setup) {
-  PARAFAB_VERIFY(state.done && state.model, "compliance_own_switches: the state is not solved");
-  GridModel m = *state.model;
+ComplianceState compliance_own_switches(std::shared_ptr<const PartShape> part, const GridModel& model,
+                                        double occt_volume, const ComplianceSetup& setup) {
+  PARAFAB_VERIFY(part && model.done && occt_volume > 0,
+                 "compliance_own_switches: needs a solved state's part, model and OCCT volume (volume " << occt_volume << ")");
+  GridModel m = model;
   for (xfem::GridElement& el : m.elements) el.switch_fraction = -1;
-  ComplianceState s = solve_on(state.part, std::move(m), setup, state.occt_volume);
-  s.recut_full = state.recut_full;
-  return s;
+  return solve_on(std::move(part), std::move(m), setup, occt_volume);
 }
 
 ComplianceDerivative element_difference(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
@@ -709,8 +709,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         const optimize::ParameterBlock& b = *sp.block(g);
         const int nb = b.size();
         std::vector<double> sum(nb, 0.0), dA(nb, 0.0);
-        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
-        out.points += static_cast<int>(sr.points.size());
+        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);  // its points are counted by the bulk term
         for (size_t q = 0; q < sr.points.size(); ++q) {
           const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, sr.points[q]);
           const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
@@ -728,7 +727,8 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           }
         }
         // Its edges: loop segments on a face across one of Γ's edges (all three sample points on
-        // that face's surface).
+        // that face's surface, within 1e-6·h). The others lie on cell walls or on Γ's own seam,
+        // whose terms cancel between their two sides.
         const std::vector<int>& sides = load_sides.at(g);
         bool tangent = false;
         for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))

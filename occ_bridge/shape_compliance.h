@@ -81,11 +81,16 @@ ComplianceState compliance_start(std::shared_ptr<const PartShape> part, const Co
 ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const ComplianceState& base,
                               const ComplianceSetup& setup, const GridModel* switches_from = nullptr);
 
-/// `state` (a compliance_at with `switches_from`) solved again with every element on its own
-/// switches. The re-cut does not depend on the switches, so this is compliance_at of the same
-/// part from the same base without `switches_from`, less the re-cut and OCCT's volume: the
-/// optimizer's switch refresh of an accepted point.
-ComplianceState compliance_own_switches(const ComplianceState& state, const ComplianceSetup& setup);
+/// `model` (of a compliance_at with `switches_from`: the state's part, model and OCCT volume)
+/// solved again with every element on its own switches. The re-cut does not depend on the
+/// switches, so this is compliance_at of the same part from the same base without
+/// `switches_from`, less the re-cut and OCCT's volume: the optimizer's switch refresh of an
+/// accepted point. The copy shares the model's cut.
+ComplianceState compliance_own_switches(std::shared_ptr<const PartShape> part, const GridModel& model,
+                                        double occt_volume, const ComplianceSetup& setup);
+inline ComplianceState compliance_own_switches(const ComplianceState& state, const ComplianceSetup& setup) {
+  return compliance_own_switches(state.part, *state.model, state.occt_volume, setup);
+}
 
 struct ComplianceDerivative {
   bool done = false;

@@ -117,10 +117,10 @@ struct Evaluation {
   /// its switches were its own.
   std::shared_ptr<const GridModel> model;
   bool switches_own = true;
-  /// What a switch refresh of this point re-solves (shape_compliance.h, compliance_own_switches)
-  /// and reuses, none of which depends on the switches: the projection, the written part, its
-  /// moments and dp⊥/dp̃, and the state (the factorization is dropped when the next evaluation
-  /// replaces `last`).
+  /// What a switch refresh of this point reuses, none of which depends on the switches: the
+  /// projection, the written part, its moments and dp⊥/dp̃, and (with `model`) the re-cut and
+  /// OCCT's volume of the part, which shape_compliance.h's compliance_own_switches re-solves.
+  /// The factorization is not kept.
   struct Geometry {
     Eigen::VectorXd target;  ///< p̃: the design written into the anchor
     optimize::ProjectionResult proj;
@@ -129,7 +129,7 @@ struct Evaluation {
     optimize::ProjectionDerivative D;
   };
   std::shared_ptr<const Geometry> geometry;
-  std::shared_ptr<const ComplianceState> state;
+  double occt_volume = 0;
 };
 
 }  // namespace
@@ -400,8 +400,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         state = std::make_shared<ComplianceState>(compliance_start(mod.part, *options.compliance));
         if (!state->done) PARAFAB_INPUT_ERROR("compliance at the start: " << state->message);
         base_state = state;
-      } else if (reuse && reuse->state) {
-        state = std::make_shared<ComplianceState>(compliance_own_switches(*reuse->state, *options.compliance));
+      } else if (reuse && reuse->model) {
+        state = std::make_shared<ComplianceState>(
+            compliance_own_switches(mod.part, *reuse->model, reuse->occt_volume, *options.compliance));
         if (!state->done) {
           if (result.invalid_models++ == 0) result.notes.push_back("first failed compliance evaluation: " + state->message);
           return false;
@@ -446,7 +447,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       }
       last.model = state->model;
       last.switches_own = state->switches_own;
-      last.state = state;
+      last.occt_volume = state->occt_volume;
       normalize_terms(md.moments, state->compliance, fv.objective, tv.objective);
       const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure"), tw = term_weight(spec, "target");
       f = cw * state->compliance + fw * fv.objective + tw * tv.objective + objective_from_moments(spec, md.moments, &dfdm);
@@ -575,6 +576,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   int outer_index = 0, iteration_count = 0;
   auto on_iterate = [&](const optimize::LbfgsIterate& it) {
     accepted = last;
+    accepted.geometry.reset();  // dp⊥/dp̃ is dense: not kept through the next line search
     line_start = accepted.model;
     // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
     if (it.iteration == 0 && outer_index > 0) return true;

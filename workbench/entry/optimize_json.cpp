@@ -385,10 +385,21 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   // Fixed faces: supports and loads of the simulation job, and "fixed_faces". A support or load
   // whose face the "parameters" list names moves with its face (a bolt hole's radius under its
   // bolt load); "auto" keeps them fixed.
+  // The faces of a tie group with a named face move with it (split arcs of one hole, say).
   std::set<int> named_faces;
-  if (job.contains("parameters") && job["parameters"].is_array())
+  if (job.contains("parameters") && job["parameters"].is_array()) {
     for (size_t i = 0; i < job["parameters"].size(); ++i)
       named_faces.insert(parameter_ref(named, job["parameters"][i], "parameters[" + std::to_string(i) + "]").face);
+    const json groups = job.value("ties", json::array());
+    for (size_t i = 0; groups.is_array() && i < groups.size(); ++i) {
+      if (!groups[i].is_array()) continue;  // reported where the ties are read
+      std::vector<int> faces;
+      for (size_t k = 0; k < groups[i].size(); ++k)
+        faces.push_back(parameter_ref(named, groups[i][k], "ties[" + std::to_string(i) + "][" + std::to_string(k) + "]").face);
+      if (std::any_of(faces.begin(), faces.end(), [&](int f) { return named_faces.count(f) > 0; }))
+        named_faces.insert(faces.begin(), faces.end());
+    }
+  }
   for (const char* key : {"supports", "loads"}) {
     const json list = job.value(key, json::array());
     if (!list.is_array()) PARAFAB_INPUT_ERROR(key << " must be a list");
