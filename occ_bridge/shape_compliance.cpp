@@ -599,6 +599,25 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
                                        setup.solver, it->second.second, points)
         .density;
   };
+  // The face of `faces` on whose surface a patch's loop segment lies (its ends and middle within
+  // `tol` of the face's implicit zero set), or −1.
+  auto segment_face = [&](const xfem::CutPatch& patch, const xfem::CurveSegment2& seg, const std::vector<int>& faces,
+                          double tol) {
+    for (int f : faces) {
+      const optimize::ParameterBlock& b = *sp.block(f);
+      const int nb = b.size();
+      bool all = true;
+      for (const xfem::Vec2& uv : {seg.start, seg.position(0.5), seg.end}) {
+        xfem::Vec3 X, Xu, Xv;
+        patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+        const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
+        const double gn = xfem::Vec3(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]).norm();
+        if (!(gn > 0) || std::abs(phi.v) / gn > tol) { all = false; break; }
+      }
+      if (all) return f;
+    }
+    return -1;
+  };
   tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
     const int e = work[w];
     const xfem::GridElement& el = elements[e];
@@ -734,19 +753,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
           for (const xfem::CurveSegment2& seg : loop) {
             xfem::Vec3 X, Xu, Xv;
-            int on = -1;
-            for (int f : sides) {
-              const optimize::ParameterBlock& bf = *sp.block(f);
-              bool all = true;
-              for (const xfem::Vec2& uv : {seg.start, seg.position(0.5), seg.end}) {
-                patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
-                const optimize::Dual phf = optimize::implicit_function(bf.kind, p.data() + bf.offset, X);
-                const int nf = bf.size();
-                const double gf = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).norm();
-                if (!(gf > 0) || std::abs(phf.v) / gf > 1e-6 * h) { all = false; break; }
-              }
-              if (all) { on = f; break; }
-            }
+            const int on = segment_face(patch, seg, sides, 1e-6 * h);
             if (on < 0) continue;
             const optimize::ParameterBlock& bf = *sp.block(on);
             const int nf = bf.size();
@@ -801,19 +808,7 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
       for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
         for (const xfem::CurveSegment2& seg : loop) {
           xfem::Vec3 X, Xu, Xv;
-          int on = -1;
-          for (int f : it->second) {
-            const optimize::ParameterBlock& b = *sp.block(f);
-            bool all = true;
-            for (const xfem::Vec2& uv : {seg.start, seg.position(0.5), seg.end}) {
-              patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
-              const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
-              const int nb = b.size();
-              const double gn = xfem::Vec3(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]).norm();
-              if (!(gn > 0) || std::abs(phi.v) / gn > 1e-6 * h) { all = false; break; }
-            }
-            if (all) { on = f; break; }
-          }
+          const int on = segment_face(patch, seg, it->second, 1e-6 * h);
           if (on < 0) continue;
           const optimize::ParameterBlock& b = *sp.block(on);
           const int nb = b.size();
