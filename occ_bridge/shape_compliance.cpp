@@ -183,6 +183,20 @@ std::vector<int> match(const GridModel& at, const std::vector<int>& base, const 
   return out;
 }
 
+// Gives `el` the frame of integrands outside the rules' span (xfem::GridElement::frame) of
+// `from`, its match, unless el's own fitting box has left it: a side moved by more than a tenth
+// of the own box's extent on that axis (a piece shrinking to a sliver: the field extended over a
+// frame far larger than the piece overflows the failure metric's exponential). Then el keeps its
+// own (a discrete switch, like a subvolume that appears).
+void freeze_frame(xfem::GridElement& el, const xfem::GridElement& from) {
+  el.frame.reset();
+  if (!el.subvolume || !from.subvolume) return;
+  const xfem::Box3 own = xfem::rule_frame(el), F = xfem::rule_frame(from);
+  const xfem::Vec3 slack = 0.1 * own.size();
+  if (((F.min - own.min).cwiseAbs() - slack).maxCoeff() > 0 || ((F.max - own.max).cwiseAbs() - slack).maxCoeff() > 0) return;
+  el.frame = F;
+}
+
 // Freezes the discrete switches of `m` at `from`: every cut element of `m` in a cell with as
 // many elements in both (matched as the derivatives match them) switches on its match's
 // switching fraction. Left to their own: cells whose element count changed (a subvolume appears
@@ -199,6 +213,8 @@ int freeze_switches(GridModel& m, const GridModel& from, const xfem::LinearXfemO
     const std::vector<int> matched = match(from, B, m, it->second);
     for (size_t i = 0; i < B.size(); ++i) {
       xfem::GridElement& el = m.elements[matched[i]];
+      // The frame of integrands outside the rules' span, for every matched pair of cut elements.
+      freeze_frame(el, from.elements[B[i]]);
       const double own = xfem::volume_fraction(el), other = xfem::switching_fraction(from.elements[B[i]]);
       if (!el.subvolume || own < options.incompatible_min_fraction ||
           std::abs(own - other) > 0.5 * options.aggregation_fraction)
@@ -249,6 +265,18 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
   s.frozen_elements = frozen;
   if (frozen > 0 && s.model)
     s.switches_own = xfem::switches_match_own_fractions(s.model->elements, s.model->adjacent, setup.solver);
+  if (s.model)
+    for (const xfem::GridElement& el : s.model->elements)
+      if (el.frame) {
+        xfem::GridElement own = el;
+        own.frame.reset();
+        const xfem::Box3 a = *el.frame, b = xfem::rule_frame(own);
+        const double tol = 1e-9 * el.box.size().maxCoeff();
+        if (((a.min - b.min).cwiseAbs().array() > tol).any() || ((a.max - b.max).cwiseAbs().array() > tol).any()) {
+          s.frames_own = false;
+          break;
+        }
+      }
   return s;
 }
 
@@ -257,7 +285,7 @@ ComplianceState compliance_own_switches(std::shared_ptr<const PartShape> part, c
   PARAFAB_VERIFY(part && model.done && occt_volume > 0,
                  "compliance_own_switches: needs a solved state's part, model and OCCT volume (volume " << occt_volume << ")");
   GridModel m = model;
-  for (xfem::GridElement& el : m.elements) el.switch_fraction = -1;
+  for (xfem::GridElement& el : m.elements) el.switch_fraction = -1, el.frame.reset();
   return solve_on(std::move(part), std::move(m), setup, occt_volume);
 }
 
@@ -343,11 +371,15 @@ ComplianceDerivative element_difference(const ComplianceState& at, std::shared_p
         for (size_t i = 0; i < B.size(); ++i) perturbed_of[side][B[i]] = matched[side][i];
     if (B.empty()) continue;
     ++d.cells_changed;
-    // The perturbed elements switch (incompatible modes) as their element of `at` does.
+    // The perturbed elements switch (incompatible modes) as their element of `at` does, and
+    // integrate on its frame.
     for (int side = 0; side < 2; ++side)
       if (ok[side])
-        for (size_t i = 0; i < B.size(); ++i)
-          models[side].elements[matched[side][i]].switch_fraction = xfem::switching_fraction(at.model->elements[B[i]]);
+        for (size_t i = 0; i < B.size(); ++i) {
+          xfem::GridElement& el = models[side].elements[matched[side][i]];
+          el.switch_fraction = xfem::switching_fraction(at.model->elements[B[i]]);
+          freeze_frame(el, at.model->elements[B[i]]);
+        }
     for (size_t i = 0; i < B.size(); ++i) {
       if (ok[0] && ok[1]) {
         items.push_back({0, matched[0][i], B[i], 1 / (2 * h)});
@@ -419,6 +451,23 @@ namespace {
 
 // Sign s of a face's implicit function: ∇φ·n_out = s|∇φ| over the face (φ of its parameter block
 // at p; constant on a face). Evaluated at the centre of its uv bounds.
+// Σ N_k(X) v_k over an element's nodes (8 or 27, by v's size): the field the solve's load sees.
+xfem::Vec3 nodal_field(const xfem::GridElement& el, const Eigen::VectorXd& v, const xfem::Vec3& X) {
+  xfem::Vec3 d = xfem::Vec3::Zero();
+  if (v.size() == 3 * 27) {
+    Eigen::Matrix<double, 27, 1> N;
+    Eigen::Matrix<double, 27, 3> G;
+    xfem::triquadratic_shape(el.box, X, N, G);
+    for (int k = 0; k < 27; ++k) d += N(k) * v.segment<3>(3 * k);
+  } else {
+    Eigen::Matrix<double, 8, 1> N;
+    Eigen::Matrix<double, 8, 3> G;
+    xfem::trilinear_shape(el.box, X, N, G);
+    for (int k = 0; k < 8; ++k) d += N(k) * v.segment<3>(3 * k);
+  }
+  return d;
+}
+
 double implicit_sign(const PartShape& part, int face, const optimize::ParameterBlock& block, const Eigen::VectorXd& p) {
   const TopoDS_Face& original = part.face(face);
   const double orient = original.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
@@ -438,19 +487,27 @@ double implicit_sign(const PartShape& part, int face, const optimize::ParameterB
 
 }  // namespace
 
-ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
-                                       const ShapeParameters& sp, const Eigen::VectorXd& p,
-                                       const std::vector<char>* moving) {
+namespace {
+
+// The exact route of compliance_gradient (adj null: J = C, λ = −u, load weight z = 2u, as
+// written before the adjoint form, to the last bit) and of adjoint_shape_gradient (adj: λ given,
+// z = −λ, J's own density on the moving patches). `who` names the caller in errors.
+ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSetup& setup, const ShapeParameters& sp,
+                                  const Eigen::VectorXd& p, const std::vector<char>* moving, const ShapeAdjoint* adj,
+                                  const char* who) {
   const auto t0 = std::chrono::steady_clock::now();
-  PARAFAB_VERIFY(at.done && at.model, "compliance_gradient: the state is not solved");
-  PARAFAB_VERIFY(p.size() == sp.size(), "compliance_gradient: p has " << p.size() << " entries, the parameters "
-                                                                      << sp.size());
+  PARAFAB_VERIFY(at.done && at.model, who << ": the state is not solved");
+  PARAFAB_VERIFY(p.size() == sp.size(), who << ": p has " << p.size() << " entries, the parameters " << sp.size());
   const PartShape& part = *at.part;
   PARAFAB_VERIFY(static_cast<int>(sp.block_of_face.size()) == part.face_count(),
-                 "compliance_gradient: the parameters describe " << sp.block_of_face.size() << " faces, the part has "
-                                                                 << part.face_count());
+                 who << ": the parameters describe " << sp.block_of_face.size() << " faces, the part has "
+                     << part.face_count());
   PARAFAB_VERIFY(!moving || static_cast<int>(moving->size()) == sp.size(),
-                 "compliance_gradient: `moving` has " << moving->size() << " entries, p " << sp.size());
+                 who << ": `moving` has " << moving->size() << " entries, p " << sp.size());
+  PARAFAB_VERIFY(!adj || adj->lambda.size() == at.solution.u.size(),
+                 who << ": an adjoint of size " << (adj ? adj->lambda.size() : 0) << ", the state has "
+                     << at.solution.u.size() << " unknowns");
+  PARAFAB_VERIFY(!adj || !setup.hyperelastic, who << ": the adjoint form is built for linear elasticity only");
   ComplianceGradient r;
   r.gradient = Eigen::VectorXd::Zero(sp.size());
   r.incomplete.assign(sp.size(), 0);
@@ -599,6 +656,47 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
                                        setup.solver, it->second.second, points)
         .density;
   };
+  // The density of dJ on a moving patch, times Vₙ: −ψ(u, u) + 2ρg·u for the compliance;
+  // ψ(λ, u) − ρg·λ + j (J's own density) for an adjoint (a mode-tied pair's ψ(λ, u) by
+  // polarization of its quadratic form: ¼[ψ(u + λ) − ψ(u − λ)]).
+  auto moving_density = [&](int e, const Eigen::VectorXd& ue, const Eigen::VectorXd& le,
+                            const std::vector<xfem::Vec3>& points, std::optional<xfem::BulkShapeDensity>& own) {
+    std::vector<double> d(points.size(), 0.0);
+    if (points.empty()) return d;
+    if (!adj) {
+      const std::vector<double> psi = bulk_density(e, ue, points, own);
+      for (size_t q = 0; q < points.size(); ++q) {
+        d[q] = -psi[q];
+        if (gravity) d[q] += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, points[q]));
+      }
+      return d;
+    }
+    std::vector<double> psi;
+    const auto it = tied_side.find(e);
+    if (it == tied_side.end()) {
+      if (!own) own.emplace(elements[e], le, ue, setup.material, setup.solver);
+      psi = (*own)(points);
+    } else {
+      const xfem::PieceTie& tie = at.ties[it->second.first];
+      const std::vector<int>& na = at.solution.node[tie.element_a], &nb = at.solution.node[tie.element_b];
+      const Eigen::VectorXd ua = element_values(at.solution.u, na), ub = element_values(at.solution.u, nb);
+      const Eigen::VectorXd la = element_values(adj->lambda, na), lb = element_values(adj->lambda, nb);
+      const std::vector<double> plus = xfem::tied_mode_shape_terms(elements, tie, ua + la, ub + lb, setup.material,
+                                                                   setup.solver, it->second.second, points).density;
+      const std::vector<double> minus = xfem::tied_mode_shape_terms(elements, tie, ua - la, ub - lb, setup.material,
+                                                                    setup.solver, it->second.second, points).density;
+      psi.resize(points.size());
+      for (size_t q = 0; q < points.size(); ++q) psi[q] = 0.25 * (plus[q] - minus[q]);
+    }
+    const std::vector<double> own_density = adj->density ? adj->density(e, points) : std::vector<double>(points.size(), 0.0);
+    PARAFAB_VERIFY(own_density.size() == points.size(),
+                   who << ": the objective's density gives " << own_density.size() << " values for " << points.size() << " points");
+    for (size_t q = 0; q < points.size(); ++q) {
+      d[q] = psi[q] + own_density[q];
+      if (gravity) d[q] -= setup.material.density * setup.solver.gravity.dot(nodal_field(elements[e], le, points[q]));
+    }
+    return d;
+  };
   // The face of `faces` on whose surface a patch's loop segment lies (its ends and middle within
   // `tol` of the face's implicit zero set), or −1.
   auto segment_face = [&](const xfem::CutPatch& patch, const xfem::CurveSegment2& seg, const std::vector<int>& faces,
@@ -623,7 +721,10 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     const xfem::GridElement& el = elements[e];
     Terms& out = terms[w];
     const Eigen::VectorXd ue = element_values(at.solution.u, at.solution.node[e]);
-    std::optional<xfem::BulkShapeDensity> density;  // of this element's (u, u)
+    // λₑ, and the field the load's change is contracted with: zₑ = 2uₑ (compliance), −λₑ (adjoint).
+    const Eigen::VectorXd le = adj ? element_values(adj->lambda, at.solution.node[e]) : Eigen::VectorXd();
+    const Eigen::VectorXd ze = adj ? Eigen::VectorXd(-le) : Eigen::VectorXd(2 * ue);
+    std::optional<xfem::BulkShapeDensity> density;  // of this element's (u, u), or (λ, u)
     const double h = el.box.size().minCoeff();
     const bool penalised =
         local_penalty && std::any_of(el.subvolume->patches.begin(), el.subvolume->patches.end(),
@@ -647,16 +748,14 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         if (!sr.points.empty()) {
           out.used = true;
           out.points += static_cast<int>(sr.points.size());
-          const std::vector<double> psi = bulk_density(e, ue, sr.points, density);
+          const std::vector<double> dj = moving_density(e, ue, le, sr.points, density);
           const std::vector<double> psi_mode =
               simple ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
                      : std::vector<double>{};
           const int nb = block->size();
           std::vector<double> sum(nb, 0.0);
           for (size_t q = 0; q < sr.points.size(); ++q) {
-            double density = -psi[q];
-            if (gravity)
-              density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
+            const double density = dj[q];
             const optimize::Dual phi = optimize::implicit_function(block->kind, p.data() + block->offset, sr.points[q]);
             const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
             const double gn = grad.norm();
@@ -677,17 +776,14 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
         out.used = out.used || !sr.points.empty();
         out.points += static_cast<int>(sr.points.size());
-        const std::vector<double> psi = sr.points.empty() ? std::vector<double>{}
-                                                          : bulk_density(e, ue, sr.points, density);
+        const std::vector<double> dj = moving_density(e, ue, le, sr.points, density);
         const std::vector<double> psi_mode =
             simple && !sr.points.empty()
                 ? xfem::bulk_shape_density(el, parts.mode, parts.mode, setup.material, setup.solver, sr.points)
                 : std::vector<double>{};
         std::map<int, double> sum;  // entry of p → contribution
         for (size_t q = 0; q < sr.points.size(); ++q) {
-          double density = -psi[q];
-          if (gravity)
-            density += 2 * setup.material.density * setup.solver.gravity.dot(at.solution.displacement(elements, e, sr.points[q]));
+          const double density = dj[q];
           for (const PoleInfluence& w : pole_influence(poles->surface, sr.uv[q].x(), sr.uv[q].y())) {
             for (int c = 0; c < 3; ++c) sum[poles->offset + 3 * w.index + c] += sr.weights[q] * density * w.value * sr.normals[q][c];
             if (simple)  // −Λ vᵀdÂv
@@ -712,11 +808,11 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
         if (at.tractions[i].face == g) tc = &at.tractions[i], load = static_cast<int>(i);
       out.used = true;
       const bool spread_load = load >= 0 && load_area[load] > 0;
-      if (spread_load) {  // ∫ u_h·t dA over the load face, for the area term
+      if (spread_load) {  // ∫ z_h·t dA over the load face, for the area term
         const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
         double sum = 0;
         for (size_t q = 0; q < sr.points.size(); ++q)
-          sum += sr.weights[q] * xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]).load;
+          sum += sr.weights[q] * xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]).load;
         out.work.emplace_back(load, sum);
       }
       if (own_load && wanted && tc) {
@@ -736,9 +832,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           if (!(gn > 0)) continue;
           const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
           const double kappa = s * optimize::implicit_mean_curvature(b.kind, p.data() + b.offset, sr.points[q]);
-          const xfem::BoundaryTermDensity d =
-              xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]);
-          const double density = 2 * (d.load_gradient.dot(sr.normals[q]) + kappa * d.load);
+          const xfem::BoundaryTermDensity d =  // of z: 2u (compliance) or −λ
+              xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, sr.points[q], sr.normals[q]);
+          const double density = d.load_gradient.dot(sr.normals[q]) + kappa * d.load;
           for (int k = 0; k < nb; ++k) {
             const double vn = -s * phi.g[k] / gn;
             sum[k] += sr.weights[q] * density * vn;
@@ -781,10 +877,10 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
               const double s = grad.dot(n_g) >= 0 ? 1.0 : -1.0;
               const double ds = gauss.weights[q] * speed;
               const xfem::BoundaryTermDensity d =
-                  xfem::boundary_term_density(el, ue, setup.material, setup.solver, nullptr, tc, X, n_g);
+                  xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, X, n_g);
               for (int k = 0; k < nb; ++k) {
                 const double alpha = -(-s * phi.g[k] / gn) * n_g.dot(n_f) / across;
-                sum[k] += 2 * d.load * alpha * ds;
+                sum[k] += d.load * alpha * ds;
                 dA[k] += alpha * ds;
               }
               ++out.edge_points;
@@ -847,15 +943,28 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
             }
             const double ds = gauss.weights[q] * speed;
             const double penalty = simple ? parts.penalty : -1;
-            const xfem::BoundaryTermDensity d =
-                xfem::boundary_term_density(el, ue, setup.material, setup.solver, dc, tc, X, patch.orientation * n_uv, penalty);
+            const xfem::Vec3 n_g = patch.orientation * n_uv;
+            // (2 f_Γ − k_Γ)(u) for the compliance; f_Γ(z) + k_Γ(λ, u) for an adjoint (k_Γ's
+            // bilinear form by polarization of its quadratic one).
+            double strip = 0;
+            if (!adj) {
+              const xfem::BoundaryTermDensity d =
+                  xfem::boundary_term_density(el, ue, setup.material, setup.solver, dc, tc, X, n_g, penalty);
+              strip = 2 * d.load - d.stiffness;
+            } else {
+              const auto k = [&](const Eigen::VectorXd& v) {
+                return xfem::boundary_term_density(el, v, setup.material, setup.solver, dc, nullptr, X, n_g, penalty).stiffness;
+              };
+              strip = xfem::boundary_term_density(el, ze, setup.material, setup.solver, dc, tc, X, n_g, penalty).load +
+                      0.25 * (k(ue + le) - k(ue - le));
+            }
             const double flux_mode =  // vᵀdBv density
                 simple && dc ? xfem::boundary_term_density(el, parts.mode, setup.material, setup.solver, dc, nullptr, X,
                                                            patch.orientation * n_uv, penalty)
                                    .flux
                              : 0.0;
             for (int k = 0; k < nb; ++k) {
-              sum[k] += (2 * d.load - d.stiffness) * speed_k[k] * ds;
+              sum[k] += strip * speed_k[k] * ds;
               dA[k] += speed_k[k] * ds;
               dB[k] += flux_mode * speed_k[k] * ds;
             }
@@ -872,9 +981,9 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           }
         }
     }
-    // The penalty's change: dC = κ dΛ (2uᵀg − uᵀPu).
+    // The penalty's change: dC = κ dΛ (2uᵀg − uᵀPu); for an adjoint dJ = κ dΛ (zᵀg + λᵀPu).
     if (simple) {
-      const double weight = 2 * ue.dot(parts.load) - ue.dot(parts.mass * ue);
+      const double weight = adj ? ze.dot(parts.load) + le.dot(parts.mass * ue) : 2 * ue.dot(parts.load) - ue.dot(parts.mass * ue);
       for (const auto& [i, dl] : d_lambda)
         if (dl != 0) out.gradient.emplace_back(i, setup.solver.nitsche_local_factor * dl * weight);
     }
@@ -893,14 +1002,17 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
     r.edge_points += t.edge_points;
     if (t.used) ++r.elements;
   }
-  // Total forces: t = F/A, so 2uᵀdf ∋ 2 ∫ u_h·dt dA = −2 W dA/A with W = ∫ u_h·t dA.
+  // Total forces: t = F/A, so zᵀdf ∋ ∫ z_h·dt dA = −W dA/A with W = ∫ z_h·t dA (compliance:
+  // z = 2u, the 2uᵀdf of dC; adjoint: z = −λ, the −λᵀdf of dJ).
   for (const auto& [key, dA] : area_change) {
     const int load = key / np, i = key % np;
-    r.gradient[i] -= 2 * load_work[load] * dA / load_area[load];
+    r.gradient[i] -= load_work[load] * dA / load_area[load];
   }
   // Eq. 6.24's ties: the energy ½Σ w‖u_a − u_b‖² with w = E·h·b(d(p)), so
   // dC = −Σ E·h·b'(d) d' ‖u_a − u_b‖² (d' from the faces at the gap's ends: piece_gap_gradient).
   // A mode-tied pair adds ‖α_a − α_b‖² to that factor and −θ'·∂(uᵀKu)/∂θ, θ = 1 − e^(−b).
+  // For an adjoint, λᵀdK u: the same with −(λ_a − λ_b)·(u_a − u_b) for ‖u_a − u_b‖² (and the
+  // mode-tied quadratic forms polarized).
   if (!at.ties.empty()) {
     std::vector<char> complete;
     const Eigen::MatrixXd dd = piece_gap_gradient(at.gaps, sp, p, &complete);
@@ -920,18 +1032,31 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
           for (int f : end->faces) flag(f);
         continue;
       }
+      const Eigen::VectorXd& u = at.solution.u;
       double squared = 0;
       for (const auto& [ia, ib] : pairs)
-        if (floating.empty() || (!floating[ia] && !floating[ib]))  // as the solve ties them
-          squared += (at.solution.u.segment<3>(3 * ia) - at.solution.u.segment<3>(3 * ib)).squaredNorm();
+        if (floating.empty() || (!floating[ia] && !floating[ib])) {  // as the solve ties them
+          const Eigen::Vector3d du = u.segment<3>(3 * ia) - u.segment<3>(3 * ib);
+          squared += adj ? -(adj->lambda.segment<3>(3 * ia) - adj->lambda.segment<3>(3 * ib)).dot(du) : du.squaredNorm();
+        }
       double blend_factor = 0;  // ∂(uᵀKu)/∂θ · dθ/db
       if (modes_tied[i]) {
         const xfem::PieceTie& tie = at.ties[i];
-        const xfem::TiedModeShapeTerms m = xfem::tied_mode_shape_terms(
-            elements, tie, element_values(at.solution.u, at.solution.node[tie.element_a]),
-            element_values(at.solution.u, at.solution.node[tie.element_b]), setup.material, setup.solver, 0, {});
-        squared += m.d_weight;
-        blend_factor = m.d_blend * std::exp(-b);
+        const std::vector<int>& na = at.solution.node[tie.element_a], &nb = at.solution.node[tie.element_b];
+        const auto terms_of = [&](const Eigen::VectorXd& va, const Eigen::VectorXd& vb) {
+          return xfem::tied_mode_shape_terms(elements, tie, va, vb, setup.material, setup.solver, 0, {});
+        };
+        const Eigen::VectorXd ua = element_values(u, na), ub = element_values(u, nb);
+        if (!adj) {
+          const xfem::TiedModeShapeTerms m = terms_of(ua, ub);
+          squared += m.d_weight;
+          blend_factor = m.d_blend * std::exp(-b);
+        } else {
+          const Eigen::VectorXd la = element_values(adj->lambda, na), lb = element_values(adj->lambda, nb);
+          const xfem::TiedModeShapeTerms plus = terms_of(ua + la, ub + lb), minus = terms_of(ua - la, ub - lb);
+          squared -= 0.25 * (plus.d_weight - minus.d_weight);
+          blend_factor = -0.25 * (plus.d_blend - minus.d_blend) * std::exp(-b);
+        }
       }
       r.gradient -= (setup.material.youngs_modulus * h * squared + blend_factor) * db *
                     dd.row(static_cast<Eigen::Index>(i)).transpose();
@@ -941,6 +1066,20 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
   r.message = "ok";
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
+}
+
+}  // namespace
+
+ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
+                                       const ShapeParameters& sp, const Eigen::VectorXd& p,
+                                       const std::vector<char>* moving) {
+  return shape_gradient(at, setup, sp, p, moving, nullptr, "compliance_gradient");
+}
+
+ComplianceGradient adjoint_shape_gradient(const ComplianceState& at, const ComplianceSetup& setup,
+                                          const ShapeParameters& sp, const Eigen::VectorXd& p,
+                                          const ShapeAdjoint& adjoint, const std::vector<char>* moving) {
+  return shape_gradient(at, setup, sp, p, moving, &adjoint, "adjoint_shape_gradient");
 }
 
 bool exact_along(const ComplianceGradient& g, const Eigen::VectorXd& dp) {

@@ -61,6 +61,10 @@ struct ComplianceState {
   /// model's objective differs from its own-switch value; the optimizer then re-evaluates it).
   int frozen_elements = 0;
   bool switches_own = true;
+  /// Whether every cut element integrates on its own fitting box (xfem::GridElement::frame:
+  /// compliance_at with `switches_from` freezes the frames too; false when one differs from its
+  /// own by more than 1e-9 of its cell). Only the failure metric integrates there.
+  bool frames_own = true;
   /// setup.merge: the pairs of pieces closer than d_crit and their ties (same order).
   std::vector<PieceGap> gaps;
   std::vector<xfem::PieceTie> ties;
@@ -164,6 +168,27 @@ struct ComplianceGradient {
 ComplianceGradient compliance_gradient(const ComplianceState& at, const ComplianceSetup& setup,
                                        const ShapeParameters& parameters, const Eigen::VectorXd& p,
                                        const std::vector<char>* moving = nullptr);
+
+/// What the exact route needs of an objective J(u, Ω) other than the compliance: its adjoint
+/// λ (K λ = −∂J/∂u, e.g. failure_adjoint) and, when J has a domain integral ∫_Ω j(u) dV of its
+/// own, that integrand: `density(e, points)` = j at the points of element e (J/V-like scalings
+/// folded in; null: none).
+struct ShapeAdjoint {
+  Eigen::VectorXd lambda;
+  std::function<std::vector<double>(int element, const std::vector<xfem::Vec3>& points)> density;
+};
+/// compliance_gradient's route for J (linear elasticity only): with u frozen,
+///   dJ/dp_i = ∫_{moving patches} (j + ψ(λ, u) − ρg·λ) Vₙ,i dA + λᵀ(dK − df)|_{conditions} + ties,
+/// every term of compliance_gradient with (u, u) → (λ, u) in dK and 2u → −λ in df (its strips,
+/// the load's own motion, a total force's area term, the local penalty's dΛ, Eq. 6.24's ties;
+/// the bilinear Nitsche and mode-tied forms by polarization of their quadratic ones). The same
+/// coverage and the same `incomplete` flags. Exact for J's discrete value where j is in the span
+/// the rules integrate exactly (Eq. 6.31, "exact if g is in the function space"); for any other
+/// j (the failure metric's exponential) ∫ j Vₙ is the derivative of J's exact integral, off
+/// that of its rule sum by the rules' error in j.
+ComplianceGradient adjoint_shape_gradient(const ComplianceState& at, const ComplianceSetup& setup,
+                                          const ShapeParameters& parameters, const Eigen::VectorXd& p,
+                                          const ShapeAdjoint& adjoint, const std::vector<char>* moving = nullptr);
 
 /// Whether a design direction dp (e.g. a column of dp⊥/dp̃) moves no entry flagged incomplete:
 /// |dp_i| ≤ 1e-6 ‖dp‖∞ there (the projection derivative's round-off is ~1e-10). Then

@@ -5,7 +5,9 @@
 // σ_vm = σ_y everywhere, well scaled for any part size), I otherwise. σ_vm is the von Mises stress
 // of the nodal field (xfem::stress_at; hex8 incompatible modes are not part of it).
 // Gradient: adjoint K λ = −∂J/∂u with the kept factorization, then
-// dJ/ds = ∂J/∂s|_u + λᵀ(dK u − df), both terms central differences over the re-cut cells only.
+// dJ/ds = ∂J/∂s|_u + λᵀ(dK u − df): by the exact route (failure_gradient: boundary integrals over
+// the moving patches, every entry of p at once) or, where that route flags an entry, both terms
+// as central differences over the re-cut cells only (failure_derivative).
 #pragma once
 
 #include <Eigen/Core>
@@ -47,6 +49,18 @@ ComplianceDerivative failure_derivative(const ComplianceState& state, const Fail
                                         const Eigen::VectorXd& adjoint, std::shared_ptr<const PartShape> plus,
                                         std::shared_ptr<const PartShape> minus, double h,
                                         const ComplianceSetup& setup, const FailureOptions& options);
+
+/// dJ/dp by the exact route (adjoint_shape_gradient, thesis Eq. 6.30–6.31): λ as in
+/// failure_derivative (empty `adjoint`: solved here) and J's own density on the moving patches,
+/// j = exp(α(σ_vm/σ_y − 1))/V − I/V² (normalized; the exponential alone otherwise), σ_vm of
+/// the nodal field as failure_value takes it. The exponential is not in the span the rules fit,
+/// so ∫ j Vₙ is the derivative of J's exact integral over the frozen field, not of its rule sum
+/// (the difference is the rules' error in j's change). Entries flagged `incomplete` as in
+/// compliance_gradient: use failure_derivative there.
+ComplianceGradient failure_gradient(const ComplianceState& state, const FailureValue& value,
+                                    const Eigen::VectorXd& adjoint, const ComplianceSetup& setup,
+                                    const FailureOptions& options, const ShapeParameters& parameters,
+                                    const Eigen::VectorXd& p, const std::vector<char>* moving = nullptr);
 
 /// λ = −K⁻¹ ∂J/∂u (value must carry gradient_u).
 Eigen::VectorXd failure_adjoint(const ComplianceState& state, const FailureValue& value);

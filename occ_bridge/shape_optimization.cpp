@@ -117,6 +117,7 @@ struct Evaluation {
   /// its switches were its own.
   std::shared_ptr<const GridModel> model;
   bool switches_own = true;
+  bool frames_own = true;  ///< the failure metric's frames were its own (ComplianceState::frames_own)
   /// What a switch refresh of this point reuses, none of which depends on the switches: the
   /// projection, the written part, its moments and dp⊥/dp̃, and (with `model`) the re-cut and
   /// OCCT's volume of the part, which shape_compliance.h's compliance_own_switches re-solves.
@@ -447,6 +448,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       }
       last.model = state->model;
       last.switches_own = state->switches_own;
+      last.frames_own = state->frames_own;
       last.occt_volume = state->occt_volume;
       normalize_terms(md.moments, state->compliance, fv.objective, tv.objective);
       const double cw = term_weight(spec, "compliance"), fw = term_weight(spec, "failure"), tw = term_weight(spec, "target");
@@ -463,15 +465,25 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           if (D.jacobian(i, design[k]) != 0) moving[i] = 1;
       const ComplianceGradient exact =
           exact_route ? occ::compliance_gradient(*state, *options.compliance, sp, proj.p, &moving) : ComplianceGradient{};
+      // The failure metric's exact route: one adjoint (above), boundary integrals (shape_failure.h).
+      const bool exact_failure = fw != 0 && options.compliance_gradient == ShapeOptimizationOptions::ComplianceGradientRoute::Exact;
+      const ComplianceGradient failure_exact =
+          exact_failure ? failure_gradient(*state, fv, adjoint, *options.compliance, failure_options, sp, proj.p, &moving)
+                        : ComplianceGradient{};
       for (int k = 0; k < nd; ++k) {
         compliance_gradient[k] = 0;
-        bool difference_compliance = cw != 0;
+        bool difference_compliance = cw != 0, difference_failure = fw != 0;
         if (exact_route && exact_along(exact, D.jacobian.col(design[k]))) {
           compliance_gradient[k] = cw * exact.gradient.dot(D.jacobian.col(design[k]));
           difference_compliance = false;
           ++result.exact_derivatives;
         }
-        if (!difference_compliance && fw == 0 && tw == 0) continue;
+        if (exact_failure && exact_along(failure_exact, D.jacobian.col(design[k]))) {
+          compliance_gradient[k] += fw * failure_exact.gradient.dot(D.jacobian.col(design[k]));
+          difference_failure = false;
+          ++result.exact_derivatives;
+        }
+        if (!difference_compliance && !difference_failure && tw == 0) continue;
         const double h = options.compliance_step * (is_direction(design[k]) ? 1.0 : part_size);
         std::shared_ptr<const PartShape> sides[2];
         for (int side = 0; side < 2; ++side) {
@@ -488,7 +500,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         // models (each derivative re-cuts them on the grid).
         enum Term { Compliance, Failure, Target };
         for (const Term term : {Compliance, Failure, Target}) {
-          const double weight = term == Compliance ? (difference_compliance ? cw : 0) : term == Failure ? fw : tw;
+          const double weight = term == Compliance ? (difference_compliance ? cw : 0)
+                                : term == Failure  ? (difference_failure ? fw : 0)
+                                                   : tw;
           if (weight == 0) continue;
           ++result.semi_analytic_derivatives;
           const ComplianceDerivative cd =
@@ -554,7 +568,8 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   // At an accepted point whose frozen switches differ from its own: evaluated again with its
   // own, so that the next line search starts from the model's own objective and gradient.
   auto refresh = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
-    if (!last.model || last.switches_own) return false;
+    // The failure metric integrates on frames frozen with the switches: refreshed as they are.
+    if (!last.model || (last.switches_own && (!failure || last.frames_own))) return false;
     const Evaluation frozen = last;
     const int invalid = result.invalid_models;
     const size_t notes = result.notes.size();

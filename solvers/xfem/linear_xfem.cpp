@@ -1475,6 +1475,21 @@ double volume_fraction(const GridElement& element) {
   return v / element.box.volume();
 }
 
+Box3 rule_frame(const GridElement& element) {
+  if (element.frame) return *element.frame;
+  const size_t n = element.rule.points.size();
+  const int per = static_cast<int>(std::lround(std::cbrt(static_cast<double>(n))));
+  PARAFAB_VERIFY(per >= 2 && static_cast<size_t>(per) * per * per == n,
+                 "rule_frame: a rule of " << n << " points is not a tensor Gauss rule of at least 2³ points");
+  const QuadratureRule1& g = gauss_legendre(per);
+  const double t0 = g.points.front(), t1 = g.points.back();
+  Box3 b;
+  const Vec3 size = (element.rule.points.back() - element.rule.points.front()) / (t1 - t0);
+  b.min = element.rule.points.front() - t0 * size;
+  b.max = b.min + size;
+  return b;
+}
+
 bool switches_match_own_fractions(const std::vector<GridElement>& elements,
                                   const std::vector<std::array<int, 2>>& adjacent, const LinearXfemOptions& options) {
   bool any = false;

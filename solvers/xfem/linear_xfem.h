@@ -11,6 +11,7 @@
 #include <array>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,10 +33,20 @@ struct GridElement {
   /// model to freeze those switches, e.g. during an optimizer's line search
   /// (occ::compliance_at). −1: the rule's own (volume_fraction).
   double switch_fraction = -1;
+  /// When set: the box on whose tensor Gauss points integrands outside the span the rule fits
+  /// (occ::failure_value's exponential) are integrated, with weights fitted to this element's
+  /// moments there. Set from another model with the switches (occ::compliance_at), so that such
+  /// an objective along a line search integrates on fixed points, as thesis Eq. 6.31 assumes.
+  /// Unset: the rule's own box (rule_frame).
+  std::optional<Box3> frame;
 };
 
 /// Σ rule weights / box volume.
 double volume_fraction(const GridElement& element);
+/// element.frame when set, else the box of the element's tensor Gauss rule (a cut cell's fitting
+/// box, an uncut cell's box), recovered from its first and last points. Throws parafab::Error
+/// unless the rule has n³ points.
+Box3 rule_frame(const GridElement& element);
 /// The fraction the discrete switches see: switch_fraction when set, else volume_fraction.
 inline double switching_fraction(const GridElement& element) {
   return element.switch_fraction >= 0 ? element.switch_fraction : volume_fraction(element);

@@ -81,12 +81,16 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
   ASSERT_TRUE(space.start.done);
   const auto& [model, sp, start, L] = space;
   // Tolerances near the measured relative differences (normalized / bare integral): hole
-  // 2.3e-7 / 4.0e-7 (17 cells), fillet 2.3e-5 / 2.4e-5 (171 cells, one sliver switch), plane
-  // offset 5.6e-5 / 5.9e-5 (171 cells). σ_y = 40 MPa with max σ_vm 125.5 MPa: a steep exponential.
+  // 3.6e-7 / 6.0e-7 (17 cells), fillet 5.4e-5 / 5.6e-5 (171 cells, one sliver switch), plane
+  // offset 2.7e-4 / 2.8e-4 (171 cells). σ_y = 40 MPa with max σ_vm 125.5 MPa: a steep exponential.
+  // Since the cut elements integrate J on frames frozen with the switches (2026-12-02), both the
+  // differences here and the reference freeze them at `at`; a sliver whose box leaves its frame
+  // switches to its own between the steps h and H, which costs the plane offset 5× (5.6e-5 before).
+  // The exact route (below) is the one the optimizer takes for these entries.
   const std::vector<testing::EntryCase> cases = {
-      {"hole radius", parameter_index(sp, c.hole, "radius"), 6e-7},
-      {"inner fillet radius (tangent planes follow)", parameter_index(sp, c.fillet, "radius"), 4e-5},
-      {"base top plane offset (inner fillet follows)", parameter_index(sp, c.base_top, "offset"), 8e-5},
+      {"hole radius", parameter_index(sp, c.hole, "radius"), 8e-7},
+      {"inner fillet radius (tangent planes follow)", parameter_index(sp, c.fillet, "radius"), 8e-5},
+      {"base top plane offset (inner fillet follows)", parameter_index(sp, c.base_top, "offset"), 4e-4},
   };
   for (bool normalize : {true, false}) {
     const FailureOptions fo{40, 6, normalize};
@@ -106,7 +110,7 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
       double fds[1];
       const double fd = testing::richardson(
           [&](double H) {
-            const ComplianceState side = compliance_at(part_at(H), at, c.setup);
+            const ComplianceState side = compliance_at(part_at(H), at, c.setup, at.model.get());
             EXPECT_TRUE(side.done) << k.what << ": " << side.message;
             return side.done ? failure_value(side, c.setup, fo).objective : std::nan("");
           },
@@ -116,6 +120,62 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
                   k.what, normalize, v.objective, v.max_von_mises, d.derivative, fd, fds[0],
                   std::abs(d.derivative - fd) / std::abs(fd), d.cells_changed, d.topology_switches);
       EXPECT_LE(std::abs(d.derivative - fd), k.tolerance * std::abs(fd)) << k.what;
+    }
+  }
+}
+
+// The exact route (failure_gradient: one adjoint, boundary integrals over the moving patches,
+// every entry at once, no re-cut) against the same reference as above, for the five entries the
+// compliance's exact route covers on this part (shape_compliance_test.cpp; the outer fillet runs
+// tangent into the support, where the stress is largest), with the semi-analytic route printed
+// beside it.
+TEST(ShapeFailure, ExactRouteMatchesFiniteDifferencesOfTheFullPipeline) {
+  BracketCase c;
+  const testing::DesignSpace space(*c.part, {c.setup.dirichlet[0].face, c.setup.tractions[0].face});
+  ASSERT_TRUE(space.start.done);
+  const auto& [model, sp, start, L] = space;
+  // Measured relative differences to the reference (normalized / bare integral): hole 1.0e-7 /
+  // 1.7e-7, inner fillet 9.4e-6 / 9.8e-6, upright plane 1.1e-5 / 1.2e-5, base top plane 2.2e-5 /
+  // 2.4e-5, outer fillet 1.9e-6 / 2.1e-6. Before the frames were frozen (J on each element's own
+  // fitting box, which moves with the shape) the same route was 1.4 % (hole) to 3× (outer
+  // fillet) off: the exponential is not in the rules' span.
+  const std::vector<testing::EntryCase> cases = {
+      {"hole radius", parameter_index(sp, c.hole, "radius"), 4e-7},
+      {"inner fillet radius", parameter_index(sp, c.fillet, "radius"), 2e-5},
+      {"upright inner plane offset", parameter_index(sp, c.upright_inner, "offset"), 2e-5},
+      {"base top plane offset", parameter_index(sp, c.base_top, "offset"), 4e-5},
+      {"outer fillet radius (tangent to the support)", parameter_index(sp, c.outer, "radius"), 5e-6},
+  };
+  for (bool normalize : {true, false}) {
+    const FailureOptions fo{40, 6, normalize};
+    for (const testing::EntryCase& k : cases) {
+      const testing::ProjectedEntry entry(*c.part, model, sp, start.p, k.index, L);
+      ASSERT_TRUE(entry.p0.done);
+      auto part_at = [&](double s) { return entry.part_at(s); };
+      const ComplianceState at = compliance_start(part_at(0), c.setup);
+      ASSERT_TRUE(at.done) << at.message;
+      const FailureValue v = failure_value(at, c.setup, fo, true);
+      ASSERT_TRUE(v.done) << v.message;
+      const Eigen::VectorXd lambda = failure_adjoint(at, v);
+      const ComplianceGradient g = failure_gradient(at, v, lambda, c.setup, fo, sp, entry.p0.p);
+      ASSERT_TRUE(g.done) << g.message;
+      EXPECT_TRUE(exact_along(g, entry.column)) << k.what;
+      const double exact = g.gradient.dot(entry.column);
+      const double h = 1e-4 * L;
+      const ComplianceDerivative d = failure_derivative(at, v, lambda, part_at(h), part_at(-h), h, c.setup, fo);
+      ASSERT_TRUE(d.done) << d.message;
+      const double fd = testing::richardson(
+          [&](double H) {
+            const ComplianceState side = compliance_at(part_at(H), at, c.setup, at.model.get());
+            EXPECT_TRUE(side.done) << k.what << ": " << side.message;
+            return side.done ? failure_value(side, c.setup, fo).objective : std::nan("");
+          },
+          2e-4 * L);
+      std::printf("%s (normalize %d): J = %.10g, exact %.10g (%.3f s, %d elements, %d points), semi-analytic %.10g, "
+                  "FD %.10g, relative: exact %.2e, semi-analytic %.2e\n",
+                  k.what, normalize, v.objective, exact, g.seconds, g.elements, g.points, d.derivative, fd,
+                  std::abs(exact - fd) / std::abs(fd), std::abs(d.derivative - fd) / std::abs(fd));
+      EXPECT_LE(std::abs(exact - fd), k.tolerance * std::abs(fd)) << k.what;
     }
   }
 }

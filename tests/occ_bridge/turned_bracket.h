@@ -10,6 +10,7 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -123,6 +124,24 @@ struct DesignLine {
     EXPECT_TRUE(m.done) << parameters.names[index] << " s = " << s << ": " << m.message;
     return m.part;
   }
+};
+
+// Design entry `index` as the optimizer moves it: the start projected with a one-entry design's
+// weights (p0), the line through p0 along the entry, and the entry's column of dp⊥/dp̃ at p0.
+struct ProjectedEntry {
+  optimize::ProjectionResult p0;
+  std::optional<DesignLine> line;
+  Eigen::VectorXd column;
+  ProjectedEntry(const PartShape& part, const FaceModel& model, const ShapeParameters& sp, const Eigen::VectorXd& start,
+                 int index, double L) {
+    optimize::ProjectionOptions popt;
+    popt.weights = projection_weights(sp, {index}, 1e-4, L);
+    p0 = optimize::project(sp.constraints, start, start, sp.lower, sp.upper, {}, popt);
+    EXPECT_TRUE(p0.done) << p0.message;
+    line.emplace(part, model, sp, index, p0.p, L);
+    column = optimize::projection_derivative(sp.constraints, p0, sp.lower, sp.upper, popt.weights).jacobian.col(index);
+  }
+  std::shared_ptr<const PartShape> part_at(double s) const { return line->at(s); }
 };
 
 /// One design entry checked against the pipeline's differences: what it is, its index in p and

@@ -52,16 +52,23 @@ class OptimizeFailure(unittest.TestCase):
         self.assertEqual(code, 0, h)
         self.assertEqual(sha(self.part), before)
         self.assertEqual(h["objective"], "failure")
-        self.assertEqual(h["gradient"], "semi-analytic")
+        # Every derivative by the exact route (shape_failure.h failure_gradient): the three
+        # radii are neither supports nor loads nor next to one.
+        self.assertEqual(h["gradient"], "exact")
+        self.assertEqual(h["semi_analytic_derivatives"], 0)
+        self.assertGreater(h["exact_derivatives"], 0)
         self.assertEqual(h["invalid_models"], 0)
         self.assertEqual((h["yield_stress"], h["exponent"], h["normalize"]), (100, 8, True))
-        # Measured: J 1.8181e-3 -> 1.7598e-3 (-3.2 %), max sigma_vm at the material points
-        # 65.50 -> 64.82 MPa on the optimizer's grid; 8 iterations (status max_iterations).
-        self.assertLess(h["final_objective"], 0.972 * h["initial_objective"])
-        self.assertLess(h["final_max_von_mises"], 0.993 * h["initial_max_von_mises"])
+        # Measured: J 1.8182e-3 -> 1.6524e-3 (-9.1 %), max sigma_vm at the material points
+        # 65.50 -> 62.55 MPa on the optimizer's grid; status converged, 61 evaluations. With the
+        # semi-analytic route (and J on the elements' own rule points) it was -3.2 % and
+        # 65.50 -> 64.82 MPa in 8 iterations (status max_iterations).
+        self.assertLess(h["final_objective"], 0.915 * h["initial_objective"])
+        self.assertLess(h["final_max_von_mises"], 0.96 * h["initial_max_von_mises"])
         self.assertLessEqual(h["final_violation"], 1e-7)
         # Independent: fresh simulations of both parts on grids of their own. Measured max
-        # sigma_vm ratios 0.968 / 0.981 / 0.979 at 8 / 12 / 16 cells.
+        # sigma_vm ratios 0.877 / 0.916 / 0.907 at 8 / 12 / 16 cells (0.968 / 0.981 / 0.979
+        # with the semi-analytic route).
         step = os.path.join(out, "optimized.step")
         for cells in (8, 12, 16):
             job = dict(ELASTIC, grid={"cells": cells, "method": "face"})
@@ -70,7 +77,7 @@ class OptimizeFailure(unittest.TestCase):
                 code, r = cli(["simulate", p], job)
                 self.assertEqual(code, 0, r)
                 vm.append(r["max_von_mises"])
-            self.assertLess(vm[1], 0.985 * vm[0], cells)
+            self.assertLess(vm[1], 0.93 * vm[0], cells)
 
     def test_python_optimize_runs_the_failure_objective(self):
         h = parafab.optimize(self.part, dict(JOB, max_iterations=2))

@@ -15,6 +15,7 @@
 #include "common/error.h"
 #include "xfem/area_rules.h"
 #include "xfem/curve_rules.h"
+#include "xfem/linear_xfem.h"
 #include "xfem/nnls.h"
 #include "xfem/quadrature_rule.h"
 #include "xfem/volume_rules.h"
@@ -631,6 +632,46 @@ TEST(VolumeRule, CubeCutByPlaneIsExact) {
     for (double w : worst_of) std::printf(" %.0e", w);
     std::printf("\n");
     for (int k = 0; k <= degree; ++k) EXPECT_LT(worst_of[k], 1e-13) << "degree " << k;
+  }
+}
+
+// rule_frame recovers a rule's box from its first and last tensor Gauss points: the tight
+// fitting box volume_rule reports (a cell cut by an oblique plane, 4 and 5 points per direction),
+// an uncut cell's box, and a frozen frame when one is set; a rule of other than n³ points is an
+// error naming its size.
+TEST(VolumeRule, RuleFrameIsTheFittingBox) {
+  const Box3 cell{{0.25, -1, 2}, {1.75, 0.5, 3.5}};
+  const Vec3 n = Vec3(0.3, 0.5, 0.8).normalized();
+  const Faces faces = clip_polyhedron(box_faces(cell.min, cell.max), n, n.dot(cell.min + 0.3 * cell.size()));
+  const Subvolume sv = polyhedron_subvolume(faces, cell);
+  for (int per : {4, 5}) {
+    VolumeRuleOptions o;
+    o.degree = 3;
+    o.points_per_direction = per;
+    const VolumeRule r = volume_rule(sv, o);
+    ASSERT_EQ(r.status, RuleStatus::Ok);
+    ASSERT_LT(r.box.volume(), 0.99 * cell.volume());  // tight: not the cell
+    GridElement el;
+    el.box = cell;
+    el.rule = r.rule;
+    const Box3 b = rule_frame(el);
+    EXPECT_LT((b.min - r.box.min).cwiseAbs().maxCoeff(), 1e-14) << per;
+    EXPECT_LT((b.max - r.box.max).cwiseAbs().maxCoeff(), 1e-14) << per;
+    el.frame = cell;
+    EXPECT_EQ(rule_frame(el).min, cell.min);
+  }
+  GridElement uncut;
+  uncut.box = cell;
+  uncut.rule = tensor_gauss_rule(cell, 3);
+  EXPECT_LT((rule_frame(uncut).min - cell.min).cwiseAbs().maxCoeff(), 1e-14);
+  EXPECT_LT((rule_frame(uncut).max - cell.max).cwiseAbs().maxCoeff(), 1e-14);
+  uncut.rule.points.pop_back();
+  uncut.rule.weights.pop_back();
+  try {
+    rule_frame(uncut);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("26 points"), std::string::npos) << e.what();
   }
 }
 
