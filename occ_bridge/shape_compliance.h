@@ -6,6 +6,7 @@
 // (compliance_derivative: dK, df as central differences of the element matrices of only the
 // cells the perturbed model's re-cut changes, contracted with u), for entries the exact route
 // does not cover (a support's own motion, a cone or plane running tangent into a support or load).
+// adjoint_shape_gradient is the exact route for any objective with an adjoint (the failure metric).
 #pragma once
 
 #include <functional>

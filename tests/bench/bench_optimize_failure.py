@@ -101,10 +101,16 @@ if args.mass:
     hole_face = int(h["parameters"][2]["name"].split()[1])
     failure_only = dict(JOB, objective=JOB["objective"]["terms"][0], max_iterations=0,
                         parameters=[{"face": hole_face, "parameter": "radius"}])
-    j = [cli(["optimize", p, "-o", out + "_j%d" % k], failure_only)[0]["initial_objective"]
-         for k, p in enumerate((WRENCH, os.path.join(out, "optimized.step")))]
+    # A written part's own parameters can fail to project (Ipopt's restoration phase, seen
+    # 2026-12-02 on a design with every radius on its bound): then the error is reported.
+    j = []
+    for k, p in enumerate((WRENCH, os.path.join(out, "optimized.step"))):
+        r, _ = cli(["optimize", p, "-o", out + "_j%d" % k], failure_only)
+        j.append(r.get("initial_objective"))
+        if j[-1] is None:
+            row.setdefault("failure_metric_errors", []).append(r.get("error", r))
     row["failure_metric"] = j
-    row["failure_reduction"] = 1 - j[1] / j[0]
+    row["failure_reduction"] = 1 - j[1] / j[0] if None not in j else None
     row["mass_reduction"] = 1 - row["volume_ratio"]
 with open(os.path.join(args.out, NAME + ".json"), "w") as f:
     json.dump(row, f, indent=2)
