@@ -449,8 +449,6 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 
 namespace {
 
-// Sign s of a face's implicit function: ∇φ·n_out = s|∇φ| over the face (φ of its parameter block
-// at p; constant on a face). Evaluated at the centre of its uv bounds.
 // Σ N_k(X) v_k over an element's nodes (8 or 27, by v's size): the field the solve's load sees.
 xfem::Vec3 nodal_field(const xfem::GridElement& el, const Eigen::VectorXd& v, const xfem::Vec3& X) {
   xfem::Vec3 d = xfem::Vec3::Zero();
@@ -468,6 +466,8 @@ xfem::Vec3 nodal_field(const xfem::GridElement& el, const Eigen::VectorXd& v, co
   return d;
 }
 
+// Sign s of a face's implicit function: ∇φ·n_out = s|∇φ| over the face (φ of its parameter block
+// at p; constant on a face). Evaluated at the centre of its uv bounds.
 double implicit_sign(const PartShape& part, int face, const optimize::ParameterBlock& block, const Eigen::VectorXd& p) {
   const TopoDS_Face& original = part.face(face);
   const double orient = original.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
@@ -625,7 +625,7 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
   struct Terms {
     std::vector<std::pair<int, double>> gradient;   // (entry of p, dC/dp contribution)
     std::vector<std::pair<int, double>> area;       // (load index · size(p) + entry, dA contribution)
-    std::vector<std::pair<int, double>> work;       // (load index, ∫ u_h·t dA)
+    std::vector<std::pair<int, double>> work;       // (load index, ∫ z_h·t dA)
     std::vector<int> tangent;                       // faces met at a tangent edge of a support/load (or a moving load's own)
     std::vector<int> penalised;                     // moving faces in a cut cell with a local penalty
     std::set<int> penalised_poles;                  // entries of p: poles moving such a cell's patch

@@ -179,14 +179,14 @@ struct ShapeAdjoint {
   std::function<std::vector<double>(int element, const std::vector<xfem::Vec3>& points)> density;
 };
 /// compliance_gradient's route for J (linear elasticity only): with u frozen,
-///   dJ/dp_i = ∫_{moving patches} (j + ψ(λ, u) − ρg·λ) Vₙ,i dA + λᵀ(dK − df)|_{conditions} + ties,
+///   dJ/dp_i = ∫_{moving patches} (j + ψ(λ, u) − ρg·λ) Vₙ,i dA + λᵀ(dK u − df)|_{conditions} + ties,
 /// every term of compliance_gradient with (u, u) → (λ, u) in dK and 2u → −λ in df (its strips,
 /// the load's own motion, a total force's area term, the local penalty's dΛ, Eq. 6.24's ties;
 /// the bilinear Nitsche and mode-tied forms by polarization of their quadratic ones). The same
 /// coverage and the same `incomplete` flags. Exact for J's discrete value where j is in the span
-/// the rules integrate exactly (Eq. 6.31, "exact if g is in the function space"); for any other
-/// j (the failure metric's exponential) ∫ j Vₙ is the derivative of J's exact integral, off
-/// that of its rule sum by the rules' error in j.
+/// the rules integrate exactly (Eq. 6.31, "exact if g is in the function space"); an objective
+/// whose integrand is not (the failure metric's exponential) passes its projection on that span
+/// (failure_gradient), over frames held fixed.
 ComplianceGradient adjoint_shape_gradient(const ComplianceState& at, const ComplianceSetup& setup,
                                           const ShapeParameters& parameters, const Eigen::VectorXd& p,
                                           const ShapeAdjoint& adjoint, const std::vector<char>* moving = nullptr);

@@ -154,7 +154,7 @@ ElementFailure element_failure(const xfem::GridElement& el, const Eigen::VectorX
     r.integral += w * e;
     if (with_gradient) r.gradient += (w * e * o.exponent / o.yield_stress) * (B.transpose() * (D * von_mises_derivative(s, vm)));
   }
-  if (!el.subvolume) return r;
+  if (!el.subvolume || el.rule.points.empty()) return r;
   const xfem::Box3 F = xfem::rule_frame(el);
   const std::vector<double> omega = frame.weights(el, F);
   for (size_t q = 0; q < omega.size(); ++q) {
@@ -269,12 +269,13 @@ ComplianceGradient failure_gradient(const ComplianceState& state, const FailureV
     const xfem::GridElement& el = state.model->elements[e];
     PARAFAB_VERIFY(el.subvolume, "failure_gradient: element " << e << " is not cut");
     const Eigen::VectorXd ue = element_values(state.solution.u, state.solution.node[e]);
+    std::vector<double> j(points.size(), 0.0);
+    if (el.rule.points.empty()) return j;  // a failed rule: I_e = 0 whatever the shape
     const xfem::Box3 F = xfem::rule_frame(el);
     Eigen::VectorXd c = Eigen::VectorXd::Zero(frame->L.rows());
     for (size_t q = 0; q < frame->xi.size(); ++q)
       c += frame->W[q] * failure_density(el, ue, D, o, frame->physical(F, static_cast<int>(q))) *
            frame->L.col(static_cast<Eigen::Index>(q));
-    std::vector<double> j(points.size());
     for (size_t q = 0; q < points.size(); ++q) j[q] = scale * c.dot(frame->basis(frame->unit(F, points[q]))) - shift;
     return j;
   };

@@ -1,6 +1,8 @@
 // Failure (stress) objective of shape optimization (thesis §6.2.3 Eq. 6.4, the exponentiated
-// failure metric of [SZB18]): I = ∫_V exp(α(σ_vm/σ_y − 1)) dV over the material quadrature points
-// of the cut-cell rules of the linear XFEM solve (shape_compliance.h: same job, same fixed grid).
+// failure metric of [SZB18]): I = ∫_V exp(α(σ_vm/σ_y − 1)) dV over the uncut cells' Gauss points
+// and, per cut cell, the Gauss points of its frame with weights fitted to the cell's moments
+// (shape_failure.cpp FrameRule; xfem::GridElement::frame) of the linear XFEM solve
+// (shape_compliance.h: same job, same fixed grid).
 // Reported form J = I / V when `normalize` (a smooth maximum of exp(α(σ_vm/σ_y − 1)): 1 when
 // σ_vm = σ_y everywhere, well scaled for any part size), I otherwise. σ_vm is the von Mises stress
 // of the nodal field (xfem::stress_at; hex8 incompatible modes are not part of it).
@@ -52,11 +54,10 @@ ComplianceDerivative failure_derivative(const ComplianceState& state, const Fail
 
 /// dJ/dp by the exact route (adjoint_shape_gradient, thesis Eq. 6.30–6.31): λ as in
 /// failure_derivative (empty `adjoint`: solved here) and J's own density on the moving patches,
-/// j = exp(α(σ_vm/σ_y − 1))/V − I/V² (normalized; the exponential alone otherwise), σ_vm of
-/// the nodal field as failure_value takes it. The exponential is not in the span the rules fit,
-/// so ∫ j Vₙ is the derivative of J's exact integral over the frozen field, not of its rule sum
-/// (the difference is the rules' error in j's change). Entries flagged `incomplete` as in
-/// compliance_gradient: use failure_derivative there.
+/// ĵ/V − I/V² (normalized; ĵ otherwise), ĵ the projection of exp(α(σ_vm/σ_y − 1)) on the rules'
+/// span over the cut cell's frame (σ_vm of the nodal field as failure_value takes it): with u
+/// and the frames frozen, the exact derivative of J's frame-rule sum (to the moments'
+/// accuracy). Entries flagged `incomplete` as in compliance_gradient: use failure_derivative there.
 ComplianceGradient failure_gradient(const ComplianceState& state, const FailureValue& value,
                                     const Eigen::VectorXd& adjoint, const ComplianceSetup& setup,
                                     const FailureOptions& options, const ShapeParameters& parameters,

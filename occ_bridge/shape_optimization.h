@@ -179,9 +179,9 @@ struct ShapeOptimizationResult {
   double tangency_residual_max = 0;    ///< face model relations on the final part
   std::shared_ptr<const PartShape> part;  ///< the final valid model
   int evaluations = 0, invalid_models = 0, failed_projections = 0;
-  /// "exact" (Hadamard boundary integrals: mass-property objectives, and compliance by the rule
-  /// derivatives), "semi-analytic" (central differences of the changed cut cells' element
-  /// matrices, contracted with u; exact volume-penalty part) or "exact + semi-analytic" (some
+  /// "exact" (Hadamard boundary integrals: mass-property objectives, and compliance and failure
+  /// by the rule derivatives), "semi-analytic" (central differences of the changed cut cells'
+  /// element matrices, contracted with u or the adjoint; exact volume-penalty part) or "exact + semi-analytic" (some
   /// design entries each way, see the counts below).
   std::string gradient = "exact";
   /// Compliance / failure design-entry derivatives computed by each route, summed over evaluations.

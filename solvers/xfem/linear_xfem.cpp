@@ -1478,6 +1478,7 @@ double volume_fraction(const GridElement& element) {
 Box3 rule_frame(const GridElement& element) {
   if (element.frame) return *element.frame;
   const size_t n = element.rule.points.size();
+  if (n == 0) return element.box;  // a failed rule (GridModel::rule_failures): nothing to integrate
   const int per = static_cast<int>(std::lround(std::cbrt(static_cast<double>(n))));
   PARAFAB_VERIFY(per >= 2 && static_cast<size_t>(per) * per * per == n,
                  "rule_frame: a rule of " << n << " points is not a tensor Gauss rule of at least 2³ points");

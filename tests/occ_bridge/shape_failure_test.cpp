@@ -71,6 +71,28 @@ TEST(ShapeFailure, BarInUniformTensionMatchesTheClosedForm) {
     EXPECT_NEAR(v.max_von_mises / (F / A), 1, 5e-14);
     EXPECT_NEAR(v.volume / V, 1, 5e-14);
   }
+  // A cut element whose rule failed stays in the model with no points (grid_model.h
+  // RuleFailure): it adds nothing, J's integral drops by exp(·)·V_e (V_e its rule's volume,
+  // the closed form's integrand constant), and the exact gradient still runs.
+  size_t e = 0;
+  while (e < s.model->elements.size() && !s.model->elements[e].subvolume) ++e;
+  ASSERT_LT(e, s.model->elements.size());
+  double Ve = 0;
+  for (double w : s.model->elements[e].rule.weights) Ve += w;
+  auto model = std::make_shared<GridModel>(*s.model);
+  model->elements[e].rule = {};
+  ComplianceState failed = s;
+  failed.model = model;
+  const FailureOptions bare{sigma_y, alpha, false};
+  const FailureValue before = failure_value(s, setup, bare, true), after = failure_value(failed, setup, bare, true);
+  ASSERT_TRUE(after.done) << after.message;
+  EXPECT_GT(Ve, 0);
+  EXPECT_NEAR(after.integral, before.integral - exact * Ve, 1e-12 * before.integral);
+  const FaceModel fm = build_face_model(*part);
+  const ShapeParameters sp = build_shape_parameters(fm, {});
+  const ComplianceGradient g = failure_gradient(failed, after, {}, setup, bare, sp, sp.initial);
+  EXPECT_TRUE(g.done) << g.message;
+  EXPECT_TRUE(g.gradient.allFinite());
 }
 
 // The turned L-bracket of shape_compliance_test.cpp (turned_bracket.h).
@@ -182,7 +204,8 @@ TEST(ShapeFailure, ExactRouteMatchesFiniteDifferencesOfTheFullPipeline) {
 }
 
 // The exact route where the adjoint enters other terms than the bulk: dead weight (the body
-// force's −ρg·λ on the moving patches) and a load face's own motion (the bolt hole loaded, its
+// force's −ρg·λ on the moving patches), the local Nitsche penalty's dΛ (zᵀg + λᵀPu) and a load
+// face's own motion (the bolt hole loaded, its
 // radius the entry: ∂ₙ(z·t) + κ z·t with z = −λ, its edges, and a total force's area term; the
 // end face moving with its load). Against the same reference as above, σ_y set to half the
 // start's max σ_vm so the exponential is as steep in each case.
@@ -206,16 +229,21 @@ TEST(ShapeFailure, ExactRouteCoversDeadWeightAndALoadFacesOwnMotion) {
   ComplianceSetup bolt_force = testing::steel_cantilever(*bracket.part, support, bracket.hole, down);
   ComplianceSetup bolt_traction = bolt_force;
   bolt_traction.forces.clear();
+  ComplianceSetup local = bracket.setup;  // the clamped cut cells' penalty κΛ changes with their faces
+  local.solver.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Local;
   // Tolerances near the measured relative differences: dead weight hole 3.4e-9, outer fillet
   // 2.9e-6; the loaded hole 1.9e-5 with a total force, whose dJ (3.5e-4) is what is left of terms
   // of the fixed traction's size (0.052, 4.9e-8 there): the absolute differences are alike,
-  // 6.5e-9 and 2.5e-9; the end face 1.1e-9.
+  // 6.5e-9 and 2.5e-9; the end face 1.1e-9; with the local penalty the outer fillet (its cells
+  // hold the clamp's patch) 2.4e-7, the hole 9.8e-7.
   const std::vector<Case> cases = {
       {"dead weight: hole radius", dead, {support}, bracket.hole, "radius", 1e-8},
       {"dead weight: outer fillet radius", dead, {support}, bracket.outer, "radius", 6e-6},
       {"hole loaded by a total force: its radius", bolt_force, {support}, bracket.hole, "radius", 4e-5},
       {"hole loaded by a fixed traction: its radius", bolt_traction, {support}, bracket.hole, "radius", 1e-7},
       {"end face offset, its load moving with it", bracket.setup, {support}, end, "offset", 3e-9},
+      {"local penalty: outer fillet radius (tangent to the support)", local, {support, end}, bracket.outer, "radius", 6e-7},
+      {"local penalty: hole radius", local, {support, end}, bracket.hole, "radius", 2e-6},
   };
   for (const Case& k : cases) {
     const testing::DesignSpace space(*bracket.part, k.fixed);

@@ -637,8 +637,8 @@ TEST(VolumeRule, CubeCutByPlaneIsExact) {
 
 // rule_frame recovers a rule's box from its first and last tensor Gauss points: the tight
 // fitting box volume_rule reports (a cell cut by an oblique plane, 4 and 5 points per direction),
-// an uncut cell's box, and a frozen frame when one is set; a rule of other than n³ points is an
-// error naming its size.
+// an uncut cell's box, a frozen frame when one is set, the cell's box for a failed (empty) rule;
+// a rule of other than n³ points is an error naming its size.
 TEST(VolumeRule, RuleFrameIsTheFittingBox) {
   const Box3 cell{{0.25, -1, 2}, {1.75, 0.5, 3.5}};
   const Vec3 n = Vec3(0.3, 0.5, 0.8).normalized();
@@ -665,6 +665,10 @@ TEST(VolumeRule, RuleFrameIsTheFittingBox) {
   uncut.rule = tensor_gauss_rule(cell, 3);
   EXPECT_LT((rule_frame(uncut).min - cell.min).cwiseAbs().maxCoeff(), 1e-14);
   EXPECT_LT((rule_frame(uncut).max - cell.max).cwiseAbs().maxCoeff(), 1e-14);
+  GridElement failed = uncut;  // a failed rule keeps the element with no points: its cell's box
+  failed.rule = {};
+  EXPECT_EQ(rule_frame(failed).min, cell.min);
+  EXPECT_EQ(rule_frame(failed).max, cell.max);
   uncut.rule.points.pop_back();
   uncut.rule.weights.pop_back();
   try {
