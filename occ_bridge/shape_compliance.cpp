@@ -191,7 +191,7 @@ std::vector<int> match(const GridModel& at, const std::vector<int>& base, const 
 void freeze_frame(xfem::GridElement& el, const xfem::GridElement& from) {
   el.frame.reset();
   if (!el.subvolume || !from.subvolume) return;
-  const xfem::Box3 own = xfem::rule_frame(el), F = xfem::rule_frame(from);
+  const xfem::Box3 own = xfem::rule_box(el), F = xfem::rule_frame(from);
   const xfem::Vec3 slack = 0.1 * own.size();
   if (((F.min - own.min).cwiseAbs() - slack).maxCoeff() > 0 || ((F.max - own.max).cwiseAbs() - slack).maxCoeff() > 0) return;
   el.frame = F;
@@ -268,9 +268,7 @@ ComplianceState compliance_at(std::shared_ptr<const PartShape> part, const Compl
   if (s.model)
     for (const xfem::GridElement& el : s.model->elements)
       if (el.frame) {
-        xfem::GridElement own = el;
-        own.frame.reset();
-        const xfem::Box3 a = *el.frame, b = xfem::rule_frame(own);
+        const xfem::Box3 a = *el.frame, b = xfem::rule_box(el);
         const double tol = 1e-9 * el.box.size().maxCoeff();
         if (((a.min - b.min).cwiseAbs().array() > tol).any() || ((a.max - b.max).cwiseAbs().array() > tol).any()) {
           s.frames_own = false;

@@ -1475,13 +1475,14 @@ double volume_fraction(const GridElement& element) {
   return v / element.box.volume();
 }
 
-Box3 rule_frame(const GridElement& element) {
-  if (element.frame) return *element.frame;
+Box3 rule_frame(const GridElement& element) { return element.frame ? *element.frame : rule_box(element); }
+
+Box3 rule_box(const GridElement& element) {
   const size_t n = element.rule.points.size();
   if (n == 0) return element.box;  // a failed rule (GridModel::rule_failures): nothing to integrate
   const int per = static_cast<int>(std::lround(std::cbrt(static_cast<double>(n))));
   PARAFAB_VERIFY(per >= 2 && static_cast<size_t>(per) * per * per == n,
-                 "rule_frame: a rule of " << n << " points is not a tensor Gauss rule of at least 2³ points");
+                 "rule_box: a rule of " << n << " points is not a tensor Gauss rule of at least 2³ points");
   const QuadratureRule1& g = gauss_legendre(per);
   const double t0 = g.points.front(), t1 = g.points.back();
   Box3 b;

@@ -43,11 +43,12 @@ struct GridElement {
 
 /// Σ rule weights / box volume.
 double volume_fraction(const GridElement& element);
-/// element.frame when set, else the box of the element's tensor Gauss rule (a cut cell's fitting
-/// box, an uncut cell's box), recovered from its first and last points; the cell's box for an
-/// element without rule points (a failed rule). Throws parafab::Error unless the rule has n³
-/// points (n ≥ 2) or none.
+/// element.frame when set, else rule_box(element).
 Box3 rule_frame(const GridElement& element);
+/// The box of the element's tensor Gauss rule (a cut cell's fitting box, an uncut cell's box),
+/// recovered from its first and last points; the cell's box for an element without rule points
+/// (a failed rule). Throws parafab::Error unless the rule has n³ points (n ≥ 2) or none.
+Box3 rule_box(const GridElement& element);
 /// The fraction the discrete switches see: switch_fraction when set, else volume_fraction.
 inline double switching_fraction(const GridElement& element) {
   return element.switch_fraction >= 0 ? element.switch_fraction : volume_fraction(element);

@@ -132,11 +132,7 @@ TEST(ShapeFailure, AdjointGradientMatchesFiniteDifferencesOfTheFullPipeline) {
       // extrapolated from the steps H and H/2.
       double fds[1];
       const double fd = testing::richardson(
-          [&](double H) {
-            const ComplianceState side = compliance_at(part_at(H), at, c.setup, at.model.get());
-            EXPECT_TRUE(side.done) << k.what << ": " << side.message;
-            return side.done ? failure_value(side, c.setup, fo).objective : std::nan("");
-          },
+          [&](double H) { return testing::failure_on(part_at(H), at, c.setup, fo); },
           2e-4 * L, fds);
       std::printf("%s (normalize %d): J = %.10g, max σ_vm %.6g, adjoint %.10g, FD %.10g (H: %.10g), relative %.2e, %d cells, "
                   "%d switches\n",
@@ -188,11 +184,7 @@ TEST(ShapeFailure, ExactRouteMatchesFiniteDifferencesOfTheFullPipeline) {
       const ComplianceDerivative d = failure_derivative(at, v, lambda, part_at(h), part_at(-h), h, c.setup, fo);
       ASSERT_TRUE(d.done) << d.message;
       const double fd = testing::richardson(
-          [&](double H) {
-            const ComplianceState side = compliance_at(part_at(H), at, c.setup, at.model.get());
-            EXPECT_TRUE(side.done) << k.what << ": " << side.message;
-            return side.done ? failure_value(side, c.setup, fo).objective : std::nan("");
-          },
+          [&](double H) { return testing::failure_on(part_at(H), at, c.setup, fo); },
           2e-4 * L);
       std::printf("%s (normalize %d): J = %.10g, exact %.10g (%.3f s, %d elements, %d points), semi-analytic %.10g, "
                   "FD %.10g, relative: exact %.2e, semi-analytic %.2e\n",
@@ -264,11 +256,7 @@ TEST(ShapeFailure, ExactRouteCoversDeadWeightAndALoadFacesOwnMotion) {
     EXPECT_TRUE(exact_along(g, entry.column)) << k.what;
     const double exact = g.gradient.dot(entry.column);
     const double fd = testing::richardson(
-        [&](double H) {
-          const ComplianceState side = compliance_at(part_at(H), at, k.setup, at.model.get());
-          EXPECT_TRUE(side.done) << k.what << ": " << side.message;
-          return side.done ? failure_value(side, k.setup, fo).objective : std::nan("");
-        },
+        [&](double H) { return testing::failure_on(part_at(H), at, k.setup, fo); },
         2e-4 * space.size);
     std::printf("%s: max σ_vm %.4g, J = %.10g, exact %.10g, FD %.10g, relative %.2e, %d edge points\n", k.what,
                 v.max_von_mises, v.objective, exact, fd, std::abs(exact - fd) / std::abs(fd), g.edge_points);

@@ -19,6 +19,7 @@
 #include "optimize/projection.h"
 #include "part_reader.h"
 #include "shape_compliance.h"
+#include "shape_failure.h"
 #include "shape_modify.h"
 #include "shape_parameters.h"
 
@@ -158,6 +159,15 @@ inline double compliance_on(std::shared_ptr<const PartShape> part, const Complia
   const ComplianceState s = compliance_at(std::move(part), at, setup);
   EXPECT_TRUE(s.done) << s.message;
   return s.done ? s.compliance : std::nan("");
+}
+
+/// The failure metric J of a perturbed model re-cut on the grid of `at` and solved, its switches
+/// and frames frozen at `at` as a line search holds them (NaN, and a failure, if not solved).
+inline double failure_on(std::shared_ptr<const PartShape> part, const ComplianceState& at, const ComplianceSetup& setup,
+                         const FailureOptions& options) {
+  const ComplianceState s = compliance_at(std::move(part), at, setup, at.model.get());
+  EXPECT_TRUE(s.done) << s.message;
+  return s.done ? failure_value(s, setup, options).objective : std::nan("");
 }
 
 /// Richardson extrapolation (4 D(H/2) − D(H)) / 3 of the central differences D(h) =
