@@ -58,6 +58,9 @@ class OptimizeFailure(unittest.TestCase):
         self.assertEqual(h["semi_analytic_derivatives"], 0)
         self.assertGreater(h["exact_derivatives"], 0)
         self.assertEqual(h["invalid_models"], 0)
+        # Accepted points are evaluated again on their own frames (the failure metric's frames
+        # are frozen during each line search): measured 20 refreshes.
+        self.assertGreater(h["switch_refreshes"], 0)
         self.assertEqual((h["yield_stress"], h["exponent"], h["normalize"]), (100, 8, True))
         # Measured: J 1.8182e-3 -> 1.6524e-3 (-9.1 %), max sigma_vm at the material points
         # 65.50 -> 62.55 MPa on the optimizer's grid; status converged, 61 evaluations. With the
