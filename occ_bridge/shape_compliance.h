@@ -5,7 +5,7 @@
 // integrals over the moving patches, all of p at once; the default), and the SEMI-ANALYTIC one
 // (compliance_derivative: dK, df as central differences of the element matrices of only the
 // cells the perturbed model's re-cut changes, contracted with u), for entries the exact route
-// does not cover (a support's own motion, a cone or plane running tangent into a support or load).
+// does not cover (a support's or load's own motion next to another condition, a cone or plane running tangent into a support or load).
 // adjoint_shape_gradient is the exact route for any objective with an adjoint (the failure metric).
 #pragma once
 
@@ -135,10 +135,16 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// motion (a bolt hole's radius under its bolt load): with uₕ frozen, 2 d/ds ∫_Γ uₕ·t dA =
 /// 2∫_Γ (∂ₙ(uₕ·t) + κ uₕ·t) Vₙ dA + 2∮ uₕ·t α ds, κ the mean curvature (sum) and α =
 /// −Vₙ (n_Γ·n_F)/(ν·n_F) where Γ's edge slides along its neighbour F, plus its bulk term and, for
-/// a total force, the traction's change through dA. Not included, flagged `incomplete`: a
-/// support's own motion; a load's where its face is free-form or also a support, shares an edge
-/// with a support, another load or a face without a parameter block, or runs tangent
-/// (|n_F·ν| < 0.2) into a neighbour; a cone or plane tangent to a support or load; and the
+/// a total force, the traction's change through dA. A support's own motion (its Nitsche terms
+/// F(X, n) with n turning by n' = −∇_Γ Vₙ): ∫_Γ [(∂ₙF + κF) Vₙ − ∂F/∂n·∇_Γ Vₙ] dA + ∮ F α ds,
+/// the edges both Γ's edges on its neighbours and its pieces' edges on the cell walls (σ(u) jumps
+/// there, so the two cells' strips do not cancel); exact for the Nitsche integrals themselves,
+/// which the solver's degree-5 patch rules carry with an error whose change on a curved support
+/// is 1e-4 … 1e-3 of dC (ShapeCompliance.ASupportsOwnMotionHasAnExactGradient). Not included,
+/// flagged `incomplete`: a support's or load's own motion where its face is free-form, is both
+/// a support and a load, is a support with a prescribed `field`, shares an edge with another
+/// support or load or a face without a parameter block, or runs tangent (|n_F·ν| < 0.2) into a
+/// neighbour (a support also (|n_W·ν| < 0.05) along a cell wall); a cone or plane tangent to a support or load; and the
 /// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
 /// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)). With the local Nitsche penalty a
 /// clamped cut cell's penalty κΛ changes with every face that cuts it: C changes by

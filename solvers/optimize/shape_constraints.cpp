@@ -453,6 +453,27 @@ double implicit_mean_curvature(PrimitiveKind kind, const double* block, const Ei
   return (phi.h.trace() - n.dot(phi.h * n)) / gn;
 }
 
+NormalSpeed implicit_normal_speed(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
+  const int nb = block_size(kind);
+  const Jet phi = implicit_jet<true>(kind, block, X, true);
+  const Eigen::Vector3d grad = phi.g.tail<3>();
+  const double gn = grad.norm();
+  PARAFAB_VERIFY(gn > 0, "implicit_normal_speed: ∇φ = 0 at (" << X.transpose() << ") of a " << to_string(kind));
+  // ∇_X |∇φ| = ∇²_X φ ∇φ / |∇φ|; ∇_X (∂φ/∂p_k) = the mixed block of the Hessian.
+  const Eigen::Matrix3d hxx = phi.h.bottomRightCorner<3, 3>();
+  const Eigen::Vector3d dgn = hxx * grad / gn;
+  NormalSpeed r;
+  r.normal = grad / gn;
+  r.speed.resize(nb);
+  r.gradient.resize(nb, 3);
+  for (int k = 0; k < nb; ++k) {
+    r.speed[k] = -phi.g[k] / gn;
+    const Eigen::Vector3d dphik = phi.h.block<3, 1>(nb, k);
+    r.gradient.row(k) = (-(dphik / gn) + phi.g[k] * dgn / (gn * gn)).transpose();
+  }
+  return r;
+}
+
 V3<Dual> spine_point(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X) {
   const int nb = block_size(kind);
   std::vector<Dual> x;

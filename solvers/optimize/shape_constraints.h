@@ -128,6 +128,18 @@ Dual implicit_function(PrimitiveKind kind, const double* block, const Eigen::Vec
 /// ∫ κ g Vₙ dA (plus ∂ₙg and edge terms) when the face moves by Vₙ along that normal.
 double implicit_mean_curvature(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
 
+/// The normal speed of a face per entry of its block and that speed's spatial gradient, for the
+/// normal along ∇φ: Vₙ,k = −∂φ/∂p_k / |∇φ| (the zero set moves by Vₙ,k along ∇φ/|∇φ| per unit
+/// step of p_k) and ∇_X Vₙ,k from φ's exact mixed Hessian. A surface integral ∫_Γ F(X, n) dA
+/// whose integrand depends on the normal changes by −∫ ∂F/∂n·∇_Γ Vₙ dA through n' = −∇_Γ Vₙ
+/// (the tangential part of `gradient`); `speed` equals implicit_function's −g_k/|∇_X φ|.
+struct NormalSpeed {
+  Eigen::Vector3d normal;               ///< ∇φ/|∇φ|
+  Eigen::VectorXd speed;                ///< Vₙ,k, k over the block
+  Eigen::Matrix<double, Eigen::Dynamic, 3> gradient;  ///< row k: ∇_X Vₙ,k
+};
+NormalSpeed implicit_normal_speed(PrimitiveKind kind, const double* block, const Eigen::Vector3d& X);
+
 /// The point S of a swept primitive's spine nearest X, with its gradient over the block's
 /// parameters (X held): cylinder, the axis line (S = c + a a·(X − c)/|a|²); torus, the centre
 /// circle (S = c + R ρ̂, ρ̂ the unit radial direction of X); sphere, the centre. Where such a face

@@ -687,6 +687,51 @@ LocalPenaltyParts local_penalty_parts(const GridElement& element, const ElasticM
 
 namespace {
 
+// Second derivatives of the shape functions: dG[m](a, j) = ∂²N_a/∂x_j∂x_m (products of the 1D
+// Lagrange functions, as trilinear_shape / triquadratic_shape).
+template <int NN>
+void shape_second_derivatives(const Box3& box, const Vec3& X, std::array<Eigen::Matrix<double, NN, 3>, 3>& dG) {
+  constexpr int P = NN == 8 ? 2 : 3;  // nodes per direction
+  const Vec3 h = box.size();
+  const Vec3 xi = (X - box.min).cwiseQuotient(h);
+  double L[3][3], dL[3][3], d2L[3][3];
+  for (int d = 0; d < 3; ++d) {
+    const double t = xi[d];
+    if constexpr (P == 2) {
+      L[d][0] = 1 - t, L[d][1] = t;
+      dL[d][0] = -1 / h[d], dL[d][1] = 1 / h[d];
+      d2L[d][0] = d2L[d][1] = 0;
+    } else {
+      L[d][0] = (1 - t) * (1 - 2 * t), L[d][1] = 4 * t * (1 - t), L[d][2] = t * (2 * t - 1);
+      dL[d][0] = (4 * t - 3) / h[d], dL[d][1] = (4 - 8 * t) / h[d], dL[d][2] = (4 * t - 1) / h[d];
+      const double h2 = h[d] * h[d];
+      d2L[d][0] = 4 / h2, d2L[d][1] = -8 / h2, d2L[d][2] = 4 / h2;
+    }
+  }
+  for (int l = 0; l < P; ++l)
+    for (int j = 0; j < P; ++j)
+      for (int i = 0; i < P; ++i) {
+        const int a = P == 2 ? i + 2 * j + 4 * l : i + 3 * j + 9 * l;  // trilinear_shape: bit 0 x, 1 y, 2 z
+        const int idx[3] = {i, j, l};
+        for (int m = 0; m < 3; ++m)
+          for (int c = 0; c < 3; ++c) {
+            double v = 1;
+            for (int d = 0; d < 3; ++d) {
+              const int order = (d == m) + (d == c);
+              v *= order == 0 ? L[d][idx[d]] : order == 1 ? dL[d][idx[d]] : d2L[d][idx[d]];
+            }
+            dG[m](a, c) = v;
+          }
+      }
+}
+
+// Voigt strain (engineering shears, strain_matrix's order) of a displacement gradient H_ij = ∂u_i/∂x_j.
+Eigen::Matrix<double, 6, 1> voigt_strain(const Eigen::Matrix3d& H) {
+  Eigen::Matrix<double, 6, 1> e;
+  e << H(0, 0), H(1, 1), H(2, 2), H(0, 1) + H(1, 0), H(1, 2) + H(2, 1), H(0, 2) + H(2, 0);
+  return e;
+}
+
 template <int NN>
 BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::VectorXd& ue,
                                             const ElasticMaterial& material, const LinearXfemOptions& options,
@@ -703,7 +748,9 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
   }
   if (dc) {
     // The terms of element_system_n: K ∋ penalty NᵀMN − NᵀMT − TᵀMN, f ∋ penalty NᵀMg − TᵀMg.
-    const Vec3 sigma_n = traction_operator(n) * elasticity(material) * (strain_matrix<NN>(G) * ue);
+    const Eigen::Matrix<double, 6, 6> D = elasticity(material);
+    const Eigen::Matrix<double, 6, 1> stress = D * (strain_matrix<NN>(G) * ue);
+    const Vec3 sigma_n = traction_operator(n) * stress;
     PARAFAB_VERIFY(options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed || local_penalty >= 0,
                    "boundary_term_density: the local Nitsche penalty needs the element's penalty (local_penalty_parts)");
     const double penalty = options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed
@@ -714,6 +761,27 @@ BoundaryTermDensity boundary_term_density_n(const GridElement& el, const Eigen::
     const Vec3 g = dc->field ? dc->field(X) : Vec3(dc->offset + dc->gradient * X);
     d.stiffness += penalty * u.dot(M * u) - 2 * u.dot(M * sigma_n);
     d.load += penalty * u.dot(M * g) - sigma_n.dot(M * g);
+    // The support's own motion: ∇_X at n held (∂_m u = H e_m, ∂_m σn from the shape functions'
+    // second derivatives; ∂_m g = the prescribed gradient's column, 0 for a field) and ∂/∂n at X
+    // held (a·σn = (σa)·n, σ symmetric).
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();  // ∂u_i/∂x_j
+    for (int a = 0; a < NN; ++a) H += ue.segment<3>(3 * a) * G.row(a);
+    std::array<Eigen::Matrix<double, NN, 3>, 3> dG;
+    shape_second_derivatives<NN>(el.box, X, dG);
+    const Vec3 Mu = M * u, Mg = M * g, Ms = M * sigma_n;
+    for (int m = 0; m < 3; ++m) {
+      Eigen::Matrix3d dH = Eigen::Matrix3d::Zero();
+      for (int a = 0; a < NN; ++a) dH += ue.segment<3>(3 * a) * dG[m].row(a);
+      const Vec3 dsigma_n = traction_operator(n) * (D * voigt_strain(dH));
+      const Vec3 du = H.col(m);
+      const Vec3 dg = dc->field ? Vec3::Zero() : Vec3(dc->gradient.col(m));
+      d.stiffness_gradient[m] = 2 * penalty * du.dot(Mu) - 2 * du.dot(Ms) - 2 * Mu.dot(dsigma_n);
+      d.load_gradient[m] += penalty * (du.dot(Mg) + Mu.dot(dg)) - dsigma_n.dot(Mg) - Ms.dot(dg);
+      d.flux_gradient[m] = 2 * dsigma_n.dot(Ms);
+    }
+    d.stiffness_normal = -2 * traction_operator(Mu) * stress;
+    d.load_normal = -(traction_operator(Mg) * stress);
+    d.flux_normal = 2 * traction_operator(Ms) * stress;
   }
   return d;
 }

@@ -305,13 +305,22 @@ class BulkShapeDensity {
 /// by these densities times a ds. `dirichlet` and `traction` may be null.
 /// With the local penalty the element's penalty must be given (`local_penalty`, from
 /// local_penalty_parts). `flux` = |M σ(u)n|², the density of uᵀBu (B of the local penalty).
-/// `load_gradient` = ∇_X(uₕ·t) at X (zero without a traction): a load face's own motion moves
-/// its patch through the element's field.
+/// `load_gradient` = ∇_X of `load` at X with n held (uₕ·t, plus the Dirichlet part): a load
+/// face's or support's own motion moves its patch through the element's field. With a Dirichlet
+/// condition also ∇_X of `stiffness` and `flux` (n held; from the shape functions' second
+/// derivatives) and ∂/∂n of `stiffness`, `load` and `flux` (X held): a support's own motion turns
+/// its normal (n' = −∇_Γ Vₙ, optimize::implicit_normal_speed). A prescribed `field` is taken as
+/// having no gradient (the caller must not differentiate its motion).
 struct BoundaryTermDensity {
   double stiffness = 0;
   double load = 0;
   double flux = 0;
   Vec3 load_gradient = Vec3::Zero();
+  Vec3 stiffness_gradient = Vec3::Zero();
+  Vec3 flux_gradient = Vec3::Zero();
+  Vec3 stiffness_normal = Vec3::Zero();
+  Vec3 load_normal = Vec3::Zero();
+  Vec3 flux_normal = Vec3::Zero();
 };
 BoundaryTermDensity boundary_term_density(const GridElement& element, const Eigen::VectorXd& ue,
                                           const ElasticMaterial& material, const LinearXfemOptions& options,

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -671,10 +672,16 @@ TEST(ShapeCompliance, MergePenaltyMakesTheJoinContinuousInThePlainBasis) {
   // 8.29e-10 (C falls along the line).
   EXPECT_NEAR((pb.compliance - pa.compliance) / pa.compliance, -1.154e-4, 0.01e-4);
   EXPECT_LT(std::abs(tb.compliance - ta.compliance), 1.5 * step);
-  const TieGradientCheck g = tie_gradient_check(tied, "plain hex8", {1e-4});
-  // Measured: relative difference 1.5e-9; the tie term (-4.3e-4) is 7e4 times the difference.
-  EXPECT_LT(std::abs(g.exact - g.fd[0]), 2e-4 * std::abs(g.tie_term));
-  EXPECT_LT(std::abs(g.exact - g.fd[0]), 5e-9 * std::abs(g.fd[0]));
+  const TieGradientCheck g = tie_gradient_check(tied, "plain hex8", {2e-4, 1e-4, 5e-5});
+  // Measured on 2026-12-02's machine (AMD EPYC): relative differences 1.9e-8, 1.5e-8, 2.8e-9 at
+  // the three steps, whose own spread (3.4e-8 relative: C's round-off over the step) is the
+  // floor here; the machine before measured 1.5e-9 at 1e-4 (asserted then: 5e-9). The tie term
+  // (-4.3e-4) is 3e3 times that spread: the exact value lies inside it.
+  const auto [lo, hi] = std::minmax_element(g.fd.begin(), g.fd.end());
+  EXPECT_LT(*hi - *lo, 6e-8 * std::abs(g.fd[1]));
+  EXPECT_GE(g.exact, *lo - 0.25 * (*hi - *lo));
+  EXPECT_LE(g.exact, *hi + 0.25 * (*hi - *lo));
+  EXPECT_LT(std::abs(g.exact - g.fd[1]), 2e-4 * std::abs(g.tie_term));
 }
 
 // The same join in ParaFab's default basis, hex8 with incompatible modes, with and without
@@ -796,6 +803,94 @@ TEST(ShapeCompliance, ConeAndSphereEntriesHaveExactGradients) {
     std::printf("%s: C = %.10g, exact %.10g, FD %.10g (H: %.10g), relative difference %.2e, %d elements, %d points\n",
                 k.what, at.compliance, exact, fd, coarse, std::abs(exact - fd) / std::abs(fd), g.elements, g.points);
     EXPECT_LE(std::abs(exact - fd), k.tolerance * std::abs(fd)) << k.what;
+  }
+}
+
+// A support's own motion in the exact route (a bolt hole clamped by its bolt, the upright's top
+// clamped, a countersink under a clamped screw head): with uₕ frozen, the Nitsche terms on the
+// moving support Γ change by ∫_Γ [(∂ₙF + κF) Vₙ − ∂F/∂n·∇_Γ Vₙ] dA + ∮ F α ds (the normal
+// turning by −∇_Γ Vₙ: the hole's axis point, the top's normal), besides the bulk term.
+// Against Richardson differences of the whole pipeline; the semi-analytic route (until
+// 2026-12-02 the only one for these entries) is printed beside it.
+TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
+  struct SupportCase {
+    const char* what;
+    std::shared_ptr<const PartShape> part;
+    int support, load, entry_face;
+    const char* parameter;
+    bool local_penalty, prescribed;
+    double tolerance, tolerance_12;  // with the solver's patch rules of degree 5 (its default) and 12
+  };
+  BracketCase bracket;
+  const Vec3 center(30, 20, 12);
+  auto turned_block = [&](const Vec3& X) -> Vec3 {
+    return center + Eigen::AngleAxisd(11 * M_PI / 180, testing::kBracketAxis) * (X - center);
+  };
+  const auto block = rotated_part(*read_part(testing::sample_part("countersunk_pin_block")), center,
+                                  testing::kBracketAxis, 11);
+  const double tol = 1e-6;
+  const int bracket_end = bracket.setup.tractions[0].face;
+  const int top = face_at_point(*bracket.part, turned({4, 20, 50}), tol);  // its offset: a kink in C (FD 1.6 % off both routes)
+  const int block_end = face_at_point(*block, turned_block({60, 20, 6}), tol);
+  const int cone = face_at_point(*block, turned_block({15 + 6, 20, 10}), tol);
+  // Tolerances near the measured relative differences. The route differentiates the exact
+  // Nitsche integrals; the solver integrates them with its patch rules (degree 5), whose error
+  // on a curved support changes with the shape too: 1.6e-4 … 1.2e-3 of dC there (hole radius
+  // 3.6e-4, axis point 1.2e-3, local penalty 1.6e-4, countersink 3.3e-4 and 5.0e-4; planes and
+  // the prescribed case 1.2e-6 and 5e-8); with the solver's rules at degree 12 1.7e-7, 2.9e-7,
+  // 2.3e-6, 2.5e-11, 3.3e-8, 7.5e-7 and 4.5e-7 (in the order below).
+  const std::vector<SupportCase> cases = {
+      {"bracket hole radius, the hole clamped", bracket.part, bracket.hole, bracket_end, bracket.hole, "radius",
+       false, false, 6e-4, 5e-7},
+      {"bracket hole axis point x, the hole clamped", bracket.part, bracket.hole, bracket_end, bracket.hole,
+       "axis point x", false, false, 2e-3, 8e-7},
+      {"bracket hole radius, local Nitsche penalty", bracket.part, bracket.hole, bracket_end, bracket.hole, "radius",
+       true, false, 3e-4, 5e-6},
+      {"bracket hole radius, a prescribed displacement", bracket.part, bracket.hole, bracket_end, bracket.hole,
+       "radius", false, true, 1e-7, 1e-10},
+      {"upright top normal y, the top clamped", bracket.part, top, bracket_end, top, "normal y", false, false, 3e-6,
+       1e-7},
+      {"countersink radius, the screw head clamped", block, cone, block_end, cone, "radius", false, false, 6e-4, 2e-6},
+      {"countersink half-angle, the screw head clamped", block, cone, block_end, cone, "half-angle", false, false,
+       8e-4, 1.5e-6},
+  };
+  // Supports whose own motion stays differenced (flagged): the back of the upright, which runs
+  // tangent into the outer fillet.
+  {
+    const int back = bracket.setup.dirichlet[0].face;
+    const testing::DesignSpace space(*bracket.part, {bracket_end});
+    ASSERT_TRUE(space.start.done);
+    const ExactAtEntry e(*bracket.part, space, parameter_index(space.parameters, back, "offset"), bracket.setup);
+    ASSERT_EQ(e.failure(), "");
+    EXPECT_FALSE(exact_along(e.gradient, e.entry.column)) << "back of the upright";
+  }
+  for (const int degree : {5, 12})
+  for (const SupportCase& k : cases) {
+    ComplianceSetup setup = testing::steel_cantilever(*k.part, k.support, k.load,
+                                                      testing::turned(Vec3(0, 0, -500)) - testing::turned(Vec3::Zero()));
+    setup.solver.surface_degree = degree;
+    if (k.local_penalty) setup.solver.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Local;
+    if (k.prescribed) {  // the bolt pulls its hole 0.01 mm along x and turns it a little
+      setup.dirichlet[0].offset = Vec3(0.01, 0, 0);
+      setup.dirichlet[0].gradient << 0, -1e-4, 0, 1e-4, 0, 0, 0, 0, 0;
+    }
+    const testing::DesignSpace space(*k.part, {k.load});
+    ASSERT_TRUE(space.start.done);
+    const int index = parameter_index(space.parameters, k.entry_face, k.parameter);
+    const ExactAtEntry e(*k.part, space, index, setup);
+    ASSERT_EQ(e.failure(), "") << k.what;
+    auto part_at = [&](double s) { return e.entry.part_at(s); };
+    EXPECT_TRUE(exact_along(e.gradient, e.entry.column)) << k.what;
+    const double L = space.size;
+    const bool angle = std::string(k.parameter) == "half-angle" || std::string(k.parameter).rfind("normal", 0) == 0;
+    const double H = angle ? 2e-4 : 2e-4 * L;
+    const double fd = richardson([&](double s) { return compliance_on(part_at(s), e.at, setup); }, H);
+    const ComplianceDerivative semi = compliance_derivative(e.at, part_at(H / 2), part_at(-H / 2), H / 2, setup);
+    std::printf("degree %d, %s: C = %.10g, exact %.10g, FD %.10g, relative difference %.2e; semi-analytic %.10g (%.2e); %d points, "
+                "%d on edges\n",
+                degree, k.what, e.at.compliance, e.along, fd, std::abs(e.along - fd) / std::abs(fd), semi.derivative,
+                std::abs(semi.derivative - fd) / std::abs(fd), e.gradient.points, e.gradient.edge_points);
+    EXPECT_LE(std::abs(e.along - fd), (degree == 5 ? k.tolerance : k.tolerance_12) * std::abs(fd)) << degree << ", " << k.what;
   }
 }
 

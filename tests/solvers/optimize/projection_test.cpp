@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <random>
 
@@ -179,6 +180,50 @@ TEST(ShapeConstraints, MeanCurvatureOfTheZeroSetsIsTheClosedForm) {
   const double h = 1.5;  // higher up the cone: ρ = r + h tan α
   EXPECT_NEAR(implicit_mean_curvature(PrimitiveKind::cone, cone, Eigen::Vector3d(2 + h * std::tan(0.3), 0, h)),
               std::cos(0.3) / (2 + h * std::tan(0.3)), 1e-14);
+}
+
+// The normal speed a support's own motion uses (occ::compliance_gradient): Vₙ,k = −∂φ/∂p_k/|∇φ|
+// against implicit_function's gradient, and its spatial gradient against central differences,
+// on every primitive at points off the surface too (the gradient holds for any X). Closed
+// form: a cylinder's axis point moved along x has Vₙ = n̂·e_x, whose gradient on the surface is
+// (e_x − n̂ n̂_x)/ρ.
+TEST(ShapeConstraints, NormalSpeedsAndTheirGradientsMatchCentralDifferences) {
+  const std::vector<std::pair<PrimitiveKind, std::vector<double>>> faces = {
+      {PrimitiveKind::plane, {0, 0.6, 0.8, 2}},
+      {PrimitiveKind::cylinder, {0.5, -1, 0, 0.1, 0.2, 1, 2}},
+      {PrimitiveKind::cone, {0, 0, 0, 0, 0.3, 1, 2, 0.3}},
+      {PrimitiveKind::sphere, {1, 2, 3, 2}},
+      {PrimitiveKind::torus, {0, 0, 0, 0.2, 0, 1, 4, 1}},
+  };
+  const Eigen::Vector3d X(1.3, 2.2, 0.7);
+  double worst = 0;
+  for (const auto& [kind, block] : faces) {
+    const NormalSpeed ns = implicit_normal_speed(kind, block.data(), X);
+    const Dual phi = implicit_function(kind, block.data(), X);
+    const int nb = block_size(kind);
+    const Eigen::Vector3d grad = phi.g.tail<3>();
+    EXPECT_NEAR((ns.normal - grad.normalized()).norm(), 0, 1e-15) << to_string(kind);
+    for (int k = 0; k < nb; ++k) {
+      EXPECT_NEAR(ns.speed[k], -phi.g[k] / grad.norm(), 1e-15) << to_string(kind) << " " << k;
+      for (int c = 0; c < 3; ++c) {
+        const double h = 1e-6;
+        const Eigen::Vector3d e = h * Eigen::Vector3d::Unit(c);
+        const double fd = (implicit_normal_speed(kind, block.data(), X + e).speed[k] -
+                           implicit_normal_speed(kind, block.data(), X - e).speed[k]) / (2 * h);
+        worst = std::max(worst, std::abs(ns.gradient(k, c) - fd));
+      }
+    }
+  }
+  std::printf("largest |∇Vₙ − central difference|: %.2e\n", worst);
+  EXPECT_LE(worst, 1e-9);
+  // Closed form on a cylinder about z through the origin, r = 2, at (2 cos t, 2 sin t, 1).
+  const double cyl[] = {0, 0, 0, 0, 0, 1, 2};
+  const double t = 0.7;
+  const Eigen::Vector3d n(std::cos(t), std::sin(t), 0);
+  const NormalSpeed ns = implicit_normal_speed(PrimitiveKind::cylinder, cyl, 2 * n + Eigen::Vector3d(0, 0, 1));
+  EXPECT_NEAR(ns.speed[0], n.x(), 1e-15);
+  const Eigen::Vector3d expected = (Eigen::Vector3d::UnitX() - n * n.x()) / 2;
+  EXPECT_NEAR((ns.gradient.row(0).transpose() - expected).norm(), 0, 1e-15);
 }
 
 TEST(ShapeConstraints, SpinePointsAreTheClosedFormsAndTheirGradientsMatchCentralDifferences) {

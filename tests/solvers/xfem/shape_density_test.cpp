@@ -127,5 +127,61 @@ void check_boundary(ElementType type) {
 TEST(BoundaryTermDensity, IntegratesToTheNitscheAndTractionTermsOfHex8) { check_boundary(ElementType::Hex8); }
 TEST(BoundaryTermDensity, IntegratesToTheNitscheAndTractionTermsOfHex27) { check_boundary(ElementType::Hex27); }
 
+
+// The derivatives a support's own motion needs (∇_X with n held, ∂/∂n with X held) against
+// central differences of the densities themselves, at points inside the cell, for a tilted
+// normal, a partial Dirichlet condition with a prescribed linear field and a traction.
+void check_boundary_derivatives(ElementType type, double tolerance) {
+  LinearXfemOptions o;
+  o.element = type;
+  o.nitsche_beta = 50;
+  ElasticMaterial m{210000, 0.3, 0};
+  GridElement el;
+  el.box.min = Vec3(1, -2, 0.5);
+  el.box.max = Vec3(3, 1, 2);
+  DirichletCondition dc;
+  dc.face = 4;
+  dc.components = Vec3(1, 0, 1);
+  dc.offset = Vec3(1e-3, -2e-3, 5e-4);
+  dc.gradient << 1e-4, 0, 2e-4, 0, -1e-4, 0, 3e-4, 0, 1e-4;
+  TractionCondition tc{4, Vec3(3, -1, 2)};
+  const int n = 3 * nodes_per_element(type);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal(0, 1e-3);
+  std::uniform_real_distribution<double> unit(0, 1);
+  Eigen::VectorXd u(n);
+  for (int i = 0; i < n; ++i) u[i] = normal(rng);
+  double worst = 0;
+  for (int trial = 0; trial < 5; ++trial) {
+    const Vec3 X = el.box.min + el.box.size().cwiseProduct(Vec3(unit(rng), unit(rng), unit(rng)));
+    const Vec3 nrm = Vec3(normal(rng), normal(rng), normal(rng)).normalized();
+    const BoundaryTermDensity d = boundary_term_density(el, u, m, o, &dc, &tc, X, nrm);
+    const double h = 1e-5;
+    for (int c = 0; c < 3; ++c) {
+      const Vec3 e = Vec3::Unit(c);
+      const BoundaryTermDensity xp = boundary_term_density(el, u, m, o, &dc, &tc, X + h * e, nrm);
+      const BoundaryTermDensity xm = boundary_term_density(el, u, m, o, &dc, &tc, X - h * e, nrm);
+      const BoundaryTermDensity np = boundary_term_density(el, u, m, o, &dc, &tc, X, nrm + h * e);
+      const BoundaryTermDensity nm = boundary_term_density(el, u, m, o, &dc, &tc, X, nrm - h * e);
+      const auto rel = [](double exact, double plus, double minus, double h, double scale) {
+        return std::abs(exact - (plus - minus) / (2 * h)) / scale;
+      };
+      const double ks = d.stiffness_gradient.norm() + d.stiffness_normal.norm(), ls = d.load_gradient.norm() + d.load_normal.norm(),
+                   fs = d.flux_gradient.norm() + d.flux_normal.norm();
+      ASSERT_GT(ks * ls * fs, 0);
+      worst = std::max({worst, rel(d.stiffness_gradient[c], xp.stiffness, xm.stiffness, h, ks),
+                        rel(d.load_gradient[c], xp.load, xm.load, h, ls), rel(d.flux_gradient[c], xp.flux, xm.flux, h, fs),
+                        rel(d.stiffness_normal[c], np.stiffness, nm.stiffness, h, ks),
+                        rel(d.load_normal[c], np.load, nm.load, h, ls), rel(d.flux_normal[c], np.flux, nm.flux, h, fs)});
+    }
+  }
+  std::printf("%s: largest relative difference of the boundary densities' derivatives from central differences %.2e\n",
+              element_type_name(type), worst);
+  EXPECT_LE(worst, tolerance);
+}
+
+TEST(BoundaryTermDensity, SpatialAndNormalDerivativesOfHex8) { check_boundary_derivatives(ElementType::Hex8, 1e-10); }
+TEST(BoundaryTermDensity, SpatialAndNormalDerivativesOfHex27) { check_boundary_derivatives(ElementType::Hex27, 5e-9); }
+
 }  // namespace
 }  // namespace parafab::xfem
