@@ -287,6 +287,17 @@ ComplianceState compliance_own_switches(std::shared_ptr<const PartShape> part, c
   return solve_on(std::move(part), std::move(m), setup, occt_volume);
 }
 
+ComplianceState compliance_own_frames(const ComplianceState& state) {
+  PARAFAB_VERIFY(state.done && state.model && state.switches_own,
+                 "compliance_own_frames: needs a solved state on its own switches");
+  ComplianceState r = state;
+  auto m = std::make_shared<GridModel>(*state.model);
+  for (xfem::GridElement& el : m->elements) el.frame.reset();
+  r.model = std::move(m);
+  r.frames_own = true;
+  return r;
+}
+
 ComplianceDerivative element_difference(const ComplianceState& at, std::shared_ptr<const PartShape> plus,
                                         std::shared_ptr<const PartShape> minus, double h, const ComplianceSetup& setup,
                                         const ElementTerm& term, const PairTerm& pair_term) {

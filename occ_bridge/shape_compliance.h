@@ -97,6 +97,12 @@ inline ComplianceState compliance_own_switches(const ComplianceState& state, con
   return compliance_own_switches(state.part, *state.model, state.occt_volume, setup);
 }
 
+/// A solved state whose switches are its own but whose failure frames were frozen
+/// (switches_own && !frames_own): the same state on its own frames, with no solve. The frames
+/// enter only the failure metric's integral, not K or f, so the solution (and its kept
+/// factorization) is the one a re-solve would give. The copy shares the cut.
+ComplianceState compliance_own_frames(const ComplianceState& state);
+
 struct ComplianceDerivative {
   bool done = false;
   std::string message;

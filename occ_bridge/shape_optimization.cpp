@@ -116,6 +116,10 @@ struct Evaluation {
   /// next line search's switches; the solution and its factorization are not kept) and whether
   /// its switches were its own.
   std::shared_ptr<const GridModel> model;
+  /// The solved state itself, kept only until the next evaluation: a refresh of an accepted
+  /// point whose switches are its own and frames are not re-integrates on its own frames
+  /// without a solve (compliance_own_frames).
+  std::shared_ptr<const ComplianceState> state;
   bool switches_own = true;
   bool frames_own = true;  ///< the failure metric's frames were its own (ComplianceState::frames_own)
   /// What a switch refresh of this point reuses, none of which depends on the switches: the
@@ -371,7 +375,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       for (int k = 0; k < nd; ++k) g->target[design[k]] = x[k];
       g->proj = optimize::project(sp.constraints, g->target, warm_p, sp.lower, sp.upper, {}, popt);  // primal warm start
       if (!g->proj.done) {
-        ++result.failed_projections;
+        if (result.failed_projections++ == 0) result.notes.push_back("first failed projection: " + g->proj.message);
         return false;  // never evaluate an invalid model
       }
       g->mod = modify_part(part, model, sp, g->proj.p);
@@ -401,6 +405,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         state = std::make_shared<ComplianceState>(compliance_start(mod.part, *options.compliance));
         if (!state->done) PARAFAB_INPUT_ERROR("compliance at the start: " << state->message);
         base_state = state;
+      } else if (reuse && reuse->state && reuse->switches_own) {
+        // Only the failure metric's frames were frozen: K, f and u are the model's own.
+        state = std::make_shared<ComplianceState>(compliance_own_frames(*reuse->state));
+        ++result.frame_refreshes;
       } else if (reuse && reuse->model) {
         state = std::make_shared<ComplianceState>(
             compliance_own_switches(mod.part, *reuse->model, reuse->occt_volume, *options.compliance));
@@ -447,6 +455,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         target_adjoint_u = target_adjoint(*state, tv);
       }
       last.model = state->model;
+      last.state = state;
       last.switches_own = state->switches_own;
       last.frames_own = state->frames_own;
       last.occt_volume = state->occt_volume;
@@ -592,6 +601,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   auto on_iterate = [&](const optimize::LbfgsIterate& it) {
     accepted = last;
     accepted.geometry.reset();  // dp⊥/dp̃ is dense: not kept through the next line search
+    accepted.state.reset();     // nor the solution and its factorization
     line_start = accepted.model;
     // Later outer iterations restart L-BFGS at the previous end point: its iterate 0 is not new.
     if (it.iteration == 0 && outer_index > 0) return true;

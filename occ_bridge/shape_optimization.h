@@ -189,6 +189,9 @@ struct ShapeOptimizationResult {
   int topology_switches = 0;   ///< compliance: cells with another number of elements in a perturbed model
   /// Accepted iterates evaluated again with their own discrete switches (freeze_switches).
   int switch_refreshes = 0;
+  /// Of those, the refreshes that only moved the failure metric's frames (switches already the
+  /// model's own): no solve (compliance_own_frames).
+  int frame_refreshes = 0;
   /// compliance with merge (Eq. 6.24): evaluations with at least one tie, the most ties in one,
   /// and the most of them whose pieces' incompatible modes were condensed jointly (xfem::mode_tied).
   int tied_evaluations = 0, max_ties = 0, max_mode_tied_pairs = 0;

@@ -647,6 +647,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (o.compliance) {  // discrete switches frozen during line searches, accepted points re-evaluated
     h["freeze_switches"] = o.freeze_switches;
     h["switch_refreshes"] = r.switch_refreshes;
+    h["frame_refreshes"] = r.frame_refreshes;
     if (o.compliance->merge.enabled)
       h["merge_penalty"] = {{"critical_fraction", o.compliance->merge.critical_fraction},
                             {"law", o.compliance->merge.law == occ::MergePenaltyOptions::Law::Log2 ? "log2" : "inverse_square"},
