@@ -737,9 +737,15 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
   };
   // The cell wall (axis 0, 1, 2) on which a patch's loop segment lies (its ends and middle within
   // `tol` of one face of `box`), or −1.
+  // A patch lying in a wall (its normal along the wall's) has no edge sliding along it.
   auto segment_wall = [&](const xfem::CutPatch& patch, const xfem::CurveSegment2& seg, const xfem::Box3& box, double tol) {
+    xfem::Vec3 M, Mu, Mv;
+    const xfem::Vec2 mid = seg.position(0.5);
+    patch.surface->evaluate(mid.x(), mid.y(), M, Mu, Mv);
+    const xfem::Vec3 normal = Mu.cross(Mv).normalized();
     for (int c = 0; c < 3; ++c)
       for (const double wall : {box.min[c], box.max[c]}) {
+        if (std::abs(normal[c]) > 0.999) continue;
         bool all = true;
         for (const xfem::Vec2& uv : {seg.start, seg.position(0.5), seg.end}) {
           xfem::Vec3 X, Xu, Xv;
@@ -749,6 +755,54 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         if (all) return c;
       }
     return -1;
+  };
+  // The own motion's edge term of a support's or load's patch: Γ's edges slide along the faces
+  // across them (`own_sides`), and with `walls` its piece's edges slide along the cell's walls.
+  // At each Gauss point of such a loop segment, visit(X, n_Γ, α, ds) with α_k =
+  // −Vₙ,k (n_Γ·n_F)/(ν·n_F) per entry of Γ's block (ν the outward conormal). Returns false (and
+  // visits nothing more) where Γ runs (nearly) tangent into F (|n_F·ν| < 0.2) or along a wall
+  // (< 0.05): the slide is ill-posed there.
+  auto own_edges = [&](const xfem::CutPatch& patch, const xfem::Box3& box, const optimize::ParameterBlock& b, bool walls,
+                       const std::function<void(const xfem::Vec3&, const xfem::Vec3&, const std::vector<double>&, double)>& visit) {
+    const double h = box.size().minCoeff();
+    const std::vector<int>& sides = own_sides.at(patch.source_face);
+    const int nb = b.size();
+    std::vector<double> alpha(nb);
+    for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
+      for (const xfem::CurveSegment2& seg : loop) {
+        const int on = segment_face(patch, seg, sides, 1e-6 * h);
+        const int wall = on < 0 && walls ? segment_wall(patch, seg, box, 1e-6 * h) : -1;
+        if (on < 0 && wall < 0) continue;
+        const optimize::ParameterBlock* bf = on >= 0 ? sp.block(on) : nullptr;
+        for (size_t q = 0; q < gauss.points.size(); ++q) {
+          xfem::Vec3 X, Xu, Xv;
+          const double t = gauss.points[q];
+          const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
+          patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+          const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
+          const double speed = dX.norm();
+          if (!(speed > 0)) continue;
+          const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
+          const xfem::Vec3 conormal = (dX / speed).cross(n_uv);  // outward: the region is on the left
+          const xfem::Vec3 n_g = patch.orientation * n_uv;
+          xfem::Vec3 n_f = xfem::Vec3::Unit(std::max(wall, 0));
+          if (bf) {
+            const int nf = bf->size();
+            const optimize::Dual phf = optimize::implicit_function(bf->kind, p.data() + bf->offset, X);
+            n_f = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).normalized();
+          }
+          const double across = n_f.dot(conormal);
+          if (std::abs(across) < (bf ? 0.2 : 0.05)) return false;
+          const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
+          const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+          const double gn = grad.norm();
+          if (!(gn > 0)) continue;
+          const double s = grad.dot(n_g) >= 0 ? 1.0 : -1.0;
+          for (int k = 0; k < nb; ++k) alpha[k] = -(-s * phi.g[k] / gn) * n_g.dot(n_f) / across;
+          visit(X, n_g, alpha, gauss.weights[q] * speed);
+        }
+      }
+    return true;
   };
   tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
     const int e = work[w];
@@ -878,48 +932,15 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         // Its edges: loop segments on a face across one of Γ's edges (all three sample points on
         // that face's surface, within 1e-6·h). The others lie on cell walls or on Γ's own seam,
         // whose terms cancel between their two sides.
-        const std::vector<int>& sides = own_sides.at(g);
-        bool tangent = false;
-        for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
-          for (const xfem::CurveSegment2& seg : loop) {
-            xfem::Vec3 X, Xu, Xv;
-            const int on = segment_face(patch, seg, sides, 1e-6 * h);
-            if (on < 0) continue;
-            const optimize::ParameterBlock& bf = *sp.block(on);
-            const int nf = bf.size();
-            for (size_t q = 0; q < gauss.points.size() && !tangent; ++q) {
-              const double t = gauss.points[q];
-              const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
-              patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
-              const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
-              const double speed = dX.norm();
-              if (!(speed > 0)) continue;
-              const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
-              const xfem::Vec3 conormal = (dX / speed).cross(n_uv);  // outward: the region is on the left
-              const xfem::Vec3 n_g = patch.orientation * n_uv;
-              const optimize::Dual phf = optimize::implicit_function(bf.kind, p.data() + bf.offset, X);
-              const xfem::Vec3 n_f = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).normalized();
-              const double across = n_f.dot(conormal);
-              if (std::abs(across) < 0.2) {  // Γ runs (nearly) tangent into F: the slide is ill-posed
-                tangent = true;
-                break;
-              }
-              const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
-              const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
-              const double gn = grad.norm();
-              if (!(gn > 0)) continue;
-              const double s = grad.dot(n_g) >= 0 ? 1.0 : -1.0;
-              const double ds = gauss.weights[q] * speed;
-              const xfem::BoundaryTermDensity d =
-                  xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, X, n_g);
-              for (int k = 0; k < nb; ++k) {
-                const double alpha = -(-s * phi.g[k] / gn) * n_g.dot(n_f) / across;
-                sum[k] += d.load * alpha * ds;
-                dA[k] += alpha * ds;
-              }
-              ++out.edge_points;
-            }
+        const bool tangent = !own_edges(patch, el.box, b, false, [&](const xfem::Vec3& X, const xfem::Vec3& n_g,
+                                                                     const std::vector<double>& alpha, double ds) {
+          const double load = xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, X, n_g).load;
+          for (int k = 0; k < nb; ++k) {
+            sum[k] += load * alpha[k] * ds;
+            dA[k] += alpha[k] * ds;
           }
+          ++out.edge_points;
+        });
         if (tangent) {
           out.tangent.push_back(g);
         } else {
@@ -929,7 +950,8 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
           }
         }
       }
-      if (own && wanted && dc) {
+      // (With the local penalty and Λ not simple, the patch is flagged above: no penalty to use.)
+      if (own && wanted && dc && !(penalised && !simple)) {
         // A support's own motion (its Nitsche terms, Eq. 6.22, on a moving Γ): with uₕ frozen,
         //   d/ds ∫_Γ F(X, n) dA = ∫_Γ [(∂ₙF + κF) Vₙ − ∂F/∂n·∇_Γ Vₙ] dA + ∮_∂Γ F α ds,
         // the normal turning by n' = −∇_Γ Vₙ (optimize::implicit_normal_speed), α as for a load.
@@ -967,10 +989,11 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
           return Field{d.flux, d.flux_gradient, d.flux_normal};
         };
         std::vector<double> sum(nb, 0.0), dB(nb, 0.0);
-        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so_support);  // its points are counted by the bulk term
+        const xfem::SurfaceRule sr = xfem::surface_rule(patch, so_support);  // degree 10/14, not counted in `points`
         for (size_t q = 0; q < sr.points.size(); ++q) {
           const xfem::Vec3& X = sr.points[q], &n = sr.normals[q];
           const optimize::NormalSpeed ns = optimize::implicit_normal_speed(b.kind, p.data() + b.offset, X);
+          if (ns.speed.size() == 0) continue;  // ∇φ = 0 (an axis): no normal speed, as the bulk term skips
           const double s = ns.normal.dot(n) >= 0 ? 1.0 : -1.0;
           const double kappa = s * optimize::implicit_mean_curvature(b.kind, p.data() + b.offset, X);
           const Eigen::Matrix3d tangential = Eigen::Matrix3d::Identity() - n * n.transpose();
@@ -987,50 +1010,16 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         // motion), and on the cell's walls: there the patch's piece in this cell slides along
         // the wall, and unlike a load's uₕ·t, F (σ(u)) jumps across the wall, so the two cells'
         // strips do not cancel (nor does a cell's own flux, whose B is its own).
-        const std::vector<int>& sides = own_sides.at(g);
-        bool tangent = false;
-        for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
-          for (const xfem::CurveSegment2& seg : loop) {
-            xfem::Vec3 X, Xu, Xv;
-            const int on = segment_face(patch, seg, sides, 1e-6 * h);
-            const int wall = on < 0 ? segment_wall(patch, seg, el.box, 1e-6 * h) : -1;
-            if (on < 0 && wall < 0) continue;
-            const optimize::ParameterBlock* bf = on >= 0 ? sp.block(on) : nullptr;
-            for (size_t q = 0; q < gauss.points.size() && !tangent; ++q) {
-              const double t = gauss.points[q];
-              const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
-              patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
-              const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
-              const double speed = dX.norm();
-              if (!(speed > 0)) continue;
-              const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
-              const xfem::Vec3 conormal = (dX / speed).cross(n_uv);  // outward: the region is on the left
-              const xfem::Vec3 n_g = patch.orientation * n_uv;
-              xfem::Vec3 n_f = xfem::Vec3::Unit(std::max(wall, 0));
-              if (bf) {
-                const int nf = bf->size();
-                const optimize::Dual phf = optimize::implicit_function(bf->kind, p.data() + bf->offset, X);
-                n_f = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).normalized();
-              }
-              const double across = n_f.dot(conormal);
-              // Γ runs (nearly) tangent into F, or (nearly) along the wall: the slide is ill-posed.
-              if (std::abs(across) < (bf ? 0.2 : 0.05)) {
-                tangent = true;
-                break;
-              }
-              const optimize::NormalSpeed ns = optimize::implicit_normal_speed(b.kind, p.data() + b.offset, X);
-              const double s = ns.normal.dot(n_g) >= 0 ? 1.0 : -1.0;
-              const double ds = gauss.weights[q] * speed;
-              const Field F = objective_field(X, n_g);
-              const Field f = simple ? flux_field(X, n_g) : Field{};
-              for (int k = 0; k < nb; ++k) {
-                const double alpha = -(s * ns.speed[k]) * n_g.dot(n_f) / across;
-                sum[k] += F.value * alpha * ds;
-                dB[k] += f.value * alpha * ds;
-              }
-              ++out.edge_points;
-            }
+        const bool tangent = !own_edges(patch, el.box, b, true, [&](const xfem::Vec3& X, const xfem::Vec3& n_g,
+                                                                    const std::vector<double>& alpha, double ds) {
+          const Field F = objective_field(X, n_g);
+          const Field f = simple ? flux_field(X, n_g) : Field{};
+          for (int k = 0; k < nb; ++k) {
+            sum[k] += F.value * alpha[k] * ds;
+            dB[k] += f.value * alpha[k] * ds;
           }
+          ++out.edge_points;
+        });
         if (tangent) {
           out.tangent.push_back(g);
         } else {

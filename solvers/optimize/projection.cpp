@@ -291,6 +291,9 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
                                                            << upper.size() << ")");
   const auto t0 = std::chrono::steady_clock::now();
   ProjectionResult result;
+  const auto succeeded = [](Ipopt::ApplicationReturnStatus s) {
+    return s == Ipopt::Solve_Succeeded || s == Ipopt::Solved_To_Acceptable_Level;
+  };
   const Eigen::VectorXd w = options.weights.size() == n ? options.weights : Eigen::VectorXd::Ones(n);
   PARAFAB_VERIFY(options.weights.size() == 0 || options.weights.size() == n,
                  "project: weights need " << n << " entries, got " << options.weights.size());
@@ -300,7 +303,8 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
       ipopt_application(options, start_multipliers.size() == system.size() && system.size() > 0);
   Ipopt::ApplicationReturnStatus status = Ipopt::Solve_Succeeded;
   Eigen::VectorXd p = start;
-  bool stalled_away = false;  // "search direction too small" away from the nearest point, twice
+  bool stationary_stop = false;  // Ipopt stopped short of success at a stationary point: taken
+  bool stalled_away = false;     // stopped short of success away from the nearest point, twice
   if (system.size() == 0) {  // nothing to satisfy: the target clamped to the bounds
     result.p = target.cwiseMax(lower).cwiseMin(upper);
     result.multipliers.resize(0);
@@ -316,7 +320,9 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
     auto nearest = [&] {
       return stationary(system, result.p, target, w, lower, upper, options.stationarity, options.feasible_violation);
     };
-    if (status == Ipopt::Search_Direction_Becomes_Too_Small && !nearest()) {
+    // The same for any other stop short of success (seen 2026-12-02 on an AMD EPYC machine:
+    // "restoration phase failed" at the wrench's start, which the previous machine solved).
+    if (!succeeded(status) && status != Ipopt::Infeasible_Problem_Detected && !nearest()) {
       ++result.restarts;
       Ipopt::SmartPtr<ProjectionNlp> cold = new ProjectionNlp(system, target, target.cwiseMax(lower).cwiseMin(upper),
                                                               lower, upper, Eigen::VectorXd(), w);
@@ -330,8 +336,9 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
       status = app->OptimizeTNLP(cold);
       result.p = cold->x.size() == n ? cold->x : start;
       result.multipliers = cold->lambda.size() == system.size() ? cold->lambda : Eigen::VectorXd::Zero(system.size());
-      stalled_away = status == Ipopt::Search_Direction_Becomes_Too_Small && !nearest();
     }
+    stationary_stop = !succeeded(status) && nearest();
+    stalled_away = !succeeded(status) && !stationary_stop && result.restarts > 0;
     Ipopt::SmartPtr<Ipopt::SolveStatistics> stats = app->Statistics();
     if (IsValid(stats)) result.iterations = stats->IterationCount();
     // Polish: min-norm Newton steps on the free entries (moves of the order of the tolerance).
@@ -358,10 +365,9 @@ ProjectionResult project(const ConstraintSystem& system, const Eigen::VectorXd& 
   result.constraint_violation = system.size() ? system.values(result.p).cwiseAbs().maxCoeff() : 0.0;
   result.distance = std::sqrt((result.p - target).cwiseAbs2().dot(w));
   // "Search direction too small": no progress possible at machine precision (Ipopt: likely optimal).
-  const bool converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level ||
-                         (status == Ipopt::Search_Direction_Becomes_Too_Small && !stalled_away);
+  const bool converged = succeeded(status) || stationary_stop;
   result.done = converged && result.constraint_violation <= options.feasible_violation;
-  result.message = stalled_away ? "search direction too small away from the nearest point (warm and cold start)"
+  result.message = stalled_away ? std::string(status_words(status)) + " away from the nearest point (warm and cold start)"
                                 : status_words(status);
   result.status = result.done ? "solved"
                   : status == Ipopt::Infeasible_Problem_Detected || status == Ipopt::Restoration_Failed

@@ -458,11 +458,11 @@ NormalSpeed implicit_normal_speed(PrimitiveKind kind, const double* block, const
   const Jet phi = implicit_jet<true>(kind, block, X, true);
   const Eigen::Vector3d grad = phi.g.tail<3>();
   const double gn = grad.norm();
-  PARAFAB_VERIFY(gn > 0, "implicit_normal_speed: ∇φ = 0 at (" << X.transpose() << ") of a " << to_string(kind));
+  NormalSpeed r;
+  if (!(gn > 0)) return r;  // on an axis or centre: no normal (empty speed)
   // ∇_X |∇φ| = ∇²_X φ ∇φ / |∇φ|; ∇_X (∂φ/∂p_k) = the mixed block of the Hessian.
   const Eigen::Matrix3d hxx = phi.h.bottomRightCorner<3, 3>();
   const Eigen::Vector3d dgn = hxx * grad / gn;
-  NormalSpeed r;
   r.normal = grad / gn;
   r.speed.resize(nb);
   r.gradient.resize(nb, 3);

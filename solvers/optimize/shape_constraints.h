@@ -132,7 +132,8 @@ double implicit_mean_curvature(PrimitiveKind kind, const double* block, const Ei
 /// normal along ∇φ: Vₙ,k = −∂φ/∂p_k / |∇φ| (the zero set moves by Vₙ,k along ∇φ/|∇φ| per unit
 /// step of p_k) and ∇_X Vₙ,k from φ's exact mixed Hessian. A surface integral ∫_Γ F(X, n) dA
 /// whose integrand depends on the normal changes by −∫ ∂F/∂n·∇_Γ Vₙ dA through n' = −∇_Γ Vₙ
-/// (the tangential part of `gradient`); `speed` equals implicit_function's −g_k/|∇_X φ|.
+/// (the tangential part of `gradient`); `speed` equals implicit_function's −g_k/|∇_X φ|. Where
+/// ∇φ = 0 (a cylinder's axis, a sphere's centre) `speed` is empty.
 struct NormalSpeed {
   Eigen::Vector3d normal;               ///< ∇φ/|∇φ|
   Eigen::VectorXd speed;                ///< Vₙ,k, k over the block

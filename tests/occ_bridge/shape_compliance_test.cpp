@@ -855,14 +855,32 @@ TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
        8e-4, 1.5e-6},
   };
   // Supports whose own motion stays differenced (flagged): the back of the upright, which runs
-  // tangent into the outer fillet.
+  // tangent into the outer fillet; the base's bottom next to the loaded end face; the hole both
+  // clamped and loaded; the hole clamped to a prescribed `field`.
   {
     const int back = bracket.setup.dirichlet[0].face;
+    const int bottom = face_at_point(*bracket.part, turned({30, 20, 0}), tol);
+    const Vec3 down = testing::turned(Vec3(0, 0, -500)) - testing::turned(Vec3::Zero());
+    ComplianceSetup both = testing::steel_cantilever(*bracket.part, bracket.hole, bracket_end, down);
+    xfem::TractionCondition bolt{bracket.hole, Vec3(0, 0, -1)};
+    both.tractions.push_back(bolt);
+    both.forces.push_back(Vec3::Zero());
+    ComplianceSetup field = testing::steel_cantilever(*bracket.part, bracket.hole, bracket_end, down);
+    field.dirichlet[0].field = [](const Vec3&) { return Vec3::Zero(); };
+    const std::vector<std::tuple<const char*, ComplianceSetup, int, const char*>> flagged = {
+        {"back of the upright, tangent into the outer fillet", bracket.setup, back, "offset"},
+        {"base bottom next to the loaded end", testing::steel_cantilever(*bracket.part, bottom, bracket_end, down), bottom,
+         "offset"},
+        {"hole clamped and loaded", both, bracket.hole, "radius"},
+        {"hole clamped to a field", field, bracket.hole, "radius"},
+    };
     const testing::DesignSpace space(*bracket.part, {bracket_end});
     ASSERT_TRUE(space.start.done);
-    const ExactAtEntry e(*bracket.part, space, parameter_index(space.parameters, back, "offset"), bracket.setup);
-    ASSERT_EQ(e.failure(), "");
-    EXPECT_FALSE(exact_along(e.gradient, e.entry.column)) << "back of the upright";
+    for (const auto& [what, setup, face, parameter] : flagged) {
+      const ExactAtEntry e(*bracket.part, space, parameter_index(space.parameters, face, parameter), setup);
+      ASSERT_EQ(e.failure(), "") << what;
+      EXPECT_FALSE(exact_along(e.gradient, e.entry.column)) << what;
+    }
   }
   for (const int degree : {5, 12})
   for (const SupportCase& k : cases) {

@@ -201,7 +201,7 @@ TEST(ShapeFailure, ExactRouteMatchesFiniteDifferencesOfTheFullPipeline) {
 // radius the entry: ∂ₙ(z·t) + κ z·t with z = −λ, its edges, and a total force's area term; the
 // end face moving with its load). Against the same reference as above, σ_y set to half the
 // start's max σ_vm so the exponential is as steep in each case.
-TEST(ShapeFailure, ExactRouteCoversDeadWeightAndALoadFacesOwnMotion) {
+TEST(ShapeFailure, ExactRouteCoversDeadWeightAndTheOwnMotionOfLoadsAndSupports) {
   BracketCase bracket;
   const int support = bracket.setup.dirichlet[0].face, end = bracket.setup.tractions[0].face;
   const Vec3 down = testing::turned(Vec3(0, 0, -500)) - testing::turned(Vec3::Zero());

@@ -224,6 +224,8 @@ TEST(ShapeConstraints, NormalSpeedsAndTheirGradientsMatchCentralDifferences) {
   EXPECT_NEAR(ns.speed[0], n.x(), 1e-15);
   const Eigen::Vector3d expected = (Eigen::Vector3d::UnitX() - n * n.x()) / 2;
   EXPECT_NEAR((ns.gradient.row(0).transpose() - expected).norm(), 0, 1e-15);
+  // On the axis ∇φ = 0: no normal, an empty speed (the callers skip the point).
+  EXPECT_EQ(implicit_normal_speed(PrimitiveKind::cylinder, cyl, Eigen::Vector3d(0, 0, 3)).speed.size(), 0);
 }
 
 TEST(ShapeConstraints, SpinePointsAreTheClosedFormsAndTheirGradientsMatchCentralDifferences) {
