@@ -392,6 +392,15 @@ FluxEigen largest_flux_eigenvalue(const Box3& box, const Eigen::MatrixXd& A, con
   return out;
 }
 
+}  // namespace
+
+int patch_rule_degree(const LinearXfemOptions& options, bool dirichlet) {
+  int degree = options.element == ElementType::Hex27 ? std::max(options.surface_degree, 8) : options.surface_degree;
+  return dirichlet ? std::max(degree, options.dirichlet_surface_degree) : degree;
+}
+
+namespace {
+
 // The Dirichlet condition on `face`, or null.
 const DirichletCondition* dirichlet_on(const std::vector<DirichletCondition>& dirichlet, int face) {
   const DirichletCondition* dc = nullptr;
@@ -413,14 +422,14 @@ std::vector<ConditionedPatch> conditioned_patches(const GridElement& el, const s
                                                   const LinearXfemOptions& options) {
   std::vector<ConditionedPatch> out;
   if (!el.subvolume) return out;
-  SurfaceRuleOptions so;
-  so.area.degree = NN == 27 ? std::max(options.surface_degree, 8) : options.surface_degree;
   for (const CutPatch& patch : el.subvolume->patches) {
     if (patch.source_face < 0) continue;
     ConditionedPatch cp;
     cp.dirichlet = dirichlet_on(dirichlet, patch.source_face);
     for (const auto& t : tractions) if (t.face == patch.source_face) cp.traction = &t;
     if (!cp.dirichlet && !cp.traction) continue;
+    SurfaceRuleOptions so;
+    so.area.degree = patch_rule_degree(options, cp.dirichlet != nullptr);
     cp.rule = surface_rule(patch, so);
     out.push_back(std::move(cp));
   }
@@ -1153,7 +1162,8 @@ bool same_element_inputs(const ElasticMaterial& a, const LinearXfemOptions& x, c
          x.element == y.element && x.nitsche_beta == y.nitsche_beta && x.nitsche_penalty == y.nitsche_penalty &&
          x.nitsche_local_factor == y.nitsche_local_factor && x.nitsche_local_floor == y.nitsche_local_floor &&
          x.gravity == y.gravity &&
-         x.surface_degree == y.surface_degree && x.incompatible_modes == y.incompatible_modes &&
+         x.surface_degree == y.surface_degree && x.dirichlet_surface_degree == y.dirichlet_surface_degree &&
+         x.incompatible_modes == y.incompatible_modes &&
          x.incompatible_min_fraction == y.incompatible_min_fraction;
 }
 

@@ -118,6 +118,13 @@ struct LinearXfemOptions {
   /// Patch rules for Nitsche and traction integrals; hex27 uses at least 8 (the consistency
   /// term v·σ(u)n of a quadratic field is of degree 7).
   int surface_degree = 5;
+  /// Patch rules on a Dirichlet (Nitsche) patch are of at least this degree. On a curved support
+  /// the Nitsche integrand (σ(u)n·v with n turning) is no polynomial, and a degree-5 rule's error
+  /// there changes with the shape: the exact shape gradient (which integrates those terms exactly)
+  /// and the differences of the solver parted by 1e-4 … 1e-3 of dC on a clamped bolt hole and
+  /// countersink (README "Shape optimization", tests ShapeCompliance.ASupportsOwnMotion…).
+  /// Traction patches keep surface_degree (their integrand v·t is of low degree).
+  int dirichlet_surface_degree = 8;
   /// Wilson–Taylor incompatible modes (statically condensed) against bending locking of the
   /// trilinear hexahedra; off: plain hex8. Not used by hex27 (no such locking).
   bool incompatible_modes = true;
@@ -147,6 +154,11 @@ struct LinearXfemOptions {
     ReusedFactorizationOptions preconditioner;
   } reuse;
 };
+
+/// The degree of the solver's patch rule on a boundary patch with a Dirichlet condition or
+/// only a traction: surface_degree, at least 8 for hex27, at least dirichlet_surface_degree on
+/// a Dirichlet patch. Whoever integrates the solver's boundary terms again uses this.
+int patch_rule_degree(const LinearXfemOptions& options, bool dirichlet);
 
 /// How LinearXfemSolver solved the system.
 struct SolveInfo {

@@ -285,9 +285,10 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
   setup.grid.grid.method = CutMethod::FaceCut;
   // The clamp is curved: its Nitsche integrand (σ(u)n with n turning around the boss) is not a
   // polynomial, and the pipeline differentiates its patch rules, which the edge term (an exact
-  // line integral) does only up to their error. Measured on the fillet: degree 5 (the default)
-  // 5.3e-4, 8 1.5e-6, 11 1.0e-8 (C itself moves by 9e-5 from 5 to 8). Planar clamps (the
-  // bracket above) have polynomial integrands and need no more than the default.
+  // line integral) does only up to their error. Measured on the fillet: degree 5 (the default
+  // on supports until 2026-12-02) 5.3e-4, 8 (dirichlet_surface_degree's default since) 1.5e-6,
+  // 11 1.0e-8 (C itself moves by 9e-5 from 5 to 8). Planar clamps (the bracket above) have
+  // polynomial integrands and need no more than degree 5.
   setup.solver.surface_degree = 11;
   const testing::DesignSpace space(*part, {boss});
   ASSERT_TRUE(space.start.done);
@@ -312,14 +313,15 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
     EXPECT_LE(std::abs(exact - fd), k.tolerance * std::abs(fd)) << k.what;
   }
   // The fillet with coarser patch rules on the clamp: the exact line integral and the
-  // pipeline's differentiated rules part by the rules' error (measured 1.5e-6 at degree 8, 5.3e-4
-  // at the default 5), and C itself moves by 9.2e-5 from degree 8 to 5.
+  // pipeline's differentiated rules part by the rules' error (measured 1.5e-6 at degree 8, the
+  // default on supports, 5.3e-4 at 5), and C itself moves by 9.2e-5 from degree 8 to 5.
   const ProjectedEntry entry(*part, model, sp, start.p, cases[0].index, L);
   ASSERT_TRUE(entry.p0.done);
   double c8 = 0;
   for (const auto& [degree, low, high] : {std::tuple{8, 7e-7, 3e-6}, std::tuple{5, 3e-4, 8e-4}}) {
     ComplianceSetup coarser = setup;
     coarser.solver.surface_degree = degree;
+    coarser.solver.dirichlet_surface_degree = degree;
     const ComplianceState at = compliance_start(entry.line->at(0), coarser);
     ASSERT_TRUE(at.done) << at.message;
     const ComplianceGradient g = compliance_gradient(at, coarser, sp, entry.p0.p);
@@ -819,7 +821,7 @@ TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
     int support, load, entry_face;
     const char* parameter;
     bool local_penalty, prescribed;
-    double tolerance, tolerance_12;  // with the solver's patch rules of degree 5 (its default) and 12
+    double tolerance, tolerance_12;  // the solver's default patch rules (5; 8 on supports), all at 12
   };
   BracketCase bracket;
   const Vec3 center(30, 20, 12);
@@ -834,25 +836,26 @@ TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
   const int block_end = face_at_point(*block, turned_block({60, 20, 6}), tol);
   const int cone = face_at_point(*block, turned_block({15 + 6, 20, 10}), tol);
   // Tolerances near the measured relative differences. The route differentiates the exact
-  // Nitsche integrals; the solver integrates them with its patch rules (degree 5), whose error
-  // on a curved support changes with the shape too: 1.6e-4 … 1.2e-3 of dC there (hole radius
-  // 3.6e-4, axis point 1.2e-3, local penalty 1.6e-4, countersink 3.3e-4 and 5.0e-4; planes and
-  // the prescribed case 1.2e-6 and 5e-8); with the solver's rules at degree 12 1.7e-7, 2.9e-7,
-  // 2.3e-6, 2.5e-11, 3.3e-8, 7.5e-7 and 4.5e-7 (in the order below).
+  // Nitsche integrals; the solver integrates them with its patch rules, whose error on a curved
+  // support changes with the shape too. With the solver's defaults (degree 8 on supports since
+  // 2026-12-02): 4.9e-6, 1.5e-5, 2.4e-6, 9.4e-11, 7.5e-10, 6.6e-7 and 3.1e-6 (in the order
+  // below); with every patch rule at degree 12: 1.7e-7, 2.9e-7, 2.3e-6, 2.5e-11, 3.3e-8, 7.5e-7
+  // and 4.5e-7. (With degree 5 on supports, the default until then: 3.6e-4, 1.2e-3, 1.6e-4,
+  // 5.2e-8, 1.2e-6, 3.3e-4 and 5.0e-4.)
   const std::vector<SupportCase> cases = {
       {"bracket hole radius, the hole clamped", bracket.part, bracket.hole, bracket_end, bracket.hole, "radius",
-       false, false, 6e-4, 5e-7},
+       false, false, 1e-5, 5e-7},
       {"bracket hole axis point x, the hole clamped", bracket.part, bracket.hole, bracket_end, bracket.hole,
-       "axis point x", false, false, 2e-3, 8e-7},
+       "axis point x", false, false, 3e-5, 8e-7},
       {"bracket hole radius, local Nitsche penalty", bracket.part, bracket.hole, bracket_end, bracket.hole, "radius",
-       true, false, 3e-4, 5e-6},
+       true, false, 5e-6, 5e-6},
       {"bracket hole radius, a prescribed displacement", bracket.part, bracket.hole, bracket_end, bracket.hole,
-       "radius", false, true, 1e-7, 1e-10},
-      {"upright top normal y, the top clamped", bracket.part, top, bracket_end, top, "normal y", false, false, 3e-6,
+       "radius", false, true, 3e-10, 1e-10},
+      {"upright top normal y, the top clamped", bracket.part, top, bracket_end, top, "normal y", false, false, 2e-9,
        1e-7},
-      {"countersink radius, the screw head clamped", block, cone, block_end, cone, "radius", false, false, 6e-4, 2e-6},
+      {"countersink radius, the screw head clamped", block, cone, block_end, cone, "radius", false, false, 1.5e-6, 2e-6},
       {"countersink half-angle, the screw head clamped", block, cone, block_end, cone, "half-angle", false, false,
-       8e-4, 1.5e-6},
+       6e-6, 1.5e-6},
   };
   // Supports whose own motion stays differenced (flagged): the back of the upright, which runs
   // tangent into the outer fillet; the base's bottom next to the loaded end face; the hole both
@@ -886,7 +889,8 @@ TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
   for (const SupportCase& k : cases) {
     ComplianceSetup setup = testing::steel_cantilever(*k.part, k.support, k.load,
                                                       testing::turned(Vec3(0, 0, -500)) - testing::turned(Vec3::Zero()));
-    setup.solver.surface_degree = degree;
+    setup.solver.surface_degree = degree;  // 5: the default, whose supports get dirichlet_surface_degree (8)
+    EXPECT_EQ(xfem::patch_rule_degree(setup.solver, true), degree == 5 ? 8 : 12);
     if (k.local_penalty) setup.solver.nitsche_penalty = xfem::LinearXfemOptions::NitschePenalty::Local;
     if (k.prescribed) {  // the bolt pulls its hole 0.01 mm along x and turns it a little
       setup.dirichlet[0].offset = Vec3(0.01, 0, 0);

@@ -314,6 +314,41 @@ TEST(Projection, PerturbedFilletRestoresTangencyAndIsTheNearestValidModel) {
   EXPECT_LE(w.iterations, 3);
 }
 
+// A stop short of success (here Ipopt's iteration limit; on the AMD EPYC machine of 2026-12-02
+// "restoration phase failed" at the wrench's start) away from the nearest point: the projection
+// is solved again cold, from the target clamped to its bounds. A warm start far off (plane a
+// tilted 40°, the axis 6 mm away) with an iteration limit the cold start meets: the retry gives
+// the nearest valid model. Where the cold start cannot meet it either, the user gets "failed",
+// Ipopt's status for both starts and no model.
+TEST(Projection, AStopShortOfSuccessIsSolvedAgainColdAndSaysWhenThatFailsToo) {
+  Fillet f;
+  Eigen::VectorXd target = f.p0;
+  target[3] += 0.2;  // plane a: z = 8.2
+  Eigen::VectorXd far = f.p0;
+  far.segment<3>(0) = Eigen::Vector3d(std::sin(0.7), 0, std::cos(0.7));
+  far.segment<3>(8) += Eigen::Vector3d(6, 0, -6);
+  far[14] = 11;
+  const ProjectionResult reference = project(f.system, target, target, f.lower, f.upper);
+  ASSERT_TRUE(reference.done) << reference.message;
+  ASSERT_EQ(reference.restarts, 0);
+  const ProjectionResult free_run = project(f.system, target, far, f.lower, f.upper);
+  std::printf("iterations: from the target %d, from the far start %d (restarts %d)\n", reference.iterations,
+              free_run.iterations, free_run.restarts);
+  ASSERT_GT(free_run.iterations, reference.iterations + 1);  // measured 6 against 3
+  ProjectionOptions limited;
+  limited.max_iterations = reference.iterations + 1;
+  const ProjectionResult r = project(f.system, target, far, f.lower, f.upper, Eigen::VectorXd(), limited);
+  EXPECT_TRUE(r.done) << r.message;
+  EXPECT_EQ(r.restarts, 1);
+  EXPECT_LT((r.p - reference.p).norm(), 1e-9);
+  limited.max_iterations = 1;
+  const ProjectionResult none = project(f.system, target, far, f.lower, f.upper, Eigen::VectorXd(), limited);
+  EXPECT_FALSE(none.done);
+  EXPECT_EQ(none.status, "failed");
+  EXPECT_EQ(none.restarts, 1);
+  EXPECT_NE(none.message.find("warm and cold start"), std::string::npos) << none.message;
+}
+
 TEST(Projection, ReportsInfeasibleConstraintsAndReturnsTheNearestModel) {
   Fillet f;
   // Contradiction: radius fixed at 5 and at 6 by two linear constraints.

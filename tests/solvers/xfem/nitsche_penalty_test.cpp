@@ -139,7 +139,7 @@ void check(ElementType type, double fraction) {
   const Eigen::MatrixXd A = element_system(c->el, m, {}, {}, o).K;  // no Dirichlet patch: bulk only
   const Eigen::MatrixXd A_cell = element_system(uncut_cell(), m, {}, {}, o).K;
   const Eigen::MatrixXd A_hat = A + o.nitsche_local_floor * A_cell;
-  const int degree = type == ElementType::Hex27 ? std::max(o.surface_degree, 8) : o.surface_degree;
+  const int degree = patch_rule_degree(o, true);
   const Eigen::MatrixXd B = flux_matrix(*c, m, type, degree);
   const double scale = A_hat.norm();
   // Λ on the range of Â: Â = V diag(d) Vᵀ, keep d > 0, Λ = λ_max(W ᵀB W) with W = V_+ d_+^(−1/2).
