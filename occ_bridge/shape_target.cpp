@@ -33,7 +33,8 @@ Eigen::VectorXd shape_values(const xfem::Box3& box, int n, const xfem::Vec3& X) 
 // a jump in J along a line search).
 xfem::SurfaceRuleOptions rule_options(const ComplianceSetup& setup) {
   xfem::SurfaceRuleOptions so;
-  so.area.degree = xfem::patch_rule_degree(setup.solver, false) + 1;
+  so.area.degree = setup.solver.element == xfem::ElementType::Hex27 ? std::max(setup.solver.surface_degree, 8) + 1
+                                                                    : setup.solver.surface_degree + 1;
   return so;
 }
 

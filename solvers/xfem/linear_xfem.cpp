@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <string>
@@ -392,11 +393,30 @@ FluxEigen largest_flux_eigenvalue(const Box3& box, const Eigen::MatrixXd& A, con
   return out;
 }
 
+// Whether the patch's surface map is affine (a plane): the same tangents at the corners and the
+// centre of its loops' uv box.
+bool affine_patch(const CutPatch& patch) {
+  Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const BoundaryLoop& l : patch.loops)
+    for (const Vec2& q : l.points) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+  if (!(lo.allFinite() && hi.allFinite())) return false;
+  Vec3 X, Xu0, Xv0, Xu, Xv;
+  patch.surface->evaluate(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), X, Xu0, Xv0);
+  const double scale = 1e-12 * (Xu0.norm() + Xv0.norm());
+  for (const Vec2& q : {lo, hi, Vec2(lo.x(), hi.y()), Vec2(hi.x(), lo.y())}) {
+    patch.surface->evaluate(q.x(), q.y(), X, Xu, Xv);
+    if ((Xu - Xu0).norm() > scale || (Xv - Xv0).norm() > scale) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
-int patch_rule_degree(const LinearXfemOptions& options, bool dirichlet) {
-  int degree = options.element == ElementType::Hex27 ? std::max(options.surface_degree, 8) : options.surface_degree;
-  return dirichlet ? std::max(degree, options.dirichlet_surface_degree) : degree;
+int patch_rule_degree(const LinearXfemOptions& options, const CutPatch& patch, bool dirichlet) {
+  const int degree = options.element == ElementType::Hex27 ? std::max(options.surface_degree, 8) : options.surface_degree;
+  return dirichlet && options.dirichlet_surface_degree > degree && !affine_patch(patch)
+             ? options.dirichlet_surface_degree
+             : degree;
 }
 
 namespace {
@@ -429,7 +449,7 @@ std::vector<ConditionedPatch> conditioned_patches(const GridElement& el, const s
     for (const auto& t : tractions) if (t.face == patch.source_face) cp.traction = &t;
     if (!cp.dirichlet && !cp.traction) continue;
     SurfaceRuleOptions so;
-    so.area.degree = patch_rule_degree(options, cp.dirichlet != nullptr);
+    so.area.degree = patch_rule_degree(options, patch, cp.dirichlet != nullptr);
     cp.rule = surface_rule(patch, so);
     out.push_back(std::move(cp));
   }

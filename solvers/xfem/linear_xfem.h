@@ -118,7 +118,7 @@ struct LinearXfemOptions {
   /// Patch rules for Nitsche and traction integrals; hex27 uses at least 8 (the consistency
   /// term v·σ(u)n of a quadratic field is of degree 7).
   int surface_degree = 5;
-  /// Patch rules on a Dirichlet (Nitsche) patch are of at least this degree. On a curved support
+  /// Patch rules on a curved Dirichlet (Nitsche) patch are of at least this degree. On a curved support
   /// the Nitsche integrand (σ(u)n·v with n turning) is no polynomial, and a degree-5 rule's error
   /// there changes with the shape: the exact shape gradient (which integrates those terms exactly)
   /// and the differences of the solver parted by 1e-4 … 1e-3 of dC on a clamped bolt hole and
@@ -157,8 +157,14 @@ struct LinearXfemOptions {
 
 /// The degree of the solver's patch rule on a boundary patch with a Dirichlet condition or
 /// only a traction: surface_degree, at least 8 for hex27, at least dirichlet_surface_degree on
-/// a Dirichlet patch. Whoever integrates the solver's boundary terms again uses this.
-int patch_rule_degree(const LinearXfemOptions& options, bool dirichlet);
+/// a curved Dirichlet patch (one whose surface map is not affine). On a plane the Nitsche
+/// integrand is a polynomial (of degree 6 per direction on a tilted plane: the penalty's |u|²
+/// of a trilinear u) and the degree-5 error's change is small (the turned bracket's clamped top,
+/// turning: 1.2e-6 of dC); planar clamps are the common case, and at degree 8 the turned
+/// bracket's hyperelastic Newton solve (XfemParallel.NewtonIdenticalForOneAndTwoThreads) stalled
+/// at 1.1e-5, just above its tolerance (5, 6, 7 and 10 converge: round-off). Whoever integrates
+/// the solver's boundary terms again uses this.
+int patch_rule_degree(const LinearXfemOptions& options, const CutPatch& patch, bool dirichlet);
 
 /// How LinearXfemSolver solved the system.
 struct SolveInfo {

@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <random>
 
 #include "xfem/area_rules.h"
@@ -139,7 +140,7 @@ void check(ElementType type, double fraction) {
   const Eigen::MatrixXd A = element_system(c->el, m, {}, {}, o).K;  // no Dirichlet patch: bulk only
   const Eigen::MatrixXd A_cell = element_system(uncut_cell(), m, {}, {}, o).K;
   const Eigen::MatrixXd A_hat = A + o.nitsche_local_floor * A_cell;
-  const int degree = patch_rule_degree(o, true);
+  const int degree = patch_rule_degree(o, c->sv.patches[0], true);
   const Eigen::MatrixXd B = flux_matrix(*c, m, type, degree);
   const double scale = A_hat.norm();
   // Λ on the range of Â: Â = V diag(d) Vᵀ, keep d > 0, Λ = λ_max(W ᵀB W) with W = V_+ d_+^(−1/2).
@@ -190,4 +191,42 @@ TEST(LocalNitschePenalty, MakesTheThinPieceDefiniteWhereTheFixedDefaultIsNot) {
 }
 
 }  // namespace
+}  // namespace parafab::xfem
+
+namespace parafab::xfem {
+namespace {
+
+// σ(θ, z) = (R cos θ, R sin θ, z): a curved support's map.
+class CylinderSide : public SurfaceMap {
+ public:
+  void evaluate(double t, double z, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
+    X = Vec3(3 * std::cos(t), 3 * std::sin(t), z);
+    Xu = Vec3(-3 * std::sin(t), 3 * std::cos(t), 0);
+    Xv = Vec3(0, 0, 1);
+  }
+};
+
+}  // namespace
+
+// The solver's patch rules: a curved Dirichlet patch gets dirichlet_surface_degree (its Nitsche
+// integrand is no polynomial), a planar one and a traction patch keep surface_degree (hex27: ≥ 8).
+TEST(PatchRuleDegree, CurvedSupportsGetTheDirichletDegree) {
+  CutPatch plane, cylinder;
+  plane.surface = std::make_shared<testing::PlaneMap>(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.3, 1, 0.2));
+  cylinder.surface = std::make_shared<CylinderSide>();
+  for (CutPatch* p : {&plane, &cylinder}) p->loops = {BoundaryLoop{{{0, 0}, {0.5, 0}, {0.5, 1}, {0, 1}, {0, 0}}, 1}};
+  LinearXfemOptions o;
+  EXPECT_EQ(patch_rule_degree(o, plane, true), 5);
+  EXPECT_EQ(patch_rule_degree(o, cylinder, true), 8);
+  EXPECT_EQ(patch_rule_degree(o, cylinder, false), 5);
+  o.dirichlet_surface_degree = 12;
+  EXPECT_EQ(patch_rule_degree(o, cylinder, true), 12);
+  o.dirichlet_surface_degree = 8;
+  o.element = ElementType::Hex27;
+  EXPECT_EQ(patch_rule_degree(o, plane, true), 8);
+  EXPECT_EQ(patch_rule_degree(o, cylinder, false), 8);
+  o.surface_degree = 11;
+  EXPECT_EQ(patch_rule_degree(o, cylinder, true), 11);
+}
+
 }  // namespace parafab::xfem

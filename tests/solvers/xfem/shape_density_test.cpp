@@ -109,7 +109,7 @@ void check_boundary(ElementType type) {
   for (int i = 0; i < n; ++i) u[i] = normal(rng);
   const ElementSystem s = element_system(el, m, {dc}, {tc}, o, false);
   SurfaceRuleOptions so;
-  so.area.degree = patch_rule_degree(o, true);  // the solver's rule on the patch (face 4 is clamped)
+  so.area.degree = patch_rule_degree(o, patch, true);  // the solver's rule on the patch (face 4 is clamped)
   const SurfaceRule sr = surface_rule(patch, so);
   double stiffness = 0, load = 0;
   for (size_t q = 0; q < sr.points.size(); ++q) {
