@@ -228,6 +228,8 @@ class Simulate(unittest.TestCase):
             (dict(base, nitsche_penalty="local", nitsche_beta=1000), "nitsche_beta sets the fixed penalty"),
             (dict(base, nitsche_penalty="local", nitsche_local_factor=0.5), "nitsche_local_factor must be > 1"),
             (dict(base, nitsche_penalty="fixed", nitsche_local_factor=4), "nitsche_local_factor applies to"),
+            (dict(base, nitsche_surface_degree=1), "nitsche_surface_degree must be an integer 2..20"),
+            (dict(base, nitsche_surface_degree=8.5), "nitsche_surface_degree must be an integer"),
         ]
         for job, expected in cases:
             with self.subTest(expected):

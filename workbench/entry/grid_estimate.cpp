@@ -74,6 +74,8 @@ void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options,
     if (!(options.nitsche_beta > 0))  // the solver would read 0 as "default 100"
       PARAFAB_INPUT_ERROR("nitsche_beta must be positive, got " << options.nitsche_beta);
   }
+  if (job.contains("nitsche_surface_degree"))  // patch rules on curved clamped faces (default 8)
+    options.dirichlet_surface_degree = fields::integer(job["nitsche_surface_degree"], "nitsche_surface_degree", 2, 20);
   if (job.contains("nitsche_local_factor")) {
     if (!local)
       PARAFAB_INPUT_ERROR("nitsche_local_factor applies to \"nitsche_penalty\": \"local\" only (the fixed penalty is set by nitsche_beta)");
