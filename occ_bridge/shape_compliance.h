@@ -145,8 +145,9 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// F(X, n) with n turning by n' = −∇_Γ Vₙ): ∫_Γ [(∂ₙF + κF) Vₙ − ∂F/∂n·∇_Γ Vₙ] dA + ∮ F α ds,
 /// the edges both Γ's edges on its neighbours and its pieces' edges on the cell walls (σ(u) jumps
 /// there, so the two cells' strips do not cancel); exact for the Nitsche integrals themselves,
-/// which the solver's degree-5 patch rules carry with an error whose change on a curved support
-/// is 1e-4 … 1e-3 of dC (ShapeCompliance.ASupportsOwnMotionHasAnExactGradient). Not included,
+/// which the solver's patch rules carry with an error whose change on a curved support is up to
+/// 1.5e-5 of dC at their default there (degree 8; 1e-4 … 1e-3 at 5:
+/// ShapeCompliance.ASupportsOwnMotionHasAnExactGradient). Not included,
 /// flagged `incomplete`: a support's or load's own motion where its face is free-form, is both
 /// a support and a load, is a support with a prescribed `field`, shares an edge with another
 /// support or load or a face without a parameter block, or runs tangent (|n_F·ν| < 0.2) into a

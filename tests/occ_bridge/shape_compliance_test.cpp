@@ -314,7 +314,7 @@ TEST(ShapeCompliance, TorusFilletTangentIntoTheSupportHasAnExactGradient) {
   }
   // The fillet with coarser patch rules on the clamp: the exact line integral and the
   // pipeline's differentiated rules part by the rules' error (measured 1.5e-6 at degree 8, the
-  // default on supports, 5.3e-4 at 5), and C itself moves by 9.2e-5 from degree 8 to 5.
+  // default on curved supports, 5.3e-4 at 5), and C itself moves by 9.2e-5 from degree 8 to 5.
   const ProjectedEntry entry(*part, model, sp, start.p, cases[0].index, L);
   ASSERT_TRUE(entry.p0.done);
   double c8 = 0;

@@ -222,7 +222,7 @@ TEST(ShapeFailure, ExactRouteCoversDeadWeightAndTheOwnMotionOfLoadsAndSupports) 
   ComplianceSetup bolt_traction = bolt_force;
   bolt_traction.forces.clear();
   // The hole clamped (its bolt), the end loaded: the support's own motion under the adjoint, with
-  // the solver's patch rules at degree 12 (at its default, 8 on supports, their error's change is
+  // the solver's patch rules at degree 12 (at its default, 8 on curved supports, their error's change is
   // up to 1.5e-5 of the derivative on a curved support, at 5 1e-4 … 1e-3:
   // ShapeCompliance.ASupportsOwnMotionHasAnExactGradient).
   ComplianceSetup clamped_hole = testing::steel_cantilever(*bracket.part, bracket.hole, end, down);

@@ -58,6 +58,7 @@ class Simulate(unittest.TestCase):
               % (tip, CCX_TIP, 100 * error, 100 * fixed_error))
         self.assertEqual(out["element"], "hex27")
         self.assertEqual(out["nitsche_penalty"], "local")
+        self.assertEqual(out["nitsche_surface_degree"], 8)
         self.assertGreater(error, XFEM_16_ERROR - 0.003)
         self.assertLess(error, XFEM_16_ERROR + 0.003)
         self.assertEqual(fixed["nitsche_penalty"], "fixed")

@@ -43,8 +43,9 @@ void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options);
 /// otherwise: hex8's local penalty at κ = 4 is soft on a plate thinner than a cell (tip 1.14 ×
 /// beam theory against fixed 1.04; hex27 0.997 with both), and the hyperelastic models'
 /// linearized Nitsche terms lose accuracy with the smaller local penalty (README).
-/// "nitsche_surface_degree" (2..20): the degree of the patch rules on curved clamped faces
-/// (LinearXfemOptions::dirichlet_surface_degree, default 8).
+/// "nitsche_surface_degree" (2..20): the least degree of the patch rules on curved clamped
+/// faces (LinearXfemOptions::dirichlet_surface_degree, default 8; below surface_degree, 5 or
+/// hex27's 8, it changes nothing).
 void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options, bool linear_model = true);
 
 /// The default grid.cells for an element: the same node lattice for both (16 hex8 cells or

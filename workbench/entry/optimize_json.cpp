@@ -644,6 +644,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (o.compliance)  // the clamp of the objectives that solve (entries near it differenced when local)
     h["nitsche_penalty"] =
         o.compliance->solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed";
+  if (o.compliance) h["nitsche_surface_degree"] = o.compliance->solver.dirichlet_surface_degree;
   if (o.compliance) {  // discrete switches frozen during line searches, accepted points re-evaluated
     h["freeze_switches"] = o.freeze_switches;
     h["switch_refreshes"] = r.switch_refreshes;

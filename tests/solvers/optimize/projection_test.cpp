@@ -334,7 +334,10 @@ TEST(Projection, AStopShortOfSuccessIsSolvedAgainColdAndSaysWhenThatFailsToo) {
   const ProjectionResult free_run = project(f.system, target, far, f.lower, f.upper);
   std::printf("iterations: from the target %d, from the far start %d (restarts %d)\n", reference.iterations,
               free_run.iterations, free_run.restarts);
-  ASSERT_GT(free_run.iterations, reference.iterations + 1);  // measured 6 against 3
+  ASSERT_EQ(free_run.restarts, 0);
+  ASSERT_GT(free_run.iterations, reference.iterations + 1);  // measured 6 against 3: the warm start fails
+  // The retry starts from the target as `reference` does, but with the adaptive barrier update
+  // (projection.cpp); that it meets the limit of 4 is measured, not guaranteed.
   ProjectionOptions limited;
   limited.max_iterations = reference.iterations + 1;
   const ProjectionResult r = project(f.system, target, far, f.lower, f.upper, Eigen::VectorXd(), limited);
