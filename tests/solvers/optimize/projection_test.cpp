@@ -319,7 +319,7 @@ TEST(Projection, PerturbedFilletRestoresTangencyAndIsTheNearestValidModel) {
 // is solved again cold, from the target clamped to its bounds. A warm start far off (plane a
 // tilted 40°, the axis 6 mm away) with an iteration limit the cold start meets: the retry gives
 // the nearest valid model. Where the cold start cannot meet it either, the user gets "failed",
-// Ipopt's status for both starts and no model.
+// Ipopt's status for both starts and no valid model.
 TEST(Projection, AStopShortOfSuccessIsSolvedAgainColdAndSaysWhenThatFailsToo) {
   Fillet f;
   Eigen::VectorXd target = f.p0;

@@ -16,7 +16,7 @@
 
 #include "xfem/area_rules.h"
 #include "xfem/linear_xfem.h"
-#include "plane_map.h"
+#include "surface_maps.h"
 
 namespace parafab::xfem {
 namespace {
@@ -190,37 +190,35 @@ TEST(LocalNitschePenalty, MakesTheThinPieceDefiniteWhereTheFixedDefaultIsNot) {
   EXPECT_GE(local, -1e-10 * K_local.norm());
 }
 
-}  // namespace
-}  // namespace parafab::xfem
-
-namespace parafab::xfem {
-namespace {
-
-// σ(θ, z) = (R cos θ, R sin θ, z): a curved support's map.
-class CylinderSide : public SurfaceMap {
+// σ(u, v) = (u³, v, 0): the plane z = 0 with tangents that change along u.
+class CubicPlane : public SurfaceMap {
  public:
-  void evaluate(double t, double z, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
-    X = Vec3(3 * std::cos(t), 3 * std::sin(t), z);
-    Xu = Vec3(-3 * std::sin(t), 3 * std::cos(t), 0);
-    Xv = Vec3(0, 0, 1);
+  void evaluate(double u, double v, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
+    X = Vec3(u * u * u, v, 0);
+    Xu = Vec3(3 * u * u, 0, 0);
+    Xv = Vec3(0, 1, 0);
   }
 };
 
-}  // namespace
-
 // The solver's patch rules: a curved Dirichlet patch gets dirichlet_surface_degree (its Nitsche
 // integrand is no polynomial), a planar one and a traction patch keep surface_degree (hex27: ≥ 8).
+// A plane counts as one by its affine map: the same plane parametrized by u³ counts as curved.
 TEST(PatchRuleDegree, CurvedSupportsGetTheDirichletDegree) {
-  CutPatch plane, cylinder;
+  CutPatch plane, cylinder, cubic_plane;
   plane.surface = std::make_shared<testing::PlaneMap>(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.3, 1, 0.2));
-  cylinder.surface = std::make_shared<CylinderSide>();
-  for (CutPatch* p : {&plane, &cylinder}) p->loops = {BoundaryLoop{{{0, 0}, {0.5, 0}, {0.5, 1}, {0, 1}, {0, 0}}, 1}};
+  cylinder.surface = std::make_shared<testing::CylinderMap>(Vec2(0, 0), 3);
+  cubic_plane.surface = std::make_shared<CubicPlane>();
+  for (CutPatch* p : {&plane, &cylinder, &cubic_plane})
+    p->loops = {BoundaryLoop{{{0.1, 0}, {0.5, 0}, {0.5, 1}, {0.1, 1}, {0.1, 0}}, 1}};
   LinearXfemOptions o;
   EXPECT_EQ(patch_rule_degree(o, plane, true), 5);
   EXPECT_EQ(patch_rule_degree(o, cylinder, true), 8);
+  EXPECT_EQ(patch_rule_degree(o, cubic_plane, true), 8);
   EXPECT_EQ(patch_rule_degree(o, cylinder, false), 5);
   o.dirichlet_surface_degree = 12;
   EXPECT_EQ(patch_rule_degree(o, cylinder, true), 12);
+  o.dirichlet_surface_degree = 3;  // a least degree: below surface_degree it changes nothing
+  EXPECT_EQ(patch_rule_degree(o, cylinder, true), 5);
   o.dirichlet_surface_degree = 8;
   o.element = ElementType::Hex27;
   EXPECT_EQ(patch_rule_degree(o, plane, true), 8);
@@ -229,4 +227,5 @@ TEST(PatchRuleDegree, CurvedSupportsGetTheDirichletDegree) {
   EXPECT_EQ(patch_rule_degree(o, cylinder, true), 11);
 }
 
+}  // namespace
 }  // namespace parafab::xfem

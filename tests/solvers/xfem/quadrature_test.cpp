@@ -19,7 +19,7 @@
 #include "xfem/nnls.h"
 #include "xfem/quadrature_rule.h"
 #include "xfem/volume_rules.h"
-#include "plane_map.h"
+#include "surface_maps.h"
 
 namespace parafab::xfem {
 namespace {
@@ -29,7 +29,8 @@ const double kPi = std::acos(-1.0);
 // ---------------------------------------------------------------------------------------
 // Surface maps.
 
-using testing::PlaneMap;  // σ(u, v) = origin + u e1 + v e2 (plane_map.h)
+using testing::CylinderMap;  // σ(θ, z) = (cx + R cos θ, cy + R sin θ, z) (surface_maps.h)
+using testing::PlaneMap;     // σ(u, v) = origin + u e1 + v e2
 
 /// σ(θ, φ) = c + R (sin φ cos θ, sin φ sin θ, cos φ); σθ × σφ points inwards.
 class SphereMap : public SurfaceMap {
@@ -46,20 +47,6 @@ class SphereMap : public SurfaceMap {
   double r_;
 };
 
-/// σ(θ, z) = (cx + R cos θ, cy + R sin θ, z); σθ × σz points outwards.
-class CylinderMap : public SurfaceMap {
- public:
-  CylinderMap(Vec2 center, double radius) : c_(center), r_(radius) {}
-  void evaluate(double t, double z, Vec3& X, Vec3& Xu, Vec3& Xv) const override {
-    X = Vec3(c_.x() + r_ * std::cos(t), c_.y() + r_ * std::sin(t), z);
-    Xu = Vec3(-r_ * std::sin(t), r_ * std::cos(t), 0);
-    Xv = Vec3(0, 0, 1);
-  }
-
- private:
-  Vec2 c_;
-  double r_;
-};
 
 // ---------------------------------------------------------------------------------------
 // Closed forms.

@@ -14,7 +14,7 @@
 
 #include "xfem/area_rules.h"
 #include "xfem/linear_xfem.h"
-#include "plane_map.h"
+#include "surface_maps.h"
 
 namespace parafab::xfem {
 namespace {
