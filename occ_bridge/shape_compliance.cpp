@@ -559,11 +559,41 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
   std::map<int, std::vector<int>> neighbours;  // support/load face → moving faces sharing an edge with it
   std::map<int, std::vector<int>> own_sides;  // support or load whose own motion is differentiated → faces across its edges
   std::vector<double> sign(part.face_count(), 0.0);
+  // J's own surface integral over F (the target objective): the faces across F's edges whose
+  // motion slides them (`surface_sides`, with parameter blocks), and whether F's own motion is
+  // differentiated (an analytic F whose every neighbour has a block: its normal gives the slide).
+  const int surface_face = adj && adj->surface_density ? adj->surface_face : -1;
+  PARAFAB_VERIFY(surface_face < part.face_count(), who << ": the surface density's face " << surface_face
+                                                        << " is outside 0.." << part.face_count() - 1);
+  std::vector<int> surface_sides;
+  bool surface_own = false;
   {
     TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
     TopExp::MapShapesAndAncestors(part.shape, TopAbs_EDGE, TopAbs_FACE, edge_faces);
     std::map<int, std::set<int>> sets, sides;
     std::set<int> refused;  // supports and loads with a neighbour that has no block or carries a condition
+    std::set<int> surface_neighbours;
+    // A B-spline face f next to a support or load (or F): the poles whose basis functions reach
+    // the shared edge i move it (a strip term not computed here), flagged; the others (interior
+    // poles of a clamped surface whose edges are its iso-boundaries) leave the edge in place and
+    // are exact. Checked at 16 points of the edge's pcurve per knot span of the surface.
+    const auto flag_edge_poles = [&](int i, int f) {
+      const PoleBlock* pb = sp.poles(f);
+      if (!pb) return;
+      double t0, t1;
+      const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(edge_faces.FindKey(i)), part.face(f), t0, t1);
+      if (pc.IsNull()) {
+        flag(f);
+        return;
+      }
+      const int samples = 16 * (pb->surface.count_u - pb->surface.degree_u + pb->surface.count_v - pb->surface.degree_v);
+      for (int k = 0; k <= samples; ++k) {
+        const gp_Pnt2d uv = pc->Value(t0 + (t1 - t0) * k / samples);
+        for (const PoleInfluence& w : pole_influence(pb->surface, uv.X(), uv.Y()))
+          if (std::abs(w.value) > 1e-12)
+            for (int c = 0; c < 3; ++c) r.incomplete[pb->offset + 3 * w.index + c] = 1;
+      }
+    };
     for (int i = 1; i <= edge_faces.Extent(); ++i) {
       std::vector<int> faces;
       for (TopTools_ListOfShape::Iterator it(edge_faces(i)); it.More(); it.Next()) faces.push_back(part.face_index(it.Value()));
@@ -575,27 +605,26 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
               else sides[g].insert(f);
             }
             if (f != g && sp.block(f) && !conditioned.count(f)) sets[g].insert(f);
-            // A B-spline face next to a support or load: the poles whose basis functions reach
-            // the shared edge move it (a strip term not computed here), flagged; the others
-            // (interior poles of a clamped surface whose edges are its iso-boundaries) leave the
-            // edge in place and are exact. Checked at 16 points of the edge's pcurve per knot
-            // span of the surface.
-            const PoleBlock* pb = f != g && !conditioned.count(f) ? sp.poles(f) : nullptr;
-            if (!pb) continue;
-            double t0, t1;
-            const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(edge_faces.FindKey(i)), part.face(f), t0, t1);
-            if (pc.IsNull()) {
-              flag(f);
-              continue;
-            }
-            const int samples = 16 * (pb->surface.count_u - pb->surface.degree_u + pb->surface.count_v - pb->surface.degree_v);
-            for (int k = 0; k <= samples; ++k) {
-              const gp_Pnt2d uv = pc->Value(t0 + (t1 - t0) * k / samples);
-              for (const PoleInfluence& w : pole_influence(pb->surface, uv.X(), uv.Y()))
-                if (std::abs(w.value) > 1e-12)
-                  for (int c = 0; c < 3; ++c) r.incomplete[pb->offset + 3 * w.index + c] = 1;
-            }
+            if (f != g && !conditioned.count(f)) flag_edge_poles(i, f);
           }
+      if (surface_face >= 0 && std::count(faces.begin(), faces.end(), surface_face))
+        for (int f : faces)
+          if (f != surface_face) {
+            surface_neighbours.insert(f);
+            flag_edge_poles(i, f);
+          }
+    }
+    if (surface_face >= 0) {
+      surface_own = sp.block(surface_face) != nullptr;
+      for (int f : surface_neighbours) {
+        if (!sp.block(f)) {
+          surface_own = false;
+          continue;
+        }
+        surface_sides.push_back(f);
+        if (sign[f] == 0) sign[f] = implicit_sign(part, f, *sp.block(f), p);
+      }
+      if (!surface_own) flag(surface_face);
     }
     for (auto& [g, fs] : sets) {
       neighbours[g].assign(fs.begin(), fs.end());
@@ -625,7 +654,8 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
   for (size_t e = 0; e < elements.size(); ++e)
     if (elements[e].subvolume)
       for (const xfem::CutPatch& patch : elements[e].subvolume->patches)
-        if (sp.block(patch.source_face) || sp.poles(patch.source_face) || conditioned.count(patch.source_face)) {
+        if (sp.block(patch.source_face) || sp.poles(patch.source_face) || conditioned.count(patch.source_face) ||
+            patch.source_face == surface_face) {
           work.push_back(static_cast<int>(e));
           break;
         }
@@ -756,16 +786,20 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
       }
     return -1;
   };
-  // The own motion's edge term of a support's or load's patch: Γ's edges slide along the faces
-  // across them (`own_sides`), and with `walls` its piece's edges slide along the cell's walls.
+  // The own motion's edge term of a support's, load's (or F's) patch: Γ's edges slide along the
+  // faces across them (`sides`), and with `walls` its piece's edges slide along the cell's walls.
   // At each Gauss point of such a loop segment, visit(X, n_Γ, α, ds) with α_k =
   // −Vₙ,k (n_Γ·n_F)/(ν·n_F) per entry of Γ's block (ν the outward conormal). Returns false (and
   // visits nothing more) where Γ runs (nearly) tangent into F (|n_F·ν| < 0.2) or along a wall
-  // (< 0.05): the slide is ill-posed there.
-  auto own_edges = [&](const xfem::CutPatch& patch, const xfem::Box3& box, const optimize::ParameterBlock& b, bool walls,
+  // (< 0.05): the slide is ill-posed there. With `spine`, a plane Γ into which a swept F (a
+  // fillet) runs tangent is the exception: with the tangency kept the edge is the foot on Γ of
+  // F's spine point S, E = S − φ_Γ(S) n_Γ/|n_Γ|², so α_k = ν·∂E/∂p_k = −φ_Γ(S) ν·∂n_Γ/∂p_k/|n_Γ|²
+  // (ν ⊥ n_Γ; ν·∂n_Γ/∂p_k = ∂φ_Γ/∂p_k(X + ν) − ∂φ_Γ/∂p_k(X), φ_Γ linear in X); F's own share
+  // is its strip (ν·∂S/∂p of F's entries).
+  auto own_edges = [&](const xfem::CutPatch& patch, const xfem::Box3& box, const optimize::ParameterBlock& b,
+                       const std::vector<int>& sides, bool walls, bool spine,
                        const std::function<void(const xfem::Vec3&, const xfem::Vec3&, const std::vector<double>&, double)>& visit) {
     const double h = box.size().minCoeff();
-    const std::vector<int>& sides = own_sides.at(patch.source_face);
     const int nb = b.size();
     std::vector<double> alpha(nb);
     for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
@@ -792,16 +826,68 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
             n_f = xfem::Vec3(phf.g[nf], phf.g[nf + 1], phf.g[nf + 2]).normalized();
           }
           const double across = n_f.dot(conormal);
-          if (std::abs(across) < (bf ? 0.2 : 0.05)) return false;
           const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
           const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
           const double gn = grad.norm();
+          if (std::abs(across) < (bf ? 0.2 : 0.05)) {
+            const bool swept = bf && (bf->kind == optimize::PrimitiveKind::cylinder ||
+                                      bf->kind == optimize::PrimitiveKind::torus || bf->kind == optimize::PrimitiveKind::sphere);
+            if (!spine || !swept || b.kind != optimize::PrimitiveKind::plane || !(gn > 0)) return false;
+            const optimize::V3<optimize::Dual> S = optimize::spine_point(bf->kind, p.data() + bf->offset, X);
+            const xfem::Vec3 Sv(S.x.v, S.y.v, S.z.v);
+            const double depth = optimize::implicit_function(b.kind, p.data() + b.offset, Sv).v;
+            const optimize::Dual shifted = optimize::implicit_function(b.kind, p.data() + b.offset, X + conormal);
+            for (int k = 0; k < nb; ++k) alpha[k] = -depth * (shifted.g[k] - phi.g[k]) / (gn * gn);
+            visit(X, patch.orientation * n_uv, alpha, gauss.weights[q] * speed);
+            continue;
+          }
           if (!(gn > 0)) continue;
           const double s = grad.dot(n_g) >= 0 ? 1.0 : -1.0;
           for (int k = 0; k < nb; ++k) alpha[k] = -(-s * phi.g[k] / gn) * n_g.dot(n_f) / across;
           visit(X, n_g, alpha, gauss.weights[q] * speed);
         }
       }
+    return true;
+  };
+  // A loop segment of a patch lying on a moving neighbour F (`on`, with a block): at each Gauss
+  // point visit(X, n_Γ, a, ds), a_k the edge's conormal speed inside Γ per entry of F's block. A
+  // transversal edge moves with F's normal speed over n_F·ν. A swept face running tangent into
+  // Γ (a fillet into a support: cylinder or torus; a ball end: sphere) touches it along its spine
+  // offset onto Γ, so on the constraint manifold (tangency kept) the edge moves with the spine
+  // point S nearest X: a = ν·∂S/∂p (optimize::spine_point; the null-space completion of
+  // Fig. 6.12, case 2). Returns false (visiting nothing more) where a plane or cone runs tangent
+  // into Γ.
+  auto neighbour_slide = [&](const xfem::CutPatch& patch, const xfem::CurveSegment2& seg, int on,
+                             const std::function<void(const xfem::Vec3&, const xfem::Vec3&, const std::vector<double>&, double)>& visit) {
+    const optimize::ParameterBlock& b = *sp.block(on);
+    const int nb = b.size();
+    std::vector<double> speed_k(nb, 0.0);
+    for (size_t q = 0; q < gauss.points.size(); ++q) {
+      xfem::Vec3 X, Xu, Xv;
+      const double t = gauss.points[q];
+      const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
+      patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
+      const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
+      const double speed = dX.norm();
+      if (!(speed > 0)) continue;
+      const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
+      const xfem::Vec3 tangent_dir = dX / speed, conormal = tangent_dir.cross(n_uv);  // region on the left
+      const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
+      const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+      const double gn = grad.norm();
+      const xfem::Vec3 n_f = sign[on] * grad / gn;
+      const double c = n_f.dot(conormal);
+      if (std::abs(c) >= 0.2) {
+        for (int k = 0; k < nb; ++k) speed_k[k] = (-sign[on] * phi.g[k] / gn) / c;
+      } else if (b.kind == optimize::PrimitiveKind::cylinder || b.kind == optimize::PrimitiveKind::torus ||
+                 b.kind == optimize::PrimitiveKind::sphere) {
+        const optimize::V3<optimize::Dual> S = optimize::spine_point(b.kind, p.data() + b.offset, X);
+        for (int k = 0; k < nb; ++k) speed_k[k] = conormal.x() * S.x.g[k] + conormal.y() * S.y.g[k] + conormal.z() * S.z.g[k];
+      } else {
+        return false;
+      }
+      visit(X, patch.orientation * n_uv, speed_k, gauss.weights[q] * speed);
+    }
     return true;
   };
   tbb::parallel_for(size_t(0), work.size(), [&](size_t w) {
@@ -884,6 +970,70 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         for (const auto& [i, v] : sum)
           if (v != 0) out.gradient.emplace_back(i, v);
       }
+      if (patch.source_face == surface_face) {
+        // J's own surface integral ∫_F g dA over the moving F (u_h frozen, g continuous across
+        // cell walls: no wall terms): ∫_F (∂ₙg + κg) Vₙ dA + ∮ g α ds for F's own motion, as for
+        // a load's, and ∮ g a ds where a neighbour's motion slides F's edges (its strips).
+        std::vector<double> g;
+        std::vector<xfem::Vec3> dg;
+        const auto density_at = [&](const std::vector<xfem::Vec3>& points) {
+          adj->surface_density(e, points, g, dg);
+          PARAFAB_VERIFY(g.size() == points.size() && dg.size() == points.size(),
+                         who << ": the surface density gives " << g.size() << " values and " << dg.size()
+                             << " gradients for " << points.size() << " points");
+        };
+        out.used = true;
+        if (surface_own && face_moves[surface_face]) {
+          const optimize::ParameterBlock& b = *sp.block(surface_face);
+          const int nb = b.size();
+          std::vector<double> sum(nb, 0.0);
+          const xfem::SurfaceRule sr = xfem::surface_rule(patch, so);
+          out.points += static_cast<int>(sr.points.size());
+          density_at(sr.points);
+          for (size_t q = 0; q < sr.points.size(); ++q) {
+            const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, sr.points[q]);
+            const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
+            const double gn = grad.norm();
+            if (!(gn > 0)) continue;
+            const double s = grad.dot(sr.normals[q]) >= 0 ? 1.0 : -1.0;
+            const double kappa = s * optimize::implicit_mean_curvature(b.kind, p.data() + b.offset, sr.points[q]);
+            const double density = dg[q].dot(sr.normals[q]) + kappa * g[q];
+            for (int k = 0; k < nb; ++k) sum[k] += sr.weights[q] * density * (-s * phi.g[k] / gn);
+          }
+          const bool tangent = !own_edges(patch, el.box, b, surface_sides, false, true,
+                                          [&](const xfem::Vec3& X, const xfem::Vec3&, const std::vector<double>& alpha,
+                                              double ds) {
+                                            density_at({X});
+                                            for (int k = 0; k < nb; ++k) sum[k] += g[0] * alpha[k] * ds;
+                                            ++out.edge_points;
+                                          });
+          if (tangent) {
+            out.tangent.push_back(surface_face);
+          } else {
+            for (int k = 0; k < nb; ++k)
+              if (sum[k] != 0) out.gradient.emplace_back(b.offset + k, sum[k]);
+          }
+        }
+        for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
+          for (const xfem::CurveSegment2& seg : loop) {
+            const int on = segment_face(patch, seg, surface_sides, 1e-6 * h);
+            if (on < 0 || !face_moves[on]) continue;
+            const int nb = sp.block(on)->size();
+            std::vector<double> sum(nb, 0.0);
+            const bool tangent = !neighbour_slide(patch, seg, on, [&](const xfem::Vec3& X, const xfem::Vec3&,
+                                                                      const std::vector<double>& speed_k, double ds) {
+              density_at({X});
+              for (int k = 0; k < nb; ++k) sum[k] += g[0] * speed_k[k] * ds;
+              ++out.edge_points;
+            });
+            if (tangent) {
+              out.tangent.push_back(on);
+              continue;
+            }
+            for (int k = 0; k < nb; ++k)
+              if (sum[k] != 0) out.gradient.emplace_back(sp.block(on)->offset + k, sum[k]);
+          }
+      }
       if (!conditioned.count(patch.source_face)) continue;
       // A support's or load's patch: its Nitsche / traction terms (the last condition of each
       // kind on the face, as element_system takes them).
@@ -932,8 +1082,9 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         // Its edges: loop segments on a face across one of Γ's edges (all three sample points on
         // that face's surface, within 1e-6·h). The others lie on cell walls or on Γ's own seam,
         // whose terms cancel between their two sides.
-        const bool tangent = !own_edges(patch, el.box, b, false, [&](const xfem::Vec3& X, const xfem::Vec3& n_g,
-                                                                     const std::vector<double>& alpha, double ds) {
+        const bool tangent = !own_edges(patch, el.box, b, own_sides.at(g), false, false,
+                                        [&](const xfem::Vec3& X, const xfem::Vec3& n_g, const std::vector<double>& alpha,
+                                            double ds) {
           const double load = xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, X, n_g).load;
           for (int k = 0; k < nb; ++k) {
             sum[k] += load * alpha[k] * ds;
@@ -1010,8 +1161,9 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         // motion), and on the cell's walls: there the patch's piece in this cell slides along
         // the wall, and unlike a load's uₕ·t, F (σ(u)) jumps across the wall, so the two cells'
         // strips do not cancel (nor does a cell's own flux, whose B is its own).
-        const bool tangent = !own_edges(patch, el.box, b, true, [&](const xfem::Vec3& X, const xfem::Vec3& n_g,
-                                                                    const std::vector<double>& alpha, double ds) {
+        const bool tangent = !own_edges(patch, el.box, b, own_sides.at(g), true, false,
+                                        [&](const xfem::Vec3& X, const xfem::Vec3& n_g, const std::vector<double>& alpha,
+                                            double ds) {
           const Field F = objective_field(X, n_g);
           const Field f = simple ? flux_field(X, n_g) : Field{};
           for (int k = 0; k < nb; ++k) {
@@ -1037,47 +1189,13 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
       // F's surface): that edge moves inside the face with conormal speed a = Vₙ,F / (n_F·ν).
       for (const xfem::UvLoop& loop : xfem::to_uv_loops(patch.loops))
         for (const xfem::CurveSegment2& seg : loop) {
-          xfem::Vec3 X, Xu, Xv;
           const int on = segment_face(patch, seg, it->second, 1e-6 * h);
           if (on < 0) continue;
-          const optimize::ParameterBlock& b = *sp.block(on);
-          const int nb = b.size();
+          const int nb = sp.block(on)->size();
           std::vector<double> sum(nb, 0.0), dA(nb, 0.0), dB(nb, 0.0);
-          bool tangent = false;
-          for (size_t q = 0; q < gauss.points.size() && !tangent; ++q) {
-            const double t = gauss.points[q];
-            const xfem::Vec2 uv = seg.position(t), duv = seg.derivative(t);
-            patch.surface->evaluate(uv.x(), uv.y(), X, Xu, Xv);
-            const xfem::Vec3 dX = Xu * duv.x() + Xv * duv.y();
-            const double speed = dX.norm();
-            if (!(speed > 0)) continue;
-            const xfem::Vec3 n_uv = Xu.cross(Xv).normalized();
-            const xfem::Vec3 tangent_dir = dX / speed, conormal = tangent_dir.cross(n_uv);  // region on the left
-            const optimize::Dual phi = optimize::implicit_function(b.kind, p.data() + b.offset, X);
-            const xfem::Vec3 grad(phi.g[nb], phi.g[nb + 1], phi.g[nb + 2]);
-            const double gn = grad.norm();
-            const xfem::Vec3 n_f = sign[on] * grad / gn;
-            const double c = n_f.dot(conormal);
-            // Conormal speed of the edge per entry of F's block: a transversal edge moves with F's
-            // normal speed over n_F·ν. A swept face running tangent into Γ (a fillet into a
-            // support: cylinder or torus; a ball end: sphere) touches it along its spine offset
-            // onto Γ, so on the constraint manifold (tangency kept) the edge moves with the spine
-            // point S nearest X: a = ν·∂S/∂p (optimize::spine_point; the null-space completion of
-            // Fig. 6.12, case 2). Planes and cones tangent to Γ are flagged.
-            std::vector<double> speed_k(nb, 0.0);
-            if (std::abs(c) >= 0.2) {
-              for (int k = 0; k < nb; ++k) speed_k[k] = (-sign[on] * phi.g[k] / gn) / c;
-            } else if (b.kind == optimize::PrimitiveKind::cylinder || b.kind == optimize::PrimitiveKind::torus ||
-                       b.kind == optimize::PrimitiveKind::sphere) {
-              const optimize::V3<optimize::Dual> S = optimize::spine_point(b.kind, p.data() + b.offset, X);
-              for (int k = 0; k < nb; ++k) speed_k[k] = conormal.x() * S.x.g[k] + conormal.y() * S.y.g[k] + conormal.z() * S.z.g[k];
-            } else {
-              tangent = true;
-              break;
-            }
-            const double ds = gauss.weights[q] * speed;
-            const double penalty = simple ? parts.penalty : -1;
-            const xfem::Vec3 n_g = patch.orientation * n_uv;
+          const double penalty = simple ? parts.penalty : -1;
+          const bool tangent = !neighbour_slide(patch, seg, on, [&](const xfem::Vec3& X, const xfem::Vec3& n_g,
+                                                                    const std::vector<double>& speed_k, double ds) {
             // (2 f_Γ − k_Γ)(u) for the compliance; f_Γ(z) + k_Γ(λ, u) for an adjoint (k_Γ's
             // bilinear form by polarization of its quadratic one).
             double strip = 0;
@@ -1094,7 +1212,7 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
             }
             const double flux_mode =  // vᵀdBv density
                 simple && dc ? xfem::boundary_term_density(el, parts.mode, setup.material, setup.solver, dc, nullptr, X,
-                                                           patch.orientation * n_uv, penalty)
+                                                           n_g, penalty)
                                    .flux
                              : 0.0;
             for (int k = 0; k < nb; ++k) {
@@ -1103,15 +1221,16 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
               dB[k] += flux_mode * speed_k[k] * ds;
             }
             ++out.edge_points;
-          }
+          });
           if (tangent) {
             out.tangent.push_back(on);
             continue;
           }
+          const int offset = sp.block(on)->offset;
           for (int k = 0; k < nb; ++k) {
-            if (sum[k] != 0) out.gradient.emplace_back(b.offset + k, sum[k]);
-            if (spread_load && dA[k] != 0) out.area.emplace_back(load * np + b.offset + k, dA[k]);
-            if (dB[k] != 0) d_lambda[b.offset + k] += dB[k];
+            if (sum[k] != 0) out.gradient.emplace_back(offset + k, sum[k]);
+            if (spread_load && dA[k] != 0) out.area.emplace_back(load * np + offset + k, dA[k]);
+            if (dB[k] != 0) d_lambda[offset + k] += dB[k];
           }
         }
     }

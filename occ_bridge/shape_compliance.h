@@ -6,7 +6,8 @@
 // (compliance_derivative: dK, df as central differences of the element matrices of only the
 // cells the perturbed model's re-cut changes, contracted with u), for entries the exact route
 // does not cover (a support's or load's own motion next to another condition, a cone or plane running tangent into a support or load).
-// adjoint_shape_gradient is the exact route for any objective with an adjoint (the failure metric).
+// adjoint_shape_gradient is the exact route for any objective with an adjoint (the failure metric,
+// the target objective with its own surface density).
 #pragma once
 
 #include <functional>
@@ -190,16 +191,30 @@ ComplianceGradient compliance_gradient(const ComplianceState& at, const Complian
 struct ShapeAdjoint {
   Eigen::VectorXd lambda;
   std::function<std::vector<double>(int element, const std::vector<xfem::Vec3>& points)> density;
+  /// When J has a surface integral ∫_F g(X) dA of its own over one face F = `surface_face` (the
+  /// target objective: g = (d² − J)/A), `surface_density(e, points, g, ∇g)` fills g and its
+  /// spatial gradient at points of element e on F's patches (u frozen). Null: none.
+  int surface_face = -1;
+  std::function<void(int element, const std::vector<xfem::Vec3>& points, std::vector<double>& value,
+                     std::vector<xfem::Vec3>& gradient)>
+      surface_density;
 };
 /// compliance_gradient's route for J (linear elasticity only): with u frozen,
-///   dJ/dp_i = ∫_{moving patches} (j + ψ(λ, u) − ρg·λ) Vₙ,i dA + λᵀ(dK u − df)|_{conditions} + ties,
+///   dJ/dp_i = ∫_{moving patches} (j + ψ(λ, u) − ρg·λ) Vₙ,i dA + λᵀ(dK u − df)|_{conditions} + ties
+///             [+ ∫_F (∂ₙg + κg) Vₙ,i dA + ∮_∂F g a_i ds for a surface density on F],
 /// every term of compliance_gradient with (u, u) → (λ, u) in dK and 2u → −λ in df (its strips,
 /// the load's own motion, a total force's area term, the local penalty's dΛ, Eq. 6.24's ties;
 /// the bilinear Nitsche and mode-tied forms by polarization of their quadratic ones). The same
 /// coverage and the same `incomplete` flags. Exact for J's discrete value where j is in the span
 /// the rules integrate exactly (Eq. 6.31, "exact if g is in the function space"); an objective
 /// whose integrand is not (the failure metric's exponential) passes its projection on that span
-/// (failure_gradient), over frames held fixed.
+/// (failure_gradient), over frames held fixed. A surface density's edge term a_i is the edge's
+/// speed across itself inside F: a neighbour's slide as for a support's strips (a tangent
+/// cylinder, torus or sphere by its spine), F's own slide as for a load's own motion; where F
+/// is a plane and the neighbour a swept face running tangent into it, the edge is the foot of
+/// the spine S on F, a_i = −φ_F(S) ν·∂n_F/∂p_i. Flagged `incomplete`: F's own entries where F is
+/// a B-spline, a neighbour across its edges has no parameter block, or F runs tangent into a
+/// neighbour otherwise; no wall terms (g is continuous across cell walls: u_h is nodal).
 ComplianceGradient adjoint_shape_gradient(const ComplianceState& at, const ComplianceSetup& setup,
                                           const ShapeParameters& parameters, const Eigen::VectorXd& p,
                                           const ShapeAdjoint& adjoint, const std::vector<char>* moving = nullptr);

@@ -479,9 +479,16 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       const ComplianceGradient failure_exact =
           exact_failure ? failure_gradient(*state, fv, adjoint, *options.compliance, failure_options, sp, proj.p, &moving)
                         : ComplianceGradient{};
+      // The target's exact route (linear only; shape_target.h): the same adjoint, boundary
+      // integrals with the face's own motion and its edges' slide.
+      const bool exact_target = tw != 0 && !options.compliance->hyperelastic &&
+                                options.compliance_gradient == ShapeOptimizationOptions::ComplianceGradientRoute::Exact;
+      const ComplianceGradient target_exact =
+          exact_target ? target_gradient(*state, tv, target_adjoint_u, *options.compliance, target_options, sp, proj.p, &moving)
+                       : ComplianceGradient{};
       for (int k = 0; k < nd; ++k) {
         compliance_gradient[k] = 0;
-        bool difference_compliance = cw != 0, difference_failure = fw != 0;
+        bool difference_compliance = cw != 0, difference_failure = fw != 0, difference_target = tw != 0;
         if (exact_route && exact_along(exact, D.jacobian.col(design[k]))) {
           compliance_gradient[k] = cw * exact.gradient.dot(D.jacobian.col(design[k]));
           difference_compliance = false;
@@ -492,7 +499,12 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
           difference_failure = false;
           ++result.exact_derivatives;
         }
-        if (!difference_compliance && !difference_failure && tw == 0) continue;
+        if (exact_target && exact_along(target_exact, D.jacobian.col(design[k]))) {
+          compliance_gradient[k] += tw * target_exact.gradient.dot(D.jacobian.col(design[k]));
+          difference_target = false;
+          ++result.exact_derivatives;
+        }
+        if (!difference_compliance && !difference_failure && !difference_target) continue;
         const double h = options.compliance_step * (is_direction(design[k]) ? 1.0 : part_size);
         std::shared_ptr<const PartShape> sides[2];
         for (int side = 0; side < 2; ++side) {
@@ -511,7 +523,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
         for (const Term term : {Compliance, Failure, Target}) {
           const double weight = term == Compliance ? (difference_compliance ? cw : 0)
                                 : term == Failure  ? (difference_failure ? fw : 0)
-                                                   : tw;
+                                                   : (difference_target ? tw : 0);
           if (weight == 0) continue;
           ++result.semi_analytic_derivatives;
           const ComplianceDerivative cd =

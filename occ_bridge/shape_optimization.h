@@ -7,7 +7,9 @@
 // exact rule-derivative gradient, semi-analytic where that does not apply (shape_compliance.h);
 // "failure" (the stress metric of §6.2.3 Eq. 6.4) on the same solve with an adjoint gradient by
 // the same two routes (shape_failure.h); "target" (a face's deformed shape matched to a target
-// surface, §6.2.3 Eq. 6.6) with an adjoint whose changed-cell terms are differenced (shape_target.h).
+// surface, §6.2.3 Eq. 6.6) with the same adjoint, its shape terms exact on a linear solve and
+// differenced over the changed cells where that route does not apply or the solve is
+// hyperelastic (shape_target.h).
 #pragma once
 
 #include <Eigen/Core>
@@ -125,12 +127,13 @@ struct ShapeOptimizationOptions {
   /// with them (ShapeOptimizationResult::switch_refreshes) before the next search. Off: every
   /// model switches on its own volume fractions (the behaviour before 2026-11-29).
   bool freeze_switches = true;
-  /// Route of the compliance and failure gradients. Exact (default): the rule derivatives of
-  /// Eq. 6.30–6.31 (compliance_gradient, failure_gradient: one solve and adjoint, boundary
-  /// integrals, every design entry at once), except for the design entries those flag
-  /// `incomplete`, which take the semi-analytic route. SemiAnalytic: every design entry by two
-  /// perturbed models (the route before 2026-11-27; for the failure metric, before 2026-12-02).
-  /// The target objective always takes the semi-analytic one.
+  /// Route of the compliance, failure and target gradients. Exact (default): the rule
+  /// derivatives of Eq. 6.30–6.31 (compliance_gradient, failure_gradient, target_gradient: one
+  /// solve and adjoint, boundary integrals, every design entry at once), except for the design
+  /// entries those flag `incomplete`, which take the semi-analytic route. SemiAnalytic: every
+  /// design entry by two perturbed models (the route before 2026-11-27; for the failure metric,
+  /// before 2026-12-02; for the target, until 2026-12-02). A hyperelastic target always takes
+  /// the semi-analytic route.
   enum class ComplianceGradientRoute { Exact, SemiAnalytic };
   ComplianceGradientRoute compliance_gradient = ComplianceGradientRoute::Exact;
   /// Step of the semi-analytic compliance gradient: this × L (part diagonal) for lengths, this

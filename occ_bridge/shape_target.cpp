@@ -220,4 +220,45 @@ ComplianceDerivative target_derivative(const ComplianceState& state, const Targe
       });
 }
 
+ComplianceGradient target_gradient(const ComplianceState& state, const TargetValue& value, const Eigen::VectorXd& adjoint,
+                                   const ComplianceSetup& setup, const TargetOptions& o, const ShapeParameters& sp,
+                                   const Eigen::VectorXd& p, const std::vector<char>* moving) {
+  PARAFAB_VERIFY(value.done, "target_gradient: the value is not computed");
+  ShapeAdjoint a;
+  a.lambda = adjoint.size() ? adjoint : target_adjoint(state, value);
+  a.surface_face = o.face;
+  const double A = value.area, J = value.objective;
+  // J = I/A: dJ = (dI − J dA)/A, so g = (d² − J)/A; with u_h frozen, ∇_X[d(X + u_h(X))²] =
+  // 2d (I + ∇u_h)ᵀ ∇d.
+  a.surface_density = [&](int e, const std::vector<xfem::Vec3>& points, std::vector<double>& g,
+                          std::vector<xfem::Vec3>& dg) {
+    const xfem::GridElement& el = state.model->elements[e];
+    const Eigen::VectorXd ue = element_values(state.solution.u, state.solution.node[e]);
+    const int n = static_cast<int>(ue.size() / 3);
+    g.assign(points.size(), 0.0);
+    dg.assign(points.size(), xfem::Vec3::Zero());
+    Eigen::Matrix<double, 27, 1> N27;
+    Eigen::Matrix<double, 27, 3> G27;
+    Eigen::Matrix<double, 8, 1> N8;
+    Eigen::Matrix<double, 8, 3> G8;
+    for (size_t q = 0; q < points.size(); ++q) {
+      Vec3 u = Vec3::Zero();
+      Eigen::Matrix3d F = Eigen::Matrix3d::Identity();  // I + ∇u_h, F_ij = δ_ij + ∂u_i/∂X_j
+      if (n == 8) xfem::trilinear_shape(el.box, points[q], N8, G8);
+      else xfem::triquadratic_shape(el.box, points[q], N27, G27);
+      for (int k = 0; k < n; ++k) {
+        const Vec3 uk = ue.segment<3>(3 * k);
+        const Eigen::RowVector3d gk = n == 8 ? Eigen::RowVector3d(G8.row(k)) : Eigen::RowVector3d(G27.row(k));
+        u += (n == 8 ? N8(k) : N27(k)) * uk;
+        F += uk * gk;
+      }
+      Vec3 grad;
+      const double d = signed_distance(o.target, points[q] + u, &grad);
+      g[q] = (d * d - J) / A;
+      dg[q] = (2 * d / A) * (F.transpose() * grad);
+    }
+  };
+  return adjoint_shape_gradient(state, setup, sp, p, a, moving);
+}
+
 }  // namespace parafab::occ

@@ -11,7 +11,9 @@
 // Mooney–Rivlin model). Gradient as the failure metric's (shape_failure.h): adjoint
 // K λ = −∂J/∂u with the kept factorization (hyperelastic: the tangent H(u) at the solution), then
 // dJ/ds = ∂J/∂s|_u + λᵀ ∂R/∂s|_u, R = K u − f (hyperelastic: the internal force plus the boundary
-// terms minus the loads), by central differences over the re-cut cells only.
+// terms minus the loads): by central differences over the re-cut cells only (target_derivative),
+// or, linear, exactly by boundary integrals (target_gradient: §6.5.3's Eq. 6.30 with the face's
+// own motion and its edges' slide, thesis Fig. 6.12's null-space completion at fillets).
 #pragma once
 
 #include <Eigen/Core>
@@ -79,5 +81,15 @@ ComplianceDerivative target_derivative(const ComplianceState& state, const Targe
                                        const Eigen::VectorXd& adjoint, std::shared_ptr<const PartShape> plus,
                                        std::shared_ptr<const PartShape> minus, double h,
                                        const ComplianceSetup& setup, const TargetOptions& options);
+
+/// The exact route of dJ/dp (linear elasticity only; adjoint_shape_gradient with λ above and
+/// J's surface density g = (d(X + u_h)² − J)/A on the face, ∇g = 2d(I + ∇u_h)ᵀ∇d/A): every entry
+/// at once, no re-cut, the same `incomplete` flags plus the face's own entries where
+/// adjoint_shape_gradient cannot slide its edges (a B-spline face, a neighbour without a block,
+/// a tangent neighbour other than a fillet into a plane). `adjoint` empty: solved here.
+ComplianceGradient target_gradient(const ComplianceState& state, const TargetValue& value, const Eigen::VectorXd& adjoint,
+                                   const ComplianceSetup& setup, const TargetOptions& options,
+                                   const ShapeParameters& parameters, const Eigen::VectorXd& p,
+                                   const std::vector<char>* moving = nullptr);
 
 }  // namespace parafab::occ

@@ -6,7 +6,8 @@
 // distance 2.5 mm). Each entry moves the way the optimizer moves it (projection with one-entry
 // design weights, then the B-rep write-back); the adjoint derivative (its own step 1e-4·L) against
 // (J(x+H) − J(x−H))/2H with both sides re-cut on the grid of the start model and solved, for
-// H = 1e-1 … 1e-6 mm.
+// H = 1e-1 … 1e-6 mm. Linear rows also carry the exact route (target_gradient: boundary integrals,
+// every entry of p in one call, its time beside the adjoint route's per entry).
 // Usage: bench_target_gradient [--quick] --out DIR SAMPLES_DIR -> DIR/target_gradient.json
 //        (plot: tests/bench/plot_compliance_gradient.py DIR target_gradient)
 #include <Eigen/Geometry>
@@ -84,11 +85,31 @@ int main(int argc, char** argv) {
       const ComplianceDerivative d = target_derivative(at, v, {}, part_at(h), part_at(-h), h, setup, target);
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       const std::string label = std::string(e.label) + (hyperelastic ? ", neo-Hooke" : ", linear");
+      // The exact route (linear only) along the entry's column of dp⊥/dp̃.
+      double exact = NAN, exact_seconds = NAN;
+      if (!hyperelastic) {
+        const Eigen::VectorXd column =
+            optimize::projection_derivative(sp.constraints, base, sp.lower, sp.upper, po.weights).jacobian.col(index);
+        const Eigen::VectorXd lambda = target_adjoint(at, v);
+        const auto e0 = std::chrono::steady_clock::now();
+        const ComplianceGradient g = target_gradient(at, v, lambda, setup, target, sp, base.p);
+        exact_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();
+        if (!g.done || !exact_along(g, column)) {
+          std::fprintf(stderr, "%s: the exact route %s\n", label.c_str(), g.done ? "flags this entry" : g.message.c_str());
+          return 1;
+        }
+        exact = g.gradient.dot(column);
+      }
       nlohmann::json row = {{"entry", label}, {"parameter", sp.names[index]}, {"objective", v.objective},
                             {"rms_distance", std::sqrt(v.objective)}, {"adjoint", d.derivative},
                             {"adjoint_seconds", seconds}, {"steps", steps},
                             {"central_differences", nlohmann::json::array()},
                             {"relative_difference_adjoint", nlohmann::json::array()}};
+      if (!hyperelastic) {
+        row["exact"] = exact;
+        row["exact_seconds"] = exact_seconds;
+        row["relative_difference_exact"] = nlohmann::json::array();
+      }
       for (double H : steps) {
         double j[2] = {NAN, NAN};
         for (int side = 0; side < 2; ++side) {
@@ -100,8 +121,10 @@ int main(int argc, char** argv) {
         const double fd = (j[0] - j[1]) / (2 * H);
         row["central_differences"].push_back(fd);
         row["relative_difference_adjoint"].push_back(std::abs(d.derivative - fd) / std::abs(fd));
+        if (!hyperelastic) row["relative_difference_exact"].push_back(std::abs(exact - fd) / std::abs(fd));
       }
-      std::printf("%-60s J %.6g, adjoint %.10g (%.3f s)\n", label.c_str(), v.objective, d.derivative, seconds);
+      std::printf("%-60s J %.6g, adjoint %.10g (%.3f s), exact %.10g (%.3f s, all entries)\n", label.c_str(), v.objective,
+                  d.derivative, seconds, exact, exact_seconds);
       rows.push_back(row);
     }
   }

@@ -16,8 +16,15 @@ name = sys.argv[2] if len(sys.argv) > 2 else "compliance_gradient"
 rows = json.load(open(os.path.join(out, name + ".json")))
 fig, ax = plt.subplots(figsize=(6.4, 4.4))
 for row in rows:
-    if "relative_difference_adjoint" in row:  # bench_target_gradient: one route
-        ax.loglog(row["steps"], row["relative_difference_adjoint"], "o-", mfc="none", label=row["entry"] + ": adjoint")
+    if "relative_difference_adjoint" in row:  # bench_target_gradient: the adjoint route, and linear the exact one
+        if "relative_difference_exact" in row:
+            line, = ax.loglog(row["steps"], row["relative_difference_exact"], "o-", mfc="none",
+                              label=row["entry"] + ": exact")
+            ax.loglog(row["steps"], row["relative_difference_adjoint"], "s:", mfc="none", color=line.get_color(),
+                      label="semi-analytic")
+        else:
+            ax.loglog(row["steps"], row["relative_difference_adjoint"], "^--", mfc="none",
+                      label=row["entry"] + ": semi-analytic")
         continue
     line, = ax.loglog(row["steps"], row["relative_difference_exact"], "o-", mfc="none", label=row["entry"] + ": exact")
     ax.loglog(row["steps"], row["relative_difference_semi_analytic"], "s:", mfc="none", color=line.get_color(),
