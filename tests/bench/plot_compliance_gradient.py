@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 out = sys.argv[1]
 name = sys.argv[2] if len(sys.argv) > 2 else "compliance_gradient"
 rows = json.load(open(os.path.join(out, name + ".json")))
-fig, ax = plt.subplots(figsize=(6.4, 4.4))
+fig, ax = plt.subplots(figsize=(6.4, 5.4))
 for row in rows:
     if "relative_difference_adjoint" in row:  # bench_target_gradient: the adjoint route, and linear the exact one
         if "relative_difference_exact" in row:
@@ -34,6 +34,6 @@ ax.set_ylabel("|gradient − FD(H)| / |FD(H)|")
 ax.set_title("Turned L-bracket, %s on 10 cells: gradient against the pipeline"
              % ("target (base top face)" if name == "target_gradient" else "compliance"), fontsize=9)
 ax.grid(True, which="both", alpha=0.3)
-ax.legend(fontsize=6, ncol=2)
+ax.legend(fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.14))
 fig.tight_layout()
 fig.savefig(os.path.join(out, name + ".png"), dpi=120)
