@@ -1082,7 +1082,7 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         // Its edges: loop segments on a face across one of Γ's edges (all three sample points on
         // that face's surface, within 1e-6·h). The others lie on cell walls or on Γ's own seam,
         // whose terms cancel between their two sides.
-        const bool tangent = !own_edges(patch, el.box, b, own_sides.at(g), false, false,
+        const bool tangent = !own_edges(patch, el.box, b, own_sides.at(g), false, true,
                                         [&](const xfem::Vec3& X, const xfem::Vec3& n_g, const std::vector<double>& alpha,
                                             double ds) {
           const double load = xfem::boundary_term_density(el, ze, setup.material, setup.solver, nullptr, tc, X, n_g).load;
@@ -1161,7 +1161,7 @@ ComplianceGradient shape_gradient(const ComplianceState& at, const ComplianceSet
         // motion), and on the cell's walls: there the patch's piece in this cell slides along
         // the wall, and unlike a load's uₕ·t, F (σ(u)) jumps across the wall, so the two cells'
         // strips do not cancel (nor does a cell's own flux, whose B is its own).
-        const bool tangent = !own_edges(patch, el.box, b, own_sides.at(g), true, false,
+        const bool tangent = !own_edges(patch, el.box, b, own_sides.at(g), true, true,
                                         [&](const xfem::Vec3& X, const xfem::Vec3& n_g, const std::vector<double>& alpha,
                                             double ds) {
           const Field F = objective_field(X, n_g);

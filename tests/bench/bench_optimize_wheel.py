@@ -13,7 +13,8 @@ exact, the hub hole's semi-analytic). --fixed-conditions keeps those two faces f
 variables, the run before 2026-12-02). The written part is simulated afresh on a finer grid
 (24 cells) before and after, so the compliance change is not the optimizer's own number. Writes
 DIR/optimize_wheel_compliance.json.
-Usage: bench_optimize_wheel.py [--quick] [--compliance [--gradient exact|semi-analytic] [--fixed-conditions]] [--out DIR]"""
+Usage: bench_optimize_wheel.py [--quick] [--compliance [--gradient exact|semi-analytic] [--fixed-conditions]
+                               [--rounds N] [--iterations-per-round M]] [--out DIR]"""
 import argparse
 import json
 import math
@@ -34,6 +35,9 @@ ap.add_argument("--gradient", choices=("exact", "semi-analytic"), default="exact
                 help="route of the compliance term's gradient (objective.gradient)")
 ap.add_argument("--fixed-conditions", action="store_true",
                 help="with --compliance: keep the supported hub hole and the loaded rim fixed (12 variables)")
+ap.add_argument("--rounds", type=int, default=4,
+                help="with --compliance: augmented-Lagrangian rounds (max_outer); more, to run to convergence")
+ap.add_argument("--iterations-per-round", type=int, default=10, help="with --compliance: max_iterations per round")
 ap.add_argument("--out", default=".")
 args = ap.parse_args()
 os.makedirs(args.out, exist_ok=True)
@@ -71,7 +75,7 @@ if args.compliance:
                         "terms": [{"type": "center_of_mass", "axis": AXIS, "weight": 1},
                                   {"type": "compliance", "weight": 1}], "gradient": args.gradient}
     job["constraints"] = [{"type": "volume", "max_ratio": 1.0, "min_ratio": 1.0}]  # balance by moving material, not removing it
-    job["max_iterations"], job["max_outer"] = (2, 1) if args.quick else (10, 4)  # per augmented-Lagrangian round
+    job["max_iterations"], job["max_outer"] = (2, 1) if args.quick else (args.iterations_per_round, args.rounds)
 t0 = time.time()
 h = parafab.optimize(WHEEL, job, out_dir=os.path.join(args.out, name))
 wall = time.time() - t0

@@ -856,12 +856,19 @@ TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
       {"countersink radius, the screw head clamped", block, cone, block_end, cone, "radius", false, false, 1.5e-6, 2e-6},
       {"countersink half-angle, the screw head clamped", block, cone, block_end, cone, "half-angle", false, false,
        6e-6, 1.5e-6},
+      // A plane support into which a fillet runs tangent: the edge is the foot of the fillet's
+      // spine on the support, a tilt slides it by −φ(S) ν·∂n (offset: no slide). Measured 7.4e-6
+      // and 8.0e-5 at both degrees; the semi-analytic route is 3.6e-6 and 8.05e-5 off the same
+      // differences (4e-7 from the exact tilt): the tilt's figure is the reference's.
+      {"upright back offset, the back clamped (outer fillet tangent)", bracket.part, bracket.setup.dirichlet[0].face,
+       bracket_end, bracket.setup.dirichlet[0].face, "offset", false, false, 1.5e-5, 1.5e-5},
+      {"upright back normal z, the back clamped (outer fillet tangent)", bracket.part, bracket.setup.dirichlet[0].face,
+       bracket_end, bracket.setup.dirichlet[0].face, "normal z", false, false, 1.2e-4, 1.2e-4},
   };
-  // Supports whose own motion stays differenced (flagged): the back of the upright, which runs
-  // tangent into the outer fillet; the base's bottom next to the loaded end face; the hole both
-  // clamped and loaded; the hole clamped to a prescribed `field`.
+  // Supports whose own motion stays differenced (flagged): the base's bottom next to the loaded
+  // end face; the hole both clamped and loaded; the hole clamped to a prescribed `field`. (The
+  // back of the upright, tangent into the outer fillet, was flagged until 2026-12-02: above.)
   {
-    const int back = bracket.setup.dirichlet[0].face;
     const int bottom = face_at_point(*bracket.part, turned({30, 20, 0}), tol);
     const Vec3 down = testing::turned(Vec3(0, 0, -500)) - testing::turned(Vec3::Zero());
     ComplianceSetup both = testing::steel_cantilever(*bracket.part, bracket.hole, bracket_end, down);
@@ -871,7 +878,6 @@ TEST(ShapeCompliance, ASupportsOwnMotionHasAnExactGradient) {
     ComplianceSetup field = testing::steel_cantilever(*bracket.part, bracket.hole, bracket_end, down);
     field.dirichlet[0].field = [](const Vec3&) { return Vec3::Zero(); };
     const std::vector<std::tuple<const char*, ComplianceSetup, int, const char*>> flagged = {
-        {"back of the upright, tangent into the outer fillet", bracket.setup, back, "offset"},
         {"base bottom next to the loaded end", testing::steel_cantilever(*bracket.part, bottom, bracket_end, down), bottom,
          "offset"},
         {"hole clamped and loaded", both, bracket.hole, "radius"},
