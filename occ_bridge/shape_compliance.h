@@ -152,7 +152,9 @@ ComplianceDerivative compliance_derivative(const ComplianceState& at, std::share
 /// flagged `incomplete`: a support's or load's own motion where its face is free-form, is both
 /// a support and a load, is a support with a prescribed `field`, shares an edge with another
 /// support or load or a face without a parameter block, or runs tangent (|n_F·ν| < 0.2) into a
-/// neighbour (a support also (|n_W·ν| < 0.05) along a cell wall); a cone or plane tangent to a support or load; and the
+/// neighbour (a support also (|n_W·ν| < 0.05) along a cell wall), except a plane support or load
+/// into which a cylinder, torus or sphere runs tangent (the edge is the foot of its spine S: a
+/// slide of −φ(S) ν·∂n); a cone or plane tangent to a support or load; and the
 /// poles of a B-spline face whose basis functions reach an edge it shares with a support or load
 /// (on other poles Vₙ = R_ij(u, v) n_c at the rule's own (u, v)). With the local Nitsche penalty a
 /// clamped cut cell's penalty κΛ changes with every face that cuts it: C changes by
