@@ -52,6 +52,32 @@ double checked_det(const Mat3& F, const char* model, const char* what) {
 
 const double kInf = std::numeric_limits<double>::infinity();
 
+// Small-strain accurate kinematics. With F = I + H and strains ε ~ 1e-4 (steel parts), the
+// textbook forms I₁ − 3 and ln J = ln(det F) lose everything below eps·3 ≈ 7e-16 while Ψ is of
+// order ε² ≈ 1e-8: Ψ came out with a relative noise of ~1e-9, larger than a Newton step's
+// predicted energy decrease near the solution, and the line search failed on a machine whose
+// BLAS kernel moved the iterate by round-off (python.simulate_threads, SkylakeX kernel). These
+// helpers keep every term relative to ε.
+
+/// J − 1 = det(I + H) − 1 = tr H + ½((tr H)² − tr(H²)) + det H.
+double det_minus_one(const Mat3& H) {
+  const double t = H.trace();
+  return t + 0.5 * (t * t - (H * H).trace()) + H.determinant();
+}
+
+/// j − ln(1 + j), accurate for small |j| (a series there; it is of order j²/2).
+double minus_log1p_remainder(double j) {
+  if (std::abs(j) >= 0.1) return j - std::log1p(j);
+  double term = j * j, sum = 0;  // Σ_{k≥2} (−1)^k j^k / k
+  for (int k = 2; k < 40; ++k) {
+    const double add = term / k;
+    sum += add;
+    if (std::abs(add) <= 1e-18 * std::abs(sum)) break;
+    term *= -j;
+  }
+  return sum;
+}
+
 }  // namespace
 
 ElasticConstants ElasticConstants::from_young_poisson(double E, double nu, const std::string& model) {
@@ -108,8 +134,15 @@ NeoHookean::NeoHookean(double E, double nu)
 double NeoHookean::energy(const Mat3& F) const {
   const double J = F.determinant();
   if (!(J > 0) || !std::isfinite(J)) return kInf;
-  const double lnJ = std::log(J);
-  return 0.5 * c_.mu * (F.squaredNorm() - 3) - c_.mu * lnJ + 0.5 * c_.lambda * lnJ * lnJ;
+  // Ψ = μ/2 (I₁ − 3) − μ ln J + λ/2 ln²J written without cancellation (see det_minus_one):
+  // I₁ − 3 = 2 tr H + |H|², tr H − ln J = −(i₂ + det H) + (j − ln(1 + j)), j = J − 1.
+  const Mat3 H = F - Mat3::Identity();
+  const double t = H.trace(), i2 = 0.5 * (t * t - (H * H).trace()), d = H.determinant();
+  const double j = t + i2 + d;
+  if (!(j > -1)) return kInf;
+  const double lnJ = std::log1p(j);
+  return c_.mu * (minus_log1p_remainder(j) - i2 - d) + 0.5 * c_.mu * H.squaredNorm() +
+         0.5 * c_.lambda * lnJ * lnJ;
 }
 
 Mat3 NeoHookean::stress(const Mat3& F) const {
@@ -166,8 +199,18 @@ struct Invariants {
 double MooneyRivlin::energy(const Mat3& F) const {
   const double J = F.determinant();
   if (!(J > 0) || !std::isfinite(J)) return kInf;
-  const Invariants v(F, J);
-  return C10_ * (v.Jm23 * v.I1 - 3) + C01_ * (v.Jm43 * v.I2 - 3) + (J - 1) * (J - 1) / D1_;
+  // Ī₁ − 3 = J^{-2/3} ((I₁ − 3) − 3 (J^{2/3} − 1)), likewise Ī₂ − 3 with J^{4/3}, each part
+  // relative to the strain (see det_minus_one): with C = I + E, I₁ − 3 = tr E and
+  // I₂ − 3 = 2 tr E + ½((tr E)² − |E|²).
+  const Mat3 H = F - Mat3::Identity();
+  const Mat3 E = H + H.transpose() + H.transpose() * H;
+  const double e1 = E.trace(), j = det_minus_one(H);
+  if (!(j > -1)) return kInf;
+  const double lnJ = std::log1p(j);
+  const double bar1 = std::exp(-2.0 / 3.0 * lnJ) * (e1 - 3 * std::expm1(2.0 / 3.0 * lnJ));
+  const double bar2 = std::exp(-4.0 / 3.0 * lnJ) *
+                      (2 * e1 + 0.5 * (e1 * e1 - E.squaredNorm()) - 3 * std::expm1(4.0 / 3.0 * lnJ));
+  return C10_ * bar1 + C01_ * bar2 + j * j / D1_;
 }
 
 Mat3 MooneyRivlin::stress(const Mat3& F) const {
