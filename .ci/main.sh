@@ -6,7 +6,9 @@
 # <sample>.dxf/.svg (cut sheets of the feasible designs) and
 # OUT_DIR/strips.FCStd (a FreeCAD document with one strip feature per sample);
 # OUT_DIR/rods/<sample>.result.json, <sample>.png (twist plots), <sample>.step (deformed and
-# straight rod) and OUT_DIR/rods.FCStd (one Rod feature per sample) for samples/rods.
+# straight rod) and OUT_DIR/rods.FCStd (one Rod feature per sample) for samples/rods;
+# OUT_DIR/optimizations/<job>/{optimized.step,history.json,history.png}: the shape optimization
+# of samples/parts/<job>.step by samples/optimizations/<job>.json (the original stays unchanged).
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 build=${PARAFAB_BUILD_DIR:-$repo/build}
@@ -90,4 +92,17 @@ for f in "$repo"/samples/revolution/*.json; do
   /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); m=d['meridian']; s=d['strips']
 print('revolution %-8s meridian complete=%s residual %.1e, %d strips, R %.4f' % (sys.argv[2], m['complete'], m['residual'], s['count'], s['R']))" "$out/revolution/$name.result.json" "$name"
 done
-echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, rods/*.step, rods.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}, sections/*.result.json, revolution/*.result.json"
+echo "== shape optimization: parafab optimize on samples/optimizations/*.json (part: samples/parts/<name>.step)"
+mkdir -p "$out/optimizations"
+for f in "$repo"/samples/optimizations/*.json; do
+  name=$(basename "$f" .json)
+  part="$repo/samples/parts/$name.step"
+  before=$(sha256sum "$part" | cut -d' ' -f1)
+  rm -rf "$out/optimizations/$name"
+  "$build/workbench/entry/parafab" optimize "$part" "$f" -o "$out/optimizations/$name" >"$out/optimizations/$name.stdout.json"
+  [ "$(sha256sum "$part" | cut -d' ' -f1)" = "$before" ] || { echo "optimize $name: the original part changed"; exit 1; }
+  /usr/bin/python3 -c "import json,sys; h=json.load(open(sys.argv[1])); n=len(h['iterations']) - 1  # iterate 0 is the start
+print('optimize %-8s %s: J %.4g -> %.4g (%+.1f %%), max von Mises %.1f -> %.1f MPa, V/V0 %.4f, %d iterations, %.2f s/iteration, tangency residual %.1e' % (sys.argv[2], h['status'], h['initial_objective'], h['final_objective'], 100 * (h['final_objective'] / h['initial_objective'] - 1), h['initial_max_von_mises'], h['final_max_von_mises'], h['final_volume'] / h['initial_volume'], n, h['seconds'] / max(n, 1), h['tangency_residual_max']))
+for p in h['parameters']: print('    %-28s %8.4f -> %8.4f' % (p['name'], p['initial'], p['final']))" "$out/optimizations/$name/history.json" "$name"
+done
+echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, rods/*.step, rods.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}, sections/*.result.json, revolution/*.result.json, optimizations/*/{optimized.step,history.json,history.png}"
