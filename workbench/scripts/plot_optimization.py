@@ -18,7 +18,9 @@ def main(history_path, png_path):
     f_ = [it["objective"] for it in its]
     t = [it["seconds"] for it in its]
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
-    log = all(v > 0 for v in f_)
+    # A log axis only where the objective spans a decade or more: over a narrower range its
+    # minor ticks get labels like 1.04e-3, 1.02e-3 stacked on each other.
+    log = all(v > 0 for v in f_) and max(f_) > 10 * min(f_)
     for ax, x, label in ((axes[0], k, "iteration"), (axes[1], t, "time [s]")):
         ax.plot(x, f_, "o-", ms=3)
         ax.set_xlabel(label)
