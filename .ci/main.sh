@@ -99,10 +99,19 @@ for f in "$repo"/samples/optimizations/*.json; do
   part="$repo/samples/parts/$name.step"
   before=$(sha256sum "$part" | cut -d' ' -f1)
   rm -rf "$out/optimizations/$name"
-  "$build/workbench/entry/parafab" optimize "$part" "$f" -o "$out/optimizations/$name" >"$out/optimizations/$name.stdout.json"
+  "$build/workbench/entry/parafab" optimize "$part" "$f" -o "$out/optimizations/$name" >"$out/optimizations/$name.stdout.json" \
+    || { echo "optimize $name failed:"; cat "$out/optimizations/$name.stdout.json"; exit 1; }
   [ "$(sha256sum "$part" | cut -d' ' -f1)" = "$before" ] || { echo "optimize $name: the original part changed"; exit 1; }
+  for file in optimized.step history.json history.png; do
+    [ -s "$out/optimizations/$name/$file" ] || { echo "optimize $name: $out/optimizations/$name/$file is missing or empty"; exit 1; }
+  done
   /usr/bin/python3 -c "import json,sys; h=json.load(open(sys.argv[1])); n=len(h['iterations']) - 1  # iterate 0 is the start
 print('optimize %-8s %s: J %.4g -> %.4g (%+.1f %%), max von Mises %.1f -> %.1f MPa, V/V0 %.4f, %d iterations, %.2f s/iteration, tangency residual %.1e' % (sys.argv[2], h['status'], h['initial_objective'], h['final_objective'], 100 * (h['final_objective'] / h['initial_objective'] - 1), h['initial_max_von_mises'], h['final_max_von_mises'], h['final_volume'] / h['initial_volume'], n, h['seconds'] / max(n, 1), h['tangency_residual_max']))
-for p in h['parameters']: print('    %-28s %8.4f -> %8.4f' % (p['name'], p['initial'], p['final']))" "$out/optimizations/$name/history.json" "$name"
+for p in h['parameters']: print('    %-28s %8.4f -> %8.4f' % (p['name'], p['initial'], p['final']))
+bad = [w for w, ok in [('status %r is not a normal stop' % h['status'], h['status'] in ('converged', 'max_iterations')),
+                       ('the objective did not fall', h['final_objective'] < h['initial_objective']),
+                       ('V/V0 above 1', h['final_volume'] <= h['initial_volume'] * (1 + 1e-3)),
+                       ('no history chart', bool(h.get('chart')))] if not ok]
+sys.exit('optimize %s: %s' % (sys.argv[2], '; '.join(bad)) if bad else 0)" "$out/optimizations/$name/history.json" "$name"
 done
 echo "== results in $out: strips/*.result.json, strips/*.png, strips/*.{dxf,svg}, strips.FCStd, rods/*.result.json, rods/*.png, rods/*.step, rods.FCStd, parts/*.inspect.json, parts/*.integrate.json, simulations/*/result.{json,vtu}, sections/*.result.json, revolution/*.result.json, optimizations/*/{optimized.step,history.json,history.png}"
