@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -228,8 +229,17 @@ long double reference_energy(const std::string& label, const Mat3& F) {
   const long double mu = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
   const long double kappa = kE / (3 * (1 - 2 * kNu));
   if (label == "neo_hooke") return 0.5L * mu * (I1 - 3) - mu * std::log(J) + 0.5L * lambda * std::log(J) * std::log(J);
-  const double r = label == "mooney_rivlin_r0.3" ? 0.3 : label == "mooney_rivlin_r1" ? 1.0 : 0.0;
-  const long double C10 = 0.5L * mu * (1 - r), C01 = 0.5L * mu * r, D1 = 2 / kappa;
+  long double C10, C01, D1;
+  if (label == "mooney_rivlin_direct") {
+    C10 = 0.8L, C01 = -0.15L, D1 = 0.05L;  // as laws() builds it
+  } else {
+    const long double r = label == "neo_hooke_isochoric" ? 0.0L
+                          : label == "mooney_rivlin_r0.3"  ? 0.3L
+                          : label == "mooney_rivlin_r1"    ? 1.0L
+                                                           : -1.0L;
+    if (r < 0) throw std::invalid_argument("reference_energy: no reference for law " + label);
+    C10 = 0.5L * mu * (1 - r), C01 = 0.5L * mu * r, D1 = 2 / kappa;
+  }
   return C10 * (std::pow(J, -2.0L / 3) * I1 - 3) + C01 * (std::pow(J, -4.0L / 3) * I2 - 3) + (J - 1) * (J - 1) / D1;
 }
 
@@ -245,20 +255,21 @@ TEST(Materials, SmallStrainEnergiesKeepTheirDigits) {
       for (int i = 0; i < 9; ++i) H.data()[i] = strain * u(rng);
       const Mat3 F = Mat3::Identity() + H;
       for (const auto& law : laws()) {
-        if (!law.hyperelastic || law.label == "mooney_rivlin_direct") continue;
+        if (!law.hyperelastic) continue;
         const long double ref = reference_energy(law.label, F);
-        // The reference's own round-off: about 3e-19 / (ε²) relative, 3e-11 at 1e-4.
+        // The reference's own round-off: about 3e-19 / ε² relative, 3e-11 at 1e-4, so the
+        // tolerance sits above it; it is still 300x under the textbook forms' 3e-8.
         const double err = static_cast<double>(std::abs(law.material->energy(F) - ref) / std::abs(ref));
         // Measured (2026-12-03): ≤ 8.1e-12 at 1e-4 (near the reference's own noise) and ≤ 1.3e-13
         // at 1e-3; the textbook double forms: 3.0e-8 and 2.3e-10.
-        EXPECT_LT(err, 2e-11) << law.label << " strain " << strain;
+        EXPECT_LT(err, 1e-10) << law.label << " strain " << strain;
       }
     }
   }
   // At large strain the rewritten forms equal the textbook ones.
   for (const Mat3& F : test_gradients())
     for (const auto& law : laws()) {
-      if (!law.hyperelastic || law.label == "mooney_rivlin_direct") continue;
+      if (!law.hyperelastic) continue;
       const long double ref = reference_energy(law.label, F);
       EXPECT_LT(static_cast<double>(std::abs(law.material->energy(F) - ref) / std::abs(ref)), 1e-13) << law.label;
     }
