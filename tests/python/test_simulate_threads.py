@@ -91,19 +91,23 @@ class SimulateThreads(unittest.TestCase):
         # CHOLMOD's BLAS kernel moves the Newton iterates by round-off. With the SkylakeX kernel
         # the neo-Hooke energy's own noise (the textbook I1 - 3, ln det F: ~1e-9 relative at
         # these strains) exceeded the last step's predicted decrease and the line search failed
-        # at load step 1 (CI, 2026-12-02). The same job in a process forced onto that kernel.
+        # at load step 1 (CI, 2026-12-02). The same job in two processes, one forced onto
+        # SkylakeX and one onto Haswell; OpenBLAS says which kernel it took (OPENBLAS_VERBOSE=2).
         code = ("import json, sys; sys.path.insert(0, %r); sys.path.insert(0, %r);"
                 "import parafab, test_simulate_threads as t;"
                 "r = parafab.simulate(t.BRACKET, t.bracket_job(cells=8, model='neo_hooke'), threads=1);"
                 "print(json.dumps([r['newton']['iterations'], r['probes'][0]['displacement']]))"
                 % (os.environ.get("PARAFAB_MODULE_DIR", "build/workbench/entry"), os.path.dirname(os.path.abspath(__file__))))
-        env = dict(os.environ, OPENBLAS_CORETYPE="SkylakeX")
-        p = subprocess.run(["/usr/bin/python3", "-c", code], capture_output=True, text=True, env=env, timeout=300)
-        self.assertEqual(p.returncode, 0, p.stderr[-2000:])
-        iterations, displacement = json.loads(p.stdout.strip().splitlines()[-1])
-        here = parafab.simulate(BRACKET, bracket_job(cells=8, model="neo_hooke"), threads=1)
-        self.assertEqual(iterations, 6)  # measured: 3 per load step on both kernels
-        for a, b in zip(displacement, here["probes"][0]["displacement"]):
+        runs = {}
+        for kernel in ("SkylakeX", "Haswell"):
+            env = dict(os.environ, OPENBLAS_CORETYPE=kernel, OPENBLAS_VERBOSE="2")
+            p = subprocess.run(["/usr/bin/python3", "-c", code], capture_output=True, text=True, env=env, timeout=120)
+            self.assertEqual(p.returncode, 0, kernel + ": " + p.stderr[-2000:])
+            self.assertIn("Core: " + kernel, p.stderr, "OpenBLAS did not take the %s kernel" % kernel)
+            runs[kernel] = json.loads(p.stdout.strip().splitlines()[-1])
+        for kernel, (iterations, _) in runs.items():
+            self.assertEqual(iterations, 6, kernel)  # measured: 3 per load step on both kernels
+        for a, b in zip(runs["SkylakeX"][1], runs["Haswell"][1]):
             self.assertTrue(close(a, b, 1e-9), (a, b))  # measured: the kernels agree to 1.5e-13
 
     def test_bad_thread_count_is_a_job_error(self):
