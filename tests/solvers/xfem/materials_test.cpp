@@ -220,27 +220,24 @@ TEST(Materials, UniaxialStretchClosedForms) {
 }
 
 /// The textbook energies in long double (eps 1.1e-19): the reference for the double laws,
-/// which must not lose the strain's digits to cancellation (I₁ − 3, ln det F).
-long double reference_energy(const std::string& label, const Mat3& F) {
+/// which must not lose the strain's digits to cancellation (I₁ − 3, ln det F). The law's own
+/// coefficients are used (their mapping from (E, ν): SmallStrainLimitMatchesLinearElasticity and
+/// UniaxialStretchClosedForms); a law without a
+/// reference here throws.
+long double reference_energy(const Material& law, const Mat3& F) {
   using Mat3L = Eigen::Matrix<long double, 3, 3>;
   const Mat3L f = F.cast<long double>();
   const Mat3L C = f.transpose() * f;
   const long double J = f.determinant(), I1 = C.trace(), I2 = 0.5L * (I1 * I1 - C.squaredNorm());
-  const long double mu = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
-  const long double kappa = kE / (3 * (1 - 2 * kNu));
-  if (label == "neo_hooke") return 0.5L * mu * (I1 - 3) - mu * std::log(J) + 0.5L * lambda * std::log(J) * std::log(J);
-  long double C10, C01, D1;
-  if (label == "mooney_rivlin_direct") {
-    C10 = 0.8L, C01 = -0.15L, D1 = 0.05L;  // as laws() builds it
-  } else {
-    const long double r = label == "neo_hooke_isochoric" ? 0.0L
-                          : label == "mooney_rivlin_r0.3"  ? 0.3L
-                          : label == "mooney_rivlin_r1"    ? 1.0L
-                                                           : -1.0L;
-    if (r < 0) throw std::invalid_argument("reference_energy: no reference for law " + label);
-    C10 = 0.5L * mu * (1 - r), C01 = 0.5L * mu * r, D1 = 2 / kappa;
+  if (const auto* nh = dynamic_cast<const NeoHookean*>(&law)) {
+    const long double mu = nh->constants().mu, lambda = nh->constants().lambda;
+    return 0.5L * mu * (I1 - 3) - mu * std::log(J) + 0.5L * lambda * std::log(J) * std::log(J);
   }
-  return C10 * (std::pow(J, -2.0L / 3) * I1 - 3) + C01 * (std::pow(J, -4.0L / 3) * I2 - 3) + (J - 1) * (J - 1) / D1;
+  if (const auto* mr = dynamic_cast<const MooneyRivlin*>(&law)) {  // also NeoHookeanIsochoric
+    const long double C10 = mr->C10(), C01 = mr->C01(), D1 = mr->D1();
+    return C10 * (std::pow(J, -2.0L / 3) * I1 - 3) + C01 * (std::pow(J, -4.0L / 3) * I2 - 3) + (J - 1) * (J - 1) / D1;
+  }
+  throw std::invalid_argument("reference_energy: no reference for law " + law.name());
 }
 
 TEST(Materials, SmallStrainEnergiesKeepTheirDigits) {
@@ -256,13 +253,13 @@ TEST(Materials, SmallStrainEnergiesKeepTheirDigits) {
       const Mat3 F = Mat3::Identity() + H;
       for (const auto& law : laws()) {
         if (!law.hyperelastic) continue;
-        const long double ref = reference_energy(law.label, F);
+        const long double ref = reference_energy(*law.material, F);
         // The reference's own round-off: about 3e-19 / ε² relative, 3e-11 at 1e-4, so the
-        // tolerance sits above it; it is still 300x under the textbook forms' 3e-8.
+        // tolerance sits just above it; it is still 600x under the textbook forms' 3e-8.
         const double err = static_cast<double>(std::abs(law.material->energy(F) - ref) / std::abs(ref));
-        // Measured (2026-12-03): ≤ 8.1e-12 at 1e-4 (near the reference's own noise) and ≤ 1.3e-13
-        // at 1e-3; the textbook double forms: 3.0e-8 and 2.3e-10.
-        EXPECT_LT(err, 1e-10) << law.label << " strain " << strain;
+        // Measured (2026-12-04, all five laws): ≤ 8.1e-12 at 1e-4 (near the reference's own
+        // noise) and ≤ 1.3e-13 at 1e-3; the textbook double forms: 3.0e-8 and 2.3e-10.
+        EXPECT_LT(err, 5e-11) << law.label << " strain " << strain;
       }
     }
   }
@@ -270,7 +267,7 @@ TEST(Materials, SmallStrainEnergiesKeepTheirDigits) {
   for (const Mat3& F : test_gradients())
     for (const auto& law : laws()) {
       if (!law.hyperelastic) continue;
-      const long double ref = reference_energy(law.label, F);
+      const long double ref = reference_energy(*law.material, F);
       EXPECT_LT(static_cast<double>(std::abs(law.material->energy(F) - ref) / std::abs(ref)), 1e-13) << law.label;
     }
 }
