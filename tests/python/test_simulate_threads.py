@@ -104,10 +104,9 @@ class SimulateThreads(unittest.TestCase):
             p = subprocess.run(["/usr/bin/python3", "-c", code], capture_output=True, text=True, env=env, timeout=120)
             self.assertEqual(p.returncode, 0, kernel + ": " + p.stderr[-2000:])
             self.assertIn("Core: " + kernel, p.stderr, "OpenBLAS did not take the %s kernel" % kernel)
-            runs[kernel] = json.loads(p.stdout.strip().splitlines()[-1])
-        for kernel, (iterations, _) in runs.items():
+            iterations, runs[kernel] = json.loads(p.stdout.strip().splitlines()[-1])
             self.assertEqual(iterations, 6, kernel)  # measured: 3 per load step on both kernels
-        for a, b in zip(runs["SkylakeX"][1], runs["Haswell"][1]):
+        for a, b in zip(runs["SkylakeX"], runs["Haswell"]):
             self.assertTrue(close(a, b, 1e-9), (a, b))  # measured: the kernels agree to 1.5e-13
 
     def test_bad_thread_count_is_a_job_error(self):
