@@ -630,8 +630,8 @@ class OptimizeFeatureTest(unittest.TestCase):
             optimize_feature.build_job(shape, dict(self.options, max_volume_ratio=1.1, min_volume_ratio=1.2))
 
     def test_face_changes_measure_how_far_each_surface_moved(self):
-        """FaceMoved of an optimized solid: per face, the largest distance of its vertices and centre
-        from the original face's surface. A box whose top rises by 1.5 mm and a plate whose hole
+        """FaceMoved of an optimized solid: per face, the largest distance of its vertices and parametric
+        middle from the original face's surface. A box whose top rises by 1.5 mm and a plate whose hole
         widens from 5 to 6.25 mm: the moved faces by exactly those figures (the shapes' own), the
         side faces (trimmed by the move, their surfaces unchanged) and the rest 0."""
         before, after = Part.makeBox(10, 20, 30), Part.makeBox(10, 20, 31.5)

@@ -757,13 +757,16 @@ def _distance_to_surface(surface, point):
 
 def face_changes(original, optimized):
     """Per face of ``optimized`` (same face order as ``original``, which optimization keeps): how
-    far its surface moved [mm], the largest distance of its vertices and its centre of mass from
+    far its surface moved [mm], the largest distance of its vertices and its parametric middle from
     the surface (not the bounded face: a neighbour's move may trim it) of the original's face of
     the same index. Both shapes in the same frame (the placement is the same); a face whose
     surface cannot be projected on counts by its vertices' distance to the original face."""
     out = []
     for before, after in zip(original.Faces, optimized.Faces):
-        points = [v.Point for v in after.Vertexes] + [after.CenterOfMass]
+        # Points ON the face: its vertices and its surface at the middle of its parameter range
+        # (not its centre of mass, which for a whole cylinder lies on the axis, a radius away).
+        u0, u1, v0, v1 = after.ParameterRange
+        points = [v.Point for v in after.Vertexes] + [after.valueAt(0.5 * (u0 + u1), 0.5 * (v0 + v1))]
         try:
             surface = before.Surface
             distance = max(_distance_to_surface(surface, p) for p in points)
