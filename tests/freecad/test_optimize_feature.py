@@ -615,6 +615,42 @@ class OptimizeFeatureTest(unittest.TestCase):
             with self.assertRaisesRegex(optimize_feature.OptimizeError, text):
                 optimize_feature.build_job(shape, dict(base, **bad))
 
+    def test_volume_bounds_in_the_job(self):
+        """The panel's Max / Min volume ratio become one {"type": "volume"} entry with the CLI's keys
+        max_ratio / min_ratio (README "Shape optimization"); only the bounds set are sent, crossing
+        bounds are refused naming both."""
+        shape = self.wheel.Shape.copy()
+        job = optimize_feature.build_job(shape, dict(self.options, min_volume_ratio=0.9), self.wheel.Placement)
+        self.assertEqual(job["constraints"], [{"type": "volume", "min_ratio": 0.9}])
+        job = optimize_feature.build_job(shape, dict(self.options, max_volume_ratio=1.1, min_volume_ratio=0.9))
+        self.assertEqual(job["constraints"], [{"type": "volume", "max_ratio": 1.1, "min_ratio": 0.9}])
+        job = optimize_feature.build_job(shape, dict(self.options, max_volume_ratio=None, min_volume_ratio=0))
+        self.assertNotIn("constraints", job)
+        with self.assertRaisesRegex(optimize_feature.OptimizeError, "min ratio 1.2 must not exceed max ratio 1.1"):
+            optimize_feature.build_job(shape, dict(self.options, max_volume_ratio=1.1, min_volume_ratio=1.2))
+
+    def test_face_changes_measure_how_far_each_surface_moved(self):
+        """FaceMoved of an optimized solid: per face, the largest distance of its vertices and parametric
+        middle from the original face's surface. A box whose top rises by 1.5 mm and a plate whose hole
+        widens from 5 to 6.25 mm: the moved faces by exactly those figures (the shapes' own), the
+        side faces (trimmed by the move, their surfaces unchanged) and the rest 0."""
+        before, after = Part.makeBox(10, 20, 30), Part.makeBox(10, 20, 31.5)
+        moved = optimize_feature.face_changes(before, after)
+        top = [i for i, f in enumerate(after.Faces) if abs(f.CenterOfMass.z - 31.5) < 1e-9]
+        self.assertEqual(len(top), 1)
+        self.assertAlmostEqual(moved[top[0]], 1.5, delta=1e-9)
+        self.assertEqual([i for i, m in enumerate(moved) if m > 1e-9], top)
+
+        def plate(r):
+            return Part.makeBox(40, 40, 5).cut(Part.makeCylinder(r, 5, FreeCAD.Vector(20, 20, 0)))
+        before, after = plate(5.0), plate(6.25)
+        self.assertEqual(len(before.Faces), len(after.Faces))
+        moved = optimize_feature.face_changes(before, after)
+        hole = [i for i, f in enumerate(after.Faces) if isinstance(f.Surface, Part.Cylinder)]
+        self.assertEqual(len(hole), 1)
+        self.assertAlmostEqual(moved[hole[0]], 1.25, delta=1e-9)
+        self.assertEqual([i for i, m in enumerate(moved) if m > 1e-9], hole)
+
     def test_a_mass_bound_holds_on_the_written_solid(self):
         """A real run on the flange with one bolt-hole radius as the design: balanced about its
         axis (|c⊥|² = 0 at the start) under Max mass 0.999 m0 (aluminium, m0 = density × FreeCAD's

@@ -22,8 +22,14 @@ Xvfb, with the workbench installed in FreeCAD's user Mod directory.  Steps:
    ``Wheel_optimized`` solid, the original untouched, the status, the parameter changes and the
    history chart shown; run again and cancel at the first iterate (nothing added); OK.
 
+Checked on the way: the workbench's tooltip and menu name its capabilities; the analysis
+and the optimized solid show their colour scale with its unit (``von Mises [MPa]``, ``Face
+moved [mm]``, read back from the scene graph and seen in the screenshots); nothing in the
+Optimize panel is cut off at the task panel's default width (:func:`cut_off_widgets`, as it
+opens and after a run, every section unfolded).
+
 Results go to ``$PARAFAB_ARTIFACT_DIR`` (``status.json``, ``strip.png``, ``analysis.png``,
-``analysis_panel.png``, ``optimize_panel.png``, ``optimize.png``).
+``analysis_panel.png``, ``optimize_panel_open.png``, ``optimize_panel.png``, ``optimize.png``).
 FreeCAD is then left with ``os._exit`` (0 = pass, 1 = fail), so no dialog
 ("save changes?") can block the run.
 """
@@ -46,6 +52,7 @@ PANEL_SCREENSHOT = os.path.join(ARTIFACT_DIR, "analysis_panel.png")
 ANALYSIS_DOCUMENT = os.path.join(ARTIFACT_DIR, "gui_smoke_analysis.FCStd")
 ANALYSIS_OUT = os.path.join(ARTIFACT_DIR, "analysis_out")
 OPTIMIZE_SCREENSHOT = os.path.join(ARTIFACT_DIR, "optimize_panel.png")
+OPTIMIZE_OPEN_SCREENSHOT = os.path.join(ARTIFACT_DIR, "optimize_panel_open.png")
 OPTIMIZE_VIEW = os.path.join(ARTIFACT_DIR, "optimize.png")
 OPTIMIZE_OUT = os.path.join(ARTIFACT_DIR, "optimize_out")
 SAMPLES_DIR = os.environ.get("PARAFAB_SAMPLES_DIR", "")
@@ -118,6 +125,93 @@ def face_at(shape, point):
     raise AssertionError("no face through %s" % (point,))
 
 
+def scroll_area(widget):
+    """The QScrollArea (FreeCAD's task view) that holds ``widget``, or ``None``."""
+    from PySide2 import QtWidgets
+    area = widget.parent()
+    while area is not None and not isinstance(area, QtWidgets.QScrollArea):
+        area = area.parent()
+    return area
+
+
+def _describe(widget):
+    text = ""
+    for attr in ("text", "currentText", "title", "placeholderText"):
+        if hasattr(widget, attr):
+            try:
+                text = getattr(widget, attr)()
+            except TypeError:
+                continue
+            if text:
+                break
+    if hasattr(widget, "cleanText") and not text:
+        text = widget.text()
+    name = widget.objectName()
+    return "%s%s '%s'" % (type(widget).__name__, "(%s)" % name if name else "", text[:40])
+
+
+def cut_off_widgets(form):
+    """Every visible button, label, line edit, spin box, combo box and group box of the task
+    panel ``form`` that is cut off: narrower than its size hint (labels and buttons; a
+    word-wrapped label: its minimum size hint), than its minimum size hint (line edits, spin
+    boxes, combo boxes, group boxes), a combo box whose current text does not fit its field, or
+    one that reaches past the task panel's visible width. Returns "widget: why" lines."""
+    from PySide2 import QtCore, QtWidgets
+    area = scroll_area(form)
+    viewport = area.viewport() if area is not None else form
+    visible = viewport.width()
+    problems = []
+    kinds = (QtWidgets.QAbstractButton, QtWidgets.QLabel, QtWidgets.QLineEdit, QtWidgets.QAbstractSpinBox,
+             QtWidgets.QComboBox, QtWidgets.QGroupBox)
+    for w in form.findChildren(QtWidgets.QWidget):
+        if not isinstance(w, kinds) or not w.isVisible():
+            continue
+        if isinstance(w, QtWidgets.QLineEdit) and isinstance(w.parent(), (QtWidgets.QAbstractSpinBox,
+                                                                          QtWidgets.QComboBox)):
+            continue  # the editor inside a spin box or combo box: checked as that box
+        if isinstance(w, QtWidgets.QLabel) and w.wordWrap():
+            need, what = w.minimumSizeHint().width(), "minimumSizeHint"
+        elif isinstance(w, (QtWidgets.QLabel, QtWidgets.QAbstractButton)):
+            need, what = w.sizeHint().width(), "sizeHint"
+        else:
+            need, what = w.minimumSizeHint().width(), "minimumSizeHint"
+        if w.width() < need:
+            problems.append("%s: %d px wide, %s %d px" % (_describe(w), w.width(), what, need))
+        if isinstance(w, QtWidgets.QComboBox) and w.currentText():
+            opt = QtWidgets.QStyleOptionComboBox()
+            opt.initFrom(w)
+            opt.editable = w.isEditable()
+            opt.currentText = w.currentText()
+            field = w.style().subControlRect(QtWidgets.QStyle.CC_ComboBox, opt,
+                                             QtWidgets.QStyle.SC_ComboBoxEditField, w)
+            text = w.fontMetrics().horizontalAdvance(w.currentText())
+            if field.width() < text:
+                problems.append("%s: text %d px in a %d px field" % (_describe(w), text, field.width()))
+        left = w.mapTo(viewport, QtCore.QPoint(0, 0)).x() if area is not None else w.mapTo(form, QtCore.QPoint(0, 0)).x()
+        if left < 0 or left + w.width() > visible:
+            problems.append("%s: spans x %d..%d, the panel shows 0..%d" % (_describe(w), left, left + w.width(), visible))
+    return problems
+
+
+def legend_pixels(path):
+    """Hue bands at the bottom and the top of the colour scale (parafab_wb.legend's bar at the
+    left of the view) in the screenshot at ``path``: (bottom, top)."""
+    from PySide2 import QtGui
+    from parafab_wb import legend
+    image = QtGui.QImage(path)
+
+    def band(y):
+        x = int(round((0.5 * (legend.BAR_X[0] + legend.BAR_X[1]) + 1) / 2 * image.width()))
+        py = int(round((1 - y) / 2 * image.height()))
+        c = QtGui.QColor(image.pixel(x, py))
+        if c.saturation() < 120 or c.value() < 60:
+            return "none"
+        h = c.hue()
+        return ("red" if h < 20 or h >= 300 else "yellow" if h < 75 else "green" if h < 150
+                else "cyan" if h < 200 else "blue")
+    return band(legend.BAR_Y[0] + 0.02), band(legend.BAR_Y[1] - 0.02)
+
+
 def run_analysis(check):
     """Step 6: the "Analyze part" task panel on the L-bracket."""
     from parafab_wb import analysis_panel, cli_runner
@@ -167,6 +261,11 @@ def run_analysis(check):
     check("result_mesh_colors", len(mesh.VertexColors) == mesh.Mesh.CountPoints
           and mesh.ViewObject.Coloring)
     check("result_mesh_child", mesh in analysis.ViewObject.Proxy.claimChildren())
+    from parafab_wb import legend
+    texts = legend.texts(mesh.ViewObject)
+    check("analysis_legend", texts[-1:] == ["von Mises [MPa]"] and len(texts) == 6
+          and texts[0] == legend.format_value(min(mesh.VonMises))
+          and texts[-2] == legend.format_value(max(mesh.VonMises)), texts)
     check("inputs_stored", list(analysis.LoadedFaces) == [loaded] and analysis.Cells == 10
           and abs(analysis.Force.z + 500) < 1e-9 and analysis.NitschePenalty == "local")
     solved = (analysis.Dofs, analysis.MaxDisplacement.Value, mesh.Mesh.CountPoints, analysis.Cells)
@@ -198,6 +297,8 @@ def run_analysis(check):
     bands = color_pixels(ANALYSIS_SCREENSHOT)
     check("analysis_colors_visible", bands["blue"] >= 2000 and sum(v >= 500 for v in bands.values()) >= 3,
           bands)
+    scale_bands = legend_pixels(ANALYSIS_SCREENSHOT)
+    check("analysis_legend_visible", scale_bands == ("blue", "red"), scale_bands)
 
     # Double-click path: the view provider opens the panel; Cancel keeps the results.
     FreeCADGui.getDocument(doc.Name).setEdit(analysis.Name, 0)
@@ -233,11 +334,37 @@ def run_analysis(check):
           type(analysis.ViewObject.Proxy).__name__ == "ViewProviderAnalysis")
     check("reopened_result_mesh", analysis.ResultMesh is not None
           and analysis.ResultMesh.Mesh.CountPoints == solved[2] and analysis.ResultMesh.ViewObject.Coloring)
+    check("reopened_legend", legend.texts(analysis.ResultMesh.ViewObject) == texts,
+          legend.texts(analysis.ResultMesh.ViewObject))
     scale = analysis.DeformationScale
     FreeCAD.closeDocument(doc.Name)
     return {"analysis_dofs": solved[0], "analysis_max_displacement_mm": solved[1],
             "analysis_deformation_scale": scale,
-            "analysis_color_pixels": bands, "cli": cli, "analysis_screenshot": ANALYSIS_SCREENSHOT}
+            "analysis_color_pixels": bands, "analysis_legend": texts, "cli": cli, "analysis_screenshot": ANALYSIS_SCREENSHOT}
+
+
+def settle(seconds=0.5):
+    """Process GUI events for ``seconds``: the task view lays its panel out again once its
+    vertical scroll bar appears (its horizontal one is always off: what is wider is cut off)."""
+    wait_for(lambda: False, seconds)
+    FreeCADGui.updateGui()
+
+
+def panel_cut_off(panel):
+    """:func:`cut_off_widgets` of the Optimize panel as it is and with each of its sections
+    unfolded (all at once: the widest case); section states are restored."""
+    settle()
+    problems = cut_off_widgets(panel.form)
+    sections = getattr(panel, "sections", {})
+    states = dict((k, s.expanded()) for k, s in sections.items())
+    for s in sections.values():
+        s.set_expanded(True)
+    settle()
+    problems += [p for p in cut_off_widgets(panel.form) if p not in problems]
+    for k, s in sections.items():
+        s.set_expanded(states[k])
+    settle()
+    return problems
 
 
 def run_optimize(check):
@@ -266,6 +393,10 @@ def run_optimize(check):
     check("optimize_panel_checked", sorted(panel.checked_parameters()) == sorted(
         [(spoke, "offset"), (hole, "radius")]), panel.checked_parameters())
     check("optimize_objective_default", panel.objective.currentData() == "center_of_mass")
+    FreeCADGui.updateGui()
+    FreeCADGui.getMainWindow().grab().save(OPTIMIZE_OPEN_SCREENSHOT)
+    cut_off = panel_cut_off(panel)
+    check("optimize_panel_nothing_cut_off", not cut_off, "\n" + "\n".join(cut_off))
     # Min / Max cells of a checked parameter reach the job as absolute bounds.
     panel.set_bounds(hole, "radius", 4.0, 5.5)
     bounded = dict((p[0], p) for p in panel.checked_parameters())[hole]
@@ -310,11 +441,25 @@ def run_optimize(check):
     FreeCADGui.updateGui()
     view.saveImage(OPTIMIZE_VIEW, 1280, 1024, "White")
     bands = color_pixels(OPTIMIZE_VIEW)
-    check("optimize_result_visible", bands["green"] >= 2000, bands)
-    from PySide2 import QtWidgets
-    area = panel.form.parent()
-    while area is not None and not isinstance(area, QtWidgets.QScrollArea):
-        area = area.parent()
+    # Faces coloured by how far they moved: the hole by its change of radius (the shapes' own
+    # radii), the untouched faces blue (0 mm), and the scale "Face moved [mm]" beside them.
+    moved = list(new.FaceMoved)
+    radius_change = abs(new.Shape.Faces[hole_index].Surface.Radius - part.Shape.Faces[hole_index].Surface.Radius)
+    check("optimize_face_moved", len(moved) == len(new.Shape.Faces)
+          and abs(moved[hole_index] - radius_change) <= 1e-6 * max(1.0, radius_change)
+          and sum(m <= 1e-9 for m in moved) >= len(moved) // 2, (moved, radius_change))
+    from parafab_wb import legend
+    texts = legend.texts(new.ViewObject)
+    check("optimize_legend", texts[-1:] == ["Face moved [mm]"] and texts[0] == "0"
+          and texts[-2] == legend.format_value(max(moved)), texts)
+    check("optimize_result_visible", bands["blue"] >= 2000 and sum(v >= 200 for v in bands.values()) >= 2, bands)
+    scale_bands = legend_pixels(OPTIMIZE_VIEW)
+    check("optimize_legend_visible", scale_bands == ("blue", "red"), scale_bands)
+    cut_off = panel_cut_off(panel)  # after a run: status, parameter changes and charts filled in
+    check("optimize_panel_nothing_cut_off_after_run", not cut_off, "\n" + "\n".join(cut_off))
+    for key in getattr(panel, "sections", {}):
+        panel.sections[key].set_expanded(key in ("constraints", "run"))
+    area = scroll_area(panel.form)
     if area is not None:
         area.ensureWidgetVisible(panel.open_chart)
     FreeCADGui.updateGui()
@@ -332,7 +477,8 @@ def run_optimize(check):
     check("optimize_panel_closed", not FreeCADGui.Control.activeDialog())
     check("optimize_result_kept", doc.getObject(new.Name) is not None)
     info = {"optimize_initial": new.InitialObjective, "optimize_final": new.FinalObjective,
-            "optimize_screenshot": OPTIMIZE_SCREENSHOT, "optimize_green_pixels": bands["green"]}
+            "optimize_screenshot": OPTIMIZE_SCREENSHOT, "optimize_color_pixels": bands,
+            "optimize_face_moved_mm": moved, "optimize_legend": texts}
     FreeCAD.closeDocument(doc.Name)
     return info
 
@@ -347,6 +493,16 @@ def run(check):
     check("rod_command_registered", "ParaFab_Rod" in FreeCADGui.listCommands())
     check("toolbar", "ParaFab" in wb.listToolbars(), wb.listToolbars())
     check("menu", "ParaFab" in wb.listMenus(), wb.listMenus())
+    tip = wb.ToolTip.lower()
+    check("workbench_tooltip", all(w in tip for w in ("strips", "rods", "x-cad", "optimize")), wb.ToolTip)
+    from PySide2 import QtWidgets
+    FreeCADGui.updateGui()
+    submenus = []
+    for action in FreeCADGui.getMainWindow().menuBar().actions():
+        if action.text().replace("&", "") == "ParaFab" and action.menu() is not None:
+            submenus = [a.text().replace("&", "") for a in action.menu().actions()]
+    check("workbench_menu", submenus == ["Bending-active strips", "Kirchhoff rods",
+                                         "X-CAD analysis and shape optimization"], submenus)
 
     doc = FreeCAD.newDocument("GuiSmoke")
     sketch = doc.addObject("Sketcher::SketchObject", "Sketch")

@@ -9,17 +9,26 @@ import FreeCADGui
 
 
 class ParaFabWorkbench(FreeCADGui.Workbench):
-    """Workbench for designing bending-active strips on planar curves."""
+    """Workbench of the ParaFab plug-ins: bending-active strips on planar curves, Kirchhoff rods
+    on space curves, X-CAD analysis (XFEM on the B-rep) and shape optimization of solids."""
 
     MenuText = "ParaFab"
-    ToolTip = "Design bending-active strips on planar curves"
+    ToolTip = ("Design bending-active strips and Kirchhoff rods from curves, analyse solids with X-CAD "
+               "(XFEM on the B-rep: stress and displacement) and optimize their shape on their own CAD "
+               "parameters")
     Icon = ""
 
+    #: The commands by capability: (submenu of the ParaFab menu, commands).
+    GROUPS = [
+        ("Bending-active strips", ["ParaFab_Strip", "ParaFab_StripsFromSections", "ParaFab_RevolutionStrips",
+                                   "ParaFab_ExportCutSheets", "ParaFab_PlotStripProfile",
+                                   "ParaFab_PlotStripStability", "ParaFab_ImproveFabricability",
+                                   "ParaFab_StabilizeStrip"]),
+        ("Kirchhoff rods", ["ParaFab_Rod"]),
+        ("X-CAD analysis and shape optimization", ["ParaFab_AnalyzePart", "ParaFab_OptimizeShape"]),
+    ]
     #: Commands shown in the toolbar and the menu.
-    COMMANDS = ["ParaFab_Strip", "ParaFab_StripsFromSections", "ParaFab_RevolutionStrips",
-                "ParaFab_ExportCutSheets", "ParaFab_PlotStripProfile", "ParaFab_PlotStripStability",
-                "ParaFab_ImproveFabricability",
-                "ParaFab_StabilizeStrip", "ParaFab_Rod", "ParaFab_AnalyzePart", "ParaFab_OptimizeShape"]
+    COMMANDS = [c for _, commands in GROUPS for c in commands]
 
     def __init__(self):
         import parafab_wb
@@ -28,8 +37,11 @@ class ParaFabWorkbench(FreeCADGui.Workbench):
     def Initialize(self):
         """Called on first activation: register commands, build the UI."""
         import parafab_wb.commands  # noqa: F401  (registers the commands)
-        self.appendToolbar("ParaFab", self.COMMANDS)
-        self.appendMenu("ParaFab", self.COMMANDS)
+        toolbar = []
+        for title, commands in self.GROUPS:
+            toolbar += (["Separator"] if toolbar else []) + commands
+            self.appendMenu(["ParaFab", title], commands)
+        self.appendToolbar("ParaFab", toolbar)
 
     def Activated(self):
         """Called when the workbench is activated."""

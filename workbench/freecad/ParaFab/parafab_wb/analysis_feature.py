@@ -340,6 +340,16 @@ class ViewProviderAnalysis(feature_proxy.IconViewProvider):
         mesh = getattr(self.Object, "ResultMesh", None)
         return [mesh] if mesh is not None else []
 
+    def updateData(self, obj, prop):
+        # The colour scale lives in the view only: put it back when a document is reopened.
+        if prop in ("ResultMesh", "ColorScaleMax"):
+            result_display.show_legend(getattr(obj, "ResultMesh", None))
+
+    def finishRestoring(self):
+        obj = getattr(self, "Object", None)
+        if obj is not None:
+            result_display.show_legend(getattr(obj, "ResultMesh", None))
+
     def setEdit(self, vobj, mode=0):
         if mode != 0:
             return None

@@ -78,16 +78,19 @@ class FaceList(QtGui.QWidget):
         self.accepted = accepted
         layout = QtGui.QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
-        layout.addWidget(QtGui.QLabel(title))
+        self.title = QtGui.QLabel(title)
+        self.title.setWordWrap(True)  # long titles wrap instead of widening the task panel
+        layout.addWidget(self.title)
         self.list = QtGui.QListWidget()
         self.list.setSelectionMode(QtGui.QAbstractItemView.ExtendedSelection)
         self.list.setMaximumHeight(80)
         self.list.addItems(list(faces))
         layout.addWidget(self.list)
         buttons = QtGui.QHBoxLayout()
-        self.add_button = _narrow(QtGui.QPushButton("Add selected"))
+        # Full-size buttons (narrowed, they read "Remov" at the task panel's default width).
+        self.add_button = QtGui.QPushButton("Add selected")
         self.add_button.setToolTip("Add selected faces: the faces selected in the 3D view")
-        self.remove_button = _narrow(QtGui.QPushButton("Remove"), 40)
+        self.remove_button = QtGui.QPushButton("Remove")
         self.remove_button.setToolTip("Remove the faces selected in this list")
         buttons.addWidget(self.add_button)
         buttons.addWidget(self.remove_button)

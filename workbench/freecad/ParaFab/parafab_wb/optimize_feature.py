@@ -10,7 +10,8 @@ Non-GUI core of the "Optimize shape" command (the task panel is :mod:`parafab_wb
 * :func:`optimize_shape` -- export the solid, run ``parafab.optimize`` in-process and add the
   optimized solid as a NEW ``Part::Feature`` beside the original (:func:`add_result`).
 
-Bounds: a volume ratio (``max_volume_ratio``) and masses in kg (``max_mass`` / ``min_mass``,
+Bounds: volume ratios (``max_volume_ratio`` / ``min_volume_ratio``, the job's ``max_ratio`` /
+``min_ratio``) and masses in kg (``max_mass`` / ``min_mass``,
 :func:`mass_constraint`: density [kg/m³] × 1e-9 × volume [mm³]); a run with a mass bound gives
 its result ``InitialMass`` / ``FinalMass`` (history.json's ``initial_mass`` / ``final_mass``).
 
@@ -251,6 +252,7 @@ def default_options():
         #   {"plane" | "cylinder" | "sphere" | "torus": {...}} in the part's own frame, sent as given
         "max_iterations": 20,
         "max_volume_ratio": None,             # e.g. 1.05: volume at most 105 % of the start
+        "min_volume_ratio": None,             # e.g. 0.9: volume at least 90 % of the start
         "max_mass": None,                     # kg (density × volume, see mass_constraint); None or 0: no bound
         "min_mass": None,                     # kg; None or 0: no bound
         "cells": None,                        # grid cells along the longest side (compliance; None: engine default)
@@ -547,8 +549,19 @@ def build_job(shape, options, placement=None):
                                 % objective.type)
         job["merge_penalty"] = True
     constraints = []
-    if opts.get("max_volume_ratio"):
-        constraints.append({"type": "volume", "max_ratio": float(opts["max_volume_ratio"])})
+    volume = {}
+    for key in ("max", "min"):
+        ratio = opts.get(key + "_volume_ratio")
+        if ratio:
+            ratio = float(ratio)
+            if not (math.isfinite(ratio) and ratio > 0):
+                raise OptimizeError("volume bound: %s_ratio must be a positive ratio (0: none), got %r" % (key, ratio))
+            volume[key + "_ratio"] = ratio
+    if "min_ratio" in volume and "max_ratio" in volume and not volume["min_ratio"] <= volume["max_ratio"]:
+        raise OptimizeError("volume bound: min ratio %g must not exceed max ratio %g"
+                            % (volume["min_ratio"], volume["max_ratio"]))
+    if volume:
+        constraints.append(dict({"type": "volume"}, **volume))
     mass = mass_constraint(opts)
     if mass is not None:
         constraints.append(mass)
@@ -715,8 +728,15 @@ def add_result(obj, history, out_dir, placement=None):
             if value is not None:
                 setattr(new, name, value)
             new.setEditorMode(name, 1)  # read-only
+        original = _local_shape(obj)[0]  # the optimized solid is in the part's own frame too
+        moved = face_changes(original, solid) if len(solid.Faces) == len(original.Faces) else []
+        new.addProperty("App::PropertyFloatList", "FaceMoved", "Optimization",
+                        "Per face (Face1, Face2, ...): how far its surface moved [mm], the largest distance of its "
+                        "vertices and centre from the original face's surface (empty: the face count changed)")
+        new.FaceMoved = moved
+        new.setEditorMode("FaceMoved", 1)
         if FreeCAD.GuiUp and new.ViewObject is not None:
-            new.ViewObject.ShapeColor = (0.35, 0.75, 0.45)
+            show_face_changes(new)
             if obj.ViewObject is not None:
                 obj.ViewObject.Transparency = 60
     except Exception:
@@ -724,6 +744,55 @@ def add_result(obj, history, out_dir, placement=None):
         raise
     doc.recompute()
     return new
+
+
+#: Title (with the unit) of the colour scale of an optimized solid (:func:`show_face_changes`).
+FACE_MOVED_TITLE = "Face moved [mm]"
+
+
+def _distance_to_surface(surface, point):
+    u, v = surface.parameter(point)
+    return (surface.value(u, v) - point).Length
+
+
+def face_changes(original, optimized):
+    """Per face of ``optimized`` (same face order as ``original``, which optimization keeps): how
+    far its surface moved [mm], the largest distance of its vertices and its parametric middle from
+    the surface (not the bounded face: a neighbour's move may trim it) of the original's face of
+    the same index. Both shapes in the same frame (the placement is the same); a face whose
+    surface cannot be projected on counts by its vertices' distance to the original face."""
+    out = []
+    for before, after in zip(original.Faces, optimized.Faces):
+        # Points ON the face: its vertices and its surface at the middle of its parameter range
+        # (not its centre of mass, which for a whole cylinder lies on the axis, a radius away).
+        u0, u1, v0, v1 = after.ParameterRange
+        points = [v.Point for v in after.Vertexes] + [after.valueAt(0.5 * (u0 + u1), 0.5 * (v0 + v1))]
+        try:
+            surface = before.Surface
+            distance = max(_distance_to_surface(surface, p) for p in points)
+        except Exception:  # no projection: the bounded face (an upper bound of the surface's)
+            import Part
+            distance = max(before.distToShape(Part.Vertex(p))[0] for p in points)
+        out.append(float(distance))
+    return out
+
+
+def show_face_changes(result):
+    """Colour the faces of optimized solid ``result`` by ``FaceMoved`` (blue: unchanged, red: the
+    largest move) and show the scale ``Face moved [mm]`` in the 3D view (GUI only). Without
+    ``FaceMoved`` (the face count changed) the solid is plain green."""
+    vobj = getattr(result, "ViewObject", None)
+    if not FreeCAD.GuiUp or vobj is None:
+        return
+    from . import legend, result_display
+    moved = list(getattr(result, "FaceMoved", []) or [])
+    if not moved or len(moved) != len(result.Shape.Faces):
+        vobj.ShapeColor = (0.35, 0.75, 0.45)
+        legend.remove(vobj)
+        return
+    hi = max(moved)
+    vobj.DiffuseColor = [c + (0.0,) for c in result_display.colors(moved, 0.0, hi)]
+    legend.show(vobj, FACE_MOVED_TITLE, 0.0, hi, result_display.COLOR_STOPS)
 
 
 def freecad_parameter_name(name):

@@ -34,6 +34,12 @@ BOUND_TOOLTIP = ("Absolute bound of a checked parameter (double-click to edit; e
                  "frame (before its placement); radii and angles do not depend on it.")
 
 
+def short_label(objective):
+    """The objective's name as the combo shows it: its label without the explanation in
+    brackets (that is shown below the combo and in its tooltip)."""
+    return objective.label.split(" (")[0]
+
+
 def active_panel():
     """The open :class:`OptimizeTaskPanel`, or ``None``."""
     return _active
@@ -49,16 +55,119 @@ def open_panel(obj, faces=()):
     return _active
 
 
-def _spin(lo, hi, value, decimals=3, suffix=""):
-    return analysis_panel._spin(lo, hi, value, decimals, suffix)
+#: Largest coordinate [mm] and force [N] the spin boxes take (their width follows the widest value).
+COORDINATE_RANGE = 1e6
+FORCE_RANGE = 1e7
 
 
-def _vector_row(form, label, boxes):
-    """Adds the spin boxes of one vector (x, y, z) side by side as a row of ``form``."""
-    row = QtGui.QHBoxLayout()
-    for b in boxes:
-        row.addWidget(b)
-    form.addRow(label, row)
+def _spin(lo, hi, value, decimals=3, suffix="", prefix=""):
+    box = QtGui.QDoubleSpinBox()
+    box.setRange(lo, hi)
+    box.setDecimals(decimals)
+    box.setValue(value)
+    if suffix:
+        box.setSuffix(suffix)
+    if prefix:
+        box.setPrefix(prefix)
+    return box
+
+
+def _combo(min_chars=10):
+    """A combo box as wide as its column: its list opens as wide as its longest entry."""
+    box = QtGui.QComboBox()
+    box.setSizeAdjustPolicy(QtGui.QComboBox.AdjustToMinimumContentsLengthWithIcon)
+    box.setMinimumContentsLength(min_chars)
+    box.setSizePolicy(QtGui.QSizePolicy.Expanding, QtGui.QSizePolicy.Fixed)
+    return box
+
+
+def _vector_rows(form, label, values, lo, hi, decimals, suffix=""):
+    """Three spin boxes (prefixed x, y, z) of one vector, one per row of ``form`` under
+    ``label`` (side by side they would not fit the task panel's width); returns them."""
+    boxes = [_spin(lo, hi, v, decimals, suffix, "%s " % axis) for axis, v in zip("xyz", values)]
+    for i, box in enumerate(boxes):
+        form.addRow(label if i == 0 else "", box)
+    return boxes
+
+
+def _form():
+    form = QtGui.QFormLayout()
+    form.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)
+    form.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
+    return form
+
+
+def _wrapped(text, tooltip=""):
+    label = QtGui.QLabel(text)
+    label.setWordWrap(True)
+    if tooltip:
+        label.setToolTip(tooltip)
+    return label
+
+
+class Section(QtGui.QWidget):
+    """A titled part of the panel that folds: its header (a flat arrow button) shows or hides
+    its body; folded, a one-line summary says what it holds."""
+
+    def __init__(self, title, expanded=True, parent=None):
+        super(Section, self).__init__(parent)
+        self.title = title
+        outer = QtGui.QVBoxLayout(self)
+        outer.setContentsMargins(0, 0, 0, 0)
+        outer.setSpacing(2)
+        self.header = QtGui.QToolButton()
+        self.header.setText(title)
+        self.header.setCheckable(True)
+        self.header.setToolButtonStyle(QtCore.Qt.ToolButtonTextBesideIcon)
+        self.header.setSizePolicy(QtGui.QSizePolicy.Expanding, QtGui.QSizePolicy.Fixed)
+        self.header.setAutoRaise(True)
+        font = self.header.font()
+        font.setBold(True)
+        self.header.setFont(font)
+        self.header.setToolTip("Show or hide the %s settings" % title.lower())
+        outer.addWidget(self.header)
+        self.summary = _wrapped("")
+        self.summary.setContentsMargins(18, 0, 0, 0)
+        self.summary.setStyleSheet("color: #555555")
+        outer.addWidget(self.summary)
+        self.body = QtGui.QFrame()
+        self.body.setFrameShape(QtGui.QFrame.StyledPanel)
+        self.layout = QtGui.QVBoxLayout(self.body)
+        self.layout.setContentsMargins(6, 6, 6, 6)
+        outer.addWidget(self.body)
+        self.header.toggled.connect(self.set_expanded)
+        self.header.setChecked(expanded)
+        self.set_expanded(expanded)
+
+    def set_expanded(self, expanded):
+        """Unfold (True) or fold the section."""
+        if self.header.isChecked() != bool(expanded):
+            self.header.setChecked(bool(expanded))  # comes back here through toggled
+            return
+        self.header.setArrowType(QtCore.Qt.DownArrow if expanded else QtCore.Qt.RightArrow)
+        self.body.setVisible(bool(expanded))
+        self.summary.setVisible(not expanded and bool(self.summary.text()))
+
+    def expanded(self):
+        return self.header.isChecked()
+
+    def set_summary(self, text):
+        """What the folded section holds (shown below its header while it is folded)."""
+        self.summary.setText(text)
+        self.summary.setVisible(not self.expanded() and bool(text))
+
+    def add_form(self):
+        form = _form()
+        self.layout.addLayout(form)
+        return form
+
+
+def _group(title):
+    """A titled box inside a section (draft, pattern, mirror, ...); returns it and its layout."""
+    group = QtGui.QGroupBox(title)
+    lay = QtGui.QVBoxLayout(group)
+    lay.setContentsMargins(4, 4, 4, 4)
+    return group, lay
 
 
 class OptimizeTaskPanel(object):
@@ -85,7 +194,8 @@ class OptimizeTaskPanel(object):
         self.form = self._build()
         self.form.setWindowTitle("Optimize shape")
         self.form.setWindowIcon(QtGui.QIcon(icon_path("ParaFab_OptimizeShape.svg")))
-        self.check_faces(list(faces))
+        if not self.check_faces(list(faces)):
+            self.auto.setChecked(True)  # nothing picked: a default that runs as it is
         if model_error:
             self.status.setText(model_error)
 
@@ -94,16 +204,30 @@ class OptimizeTaskPanel(object):
     def _build(self):
         form = QtGui.QWidget()
         layout = QtGui.QVBoxLayout(form)
+        layout.setContentsMargins(0, 0, 0, 0)
         defaults = optimize_feature.default_options()
+        self.sections = {}
+        for key, title, expanded in (("faces", "Part and faces", True), ("objective", "Objective", True),
+                                     ("constraints", "Constraints", False), ("run", "Run", True)):
+            self.sections[key] = Section(title, expanded)
+            layout.addWidget(self.sections[key])
+        layout.addStretch(1)
+        self._build_faces(self.sections["faces"], defaults)
+        self._build_objective(self.sections["objective"], defaults)
+        self._build_constraints(self.sections["constraints"], defaults)
+        self._build_run(self.sections["run"], defaults)
+        self.objective.currentIndexChanged.connect(self._objective_changed)
+        self._objective_changed()
+        self._mass_changed()
+        self.update_summaries()
+        return form
 
-        params = QtGui.QGroupBox("Design parameters")
-        lay = QtGui.QVBoxLayout(params)
-        hint = QtGui.QLabel("%s: %d faces, %d relations (tangent or coaxial faces), %d groups (a group "
-                            "moves together)." % (
-                                self.obj.Label, len(self.model["faces"]), self.model["relations"],
-                                len(self.model["groups"])))
-        hint.setWordWrap(True)
-        lay.addWidget(hint)
+    def _build_faces(self, section, defaults):
+        """Design parameters (the face tree), supports, loads and the force."""
+        lay = section.layout
+        lay.addWidget(_wrapped("%s: %d faces, %d relations (tangent or coaxial faces), %d groups (a group "
+                               "moves together)." % (self.obj.Label, len(self.model["faces"]),
+                                                     self.model["relations"], len(self.model["groups"]))))
         self.auto = QtGui.QCheckBox("All parameters (auto)")
         self.auto.setToolTip("Every parameter of every analytic face that is not fixed")
         lay.addWidget(self.auto)
@@ -132,27 +256,46 @@ class OptimizeTaskPanel(object):
             for f in rest:
                 self._add_face(top, f)
         self.tree.expandToDepth(0)
+        self.tree.header().resizeSection(0, 150)
+        self.tree.itemChanged.connect(lambda *args: self.update_summaries())
         lay.addWidget(self.tree)
         pick = QtGui.QPushButton("Check selected faces")
         pick.setToolTip("Check the offset/radius of the faces selected in the 3D view")
         pick.clicked.connect(lambda: self.check_faces(analysis_panel.selected_faces([self.obj])))
         lay.addWidget(pick)
         self.auto.toggled.connect(self.tree.setDisabled)
-        layout.addWidget(params)
+        self.auto.toggled.connect(lambda *args: self.update_summaries())
 
-        objective = QtGui.QGroupBox("Objective")
-        grid = QtGui.QFormLayout(objective)
-        grid.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)
-        self.objective = analysis_panel._narrow(QtGui.QComboBox())
+        loads, loads_lay = _group("Supports and loads")
+        loads_lay.addWidget(_wrapped("Fixed faces, unless a checked parameter is on one (then it moves with its "
+                                     "face). Objectives with a material need both."))
+        self.supports = analysis_panel.FaceList("Supports (fixed faces)", [], [self.obj])
+        self.loads = analysis_panel.FaceList("Loaded faces", [], [self.obj])
+        loads_lay.addWidget(self.supports)
+        loads_lay.addWidget(self.loads)
+        force = _form()
+        self.force = _vector_rows(force, "Total force", (0.0, 0.0, 0.0), -FORCE_RANGE, FORCE_RANGE, 3, " N")
+        loads_lay.addLayout(force)
+        lay.addWidget(loads)
+
+    def _build_objective(self, section, defaults):
+        """The objective and its inputs (axis, density, failure, matched face, clamp)."""
+        lay = section.layout
+        lay.addWidget(QtGui.QLabel("Minimize"))
+        self.objective = _combo(12)
         for o in optimize_feature.OBJECTIVES:
-            self.objective.addItem(o.label, o.type)
+            self.objective.addItem(short_label(o), o.type)
             self.objective.setItemData(self.objective.count() - 1, o.tooltip, QtCore.Qt.ToolTipRole)
-        grid.addRow("Minimize", self.objective)
-        self.axis_point = [_spin(-1e9, 1e9, v, 3, " mm") for v in defaults["axis_point"]]
-        self.axis_dir = [_spin(-1, 1, v, 4) for v in defaults["axis_direction"]]
-        _vector_row(grid, "Axis point", self.axis_point)
-        _vector_row(grid, "Axis direction", self.axis_dir)
+        lay.addWidget(self.objective)
+        self.objective_text = _wrapped("")
+        self.objective_text.setStyleSheet("color: #555555")
+        lay.addWidget(self.objective_text)
+        grid = section.add_form()
+        self.axis_point = _vector_rows(grid, "Axis point", defaults["axis_point"], -COORDINATE_RANGE,
+                                       COORDINATE_RANGE, 3, " mm")
+        self.axis_dir = _vector_rows(grid, "Axis direction", defaults["axis_direction"], -1, 1, 4)
         self.density = _spin(0.0, 1e6, defaults["density"], 1, " kg/m³")
+        self.density.setToolTip("Density of the mass objective and of the mass bounds (Constraints)")
         grid.addRow("Density", self.density)
         self.yield_stress = _spin(0.0, 1e6, defaults["yield_stress"], 1, " MPa")
         self.yield_stress.setToolTip("σ_y of the failure objective")
@@ -162,47 +305,18 @@ class OptimizeTaskPanel(object):
         grid.addRow("Exponent α", self.exponent)
         target_tip = ("Target shape: the face that must land on its own CAD surface (plane, cylinder, sphere or "
                       "torus) under the load; not a support")
-        self.target_face = analysis_panel._narrow(QtGui.QComboBox())
+        self.target_face = _combo(8)
         self.target_face.addItem("(choose a face)", None)
         for f in self.model["faces"]:
             self.target_face.addItem("%s (%s)" % (f["name"], f["type"]), f["name"])
         self.target_face.setToolTip(target_tip)
-        self.target_pick = analysis_panel._narrow(QtGui.QPushButton("Use selected"))
+        grid.addRow(QtGui.QLabel("Matched face"))
+        grid.addRow(self.target_face)  # whole rows: face names are long
+        self.target_pick = QtGui.QPushButton("Use selected face")
         self.target_pick.setToolTip("Match the face selected in the 3D view")
         self.target_pick.clicked.connect(self.use_selected_target)
-        row = QtGui.QHBoxLayout()
-        row.addWidget(self.target_face)
-        row.addWidget(self.target_pick)
-        grid.addRow("Matched face", row)
-        self.iterations = QtGui.QSpinBox()
-        self.iterations.setRange(1, 1000)
-        self.iterations.setValue(defaults["max_iterations"])
-        grid.addRow("Max iterations", self.iterations)
-        self.volume_ratio = _spin(0.0, 10.0, 0.0, 3)
-        self.volume_ratio.setSpecialValueText("no bound")
-        self.volume_ratio.setToolTip("Volume at most this times the original's (0: no bound)")
-        grid.addRow("Max volume ratio", self.volume_ratio)
-        mass_tip = ("%s mass of the optimized solid in kg: density (above, kg/m³) × 1e-9 × volume (mm³); "
-                    "0: no bound. Sent as the job's {\"type\": \"mass\"} constraint with the density in kg/mm³")
-        self.max_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
-        self.max_mass.setSpecialValueText("no bound")
-        self.max_mass.setToolTip(mass_tip % "Largest")
-        grid.addRow("Max mass", self.max_mass)
-        self.min_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
-        self.min_mass.setSpecialValueText("no bound")
-        self.min_mass.setToolTip(mass_tip % "Smallest")
-        grid.addRow("Min mass", self.min_mass)
-        self.start_mass = QtGui.QLabel()
-        self.start_mass.setWordWrap(True)
-        self.start_mass.setToolTip("The original's mass: what the mass bounds are compared with at the start")
-        grid.addRow("Start mass", self.start_mass)
-        self.mass_message = QtGui.QLabel()
-        self.mass_message.setWordWrap(True)
-        self.mass_message.setStyleSheet("color: #b00000")
-        grid.addRow("", self.mass_message)
-        for box in (self.density, self.max_mass, self.min_mass):
-            box.valueChanged.connect(self._mass_changed)
-        self.penalty = analysis_panel._narrow(QtGui.QComboBox())
+        grid.addRow(self.target_pick)
+        self.penalty = _combo(6)
         self.penalty.addItems(["fixed", "local"])
         self.penalty.setCurrentIndex(max(0, self.penalty.findText(defaults.get("nitsche_penalty", "fixed"))))
         self.penalty.setToolTip("How the supports are held on cut cells (objectives with a material). fixed: "
@@ -215,54 +329,89 @@ class OptimizeTaskPanel(object):
                               "tied, so the objective does not jump where a shape change joins or splits them "
                               "(costs an OCCT Boolean per such cell and evaluation)")
         grid.addRow("", self.merge)
-        self.objective.currentIndexChanged.connect(self._objective_changed)
-        layout.addWidget(objective)
 
-        loads = QtGui.QGroupBox("Supports and loads (fixed faces unless a checked parameter is on one)")
-        lay = QtGui.QVBoxLayout(loads)
-        self.supports = analysis_panel.FaceList("Supports (fixed faces)", [], [self.obj])
-        self.loads = analysis_panel.FaceList("Loaded faces", [], [self.obj])
-        lay.addWidget(self.supports)
-        lay.addWidget(self.loads)
-        force = QtGui.QFormLayout()
-        self.force = [_spin(-1e9, 1e9, 0.0, 3, " N") for _ in range(3)]
-        for axis, box in zip("xyz", self.force):
-            force.addRow("Total force %s" % axis, box)
-        lay.addLayout(force)
-        layout.addWidget(loads)
+    def _build_constraints(self, section, defaults):
+        """Volume and mass bounds (the job's "constraints"), draft, pattern and mirror faces."""
+        lay = section.layout
+        bounds, bounds_lay = _group("Volume and mass")
+        grid = _form()
+        bounds_lay.addLayout(grid)
+        self.volume_ratio = _spin(0.0, 10.0, 0.0, 3)
+        self.volume_ratio.setSpecialValueText("no bound")
+        self.volume_ratio.setToolTip("Volume at most this times the original's (0: no bound); the job's "
+                                     "{\"type\": \"volume\", \"max_ratio\"}")
+        grid.addRow(QtGui.QLabel("Max volume ratio"))
+        grid.addRow(self.volume_ratio)
+        self.min_volume_ratio = _spin(0.0, 10.0, 0.0, 3)
+        self.min_volume_ratio.setSpecialValueText("no bound")
+        self.min_volume_ratio.setToolTip("Volume at least this times the original's (0: no bound); the job's "
+                                         "{\"type\": \"volume\", \"min_ratio\"}")
+        grid.addRow(QtGui.QLabel("Min volume ratio"))
+        grid.addRow(self.min_volume_ratio)
+        mass_tip = ("%s mass of the optimized solid in kg: density (Objective, kg/m³) × 1e-9 × volume (mm³); "
+                    "0: no bound. Sent as the job's {\"type\": \"mass\"} constraint with the density in kg/mm³")
+        self.max_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
+        self.max_mass.setSpecialValueText("no bound")
+        self.max_mass.setToolTip(mass_tip % "Largest")
+        grid.addRow(QtGui.QLabel("Max mass"))
+        grid.addRow(self.max_mass)
+        self.min_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
+        self.min_mass.setSpecialValueText("no bound")
+        self.min_mass.setToolTip(mass_tip % "Smallest")
+        grid.addRow(QtGui.QLabel("Min mass"))
+        grid.addRow(self.min_mass)
+        self.start_mass = _wrapped("", "The original's mass: what the mass bounds are compared with at the start")
+        grid.addRow("Start mass", self.start_mass)
+        self.mass_message = _wrapped("")
+        self.mass_message.setStyleSheet("color: #b00000")
+        grid.addRow(self.mass_message)
+        for box in (self.density, self.max_mass, self.min_mass):
+            box.valueChanged.connect(self._mass_changed)
+        for box in (self.volume_ratio, self.min_volume_ratio, self.max_mass, self.min_mass):
+            box.valueChanged.connect(lambda *args: self.update_summaries())
+        lay.addWidget(bounds)
 
-        draft = QtGui.QGroupBox("Draft (walls stay parallel to the pull direction)")
-        lay = QtGui.QVBoxLayout(draft)
+        draft, draft_lay = _group("Draft")
+        draft_lay.addWidget(_wrapped("Walls stay parallel to the pull direction (undercut-free for casting or "
+                                     "moulding along it)."))
         self.draft_faces = analysis_panel.FaceList("Draft faces (planes, cylinders, cones)", [], [self.obj])
         self.draft_faces.setToolTip("Planar faces whose normal stays orthogonal to the pull direction, cylinders "
                                     "and cones whose axis stays parallel to it (undercut-free for casting or "
                                     "moulding along it)")
-        lay.addWidget(self.draft_faces)
-        self.draft_dir = [_spin(-1, 1, v, 4) for v in defaults["draft_direction"]]
-        pull = QtGui.QFormLayout()
-        _vector_row(pull, "Pull direction", self.draft_dir)
-        lay.addLayout(pull)
-        layout.addWidget(draft)
+        draft_lay.addWidget(self.draft_faces)
+        pull = _form()
+        self.draft_dir = _vector_rows(pull, "Pull direction", defaults["draft_direction"], -1, 1, 4)
+        draft_lay.addLayout(pull)
+        lay.addWidget(draft)
 
         self.pattern_faces, self.pattern_point, self.pattern_dir = self._faces_point_direction_group(
-            layout, "Pattern (faces turned about an axis change alike)", "Pattern faces (one of each copy)",
+            lay, "Pattern", "Faces turned about an axis change alike.", "Pattern faces (one of each copy)",
             "Equal faces spaced evenly about the axis (bolt holes, spokes): the design of one is copied to all; "
             "pick them in any order", ("Axis point", defaults["pattern_axis_point"]),
             ("Axis direction", defaults["pattern_axis_direction"]))
         self.mirror_faces, self.mirror_point, self.mirror_normal = self._faces_point_direction_group(
-            layout, "Mirror (faces and their images in a plane change alike)", "Mirror faces (both of each pair)",
+            lay, "Mirror", "Faces and their images in a plane change alike.", "Mirror faces (both of each pair)",
             "Pairs of faces that are images of each other in the plane: each pair keeps its symmetry; pick them "
             "in any order", ("Plane point", defaults["mirror_plane_point"]),
             ("Plane normal", defaults["mirror_plane_normal"]))
+        for faces in (self.draft_faces, self.pattern_faces, self.mirror_faces):
+            faces.list.model().rowsInserted.connect(lambda *args: self.update_summaries())
+            faces.list.model().rowsRemoved.connect(lambda *args: self.update_summaries())
 
-        out = QtGui.QFormLayout()
-        self.output_dir = analysis_panel._narrow(QtGui.QLineEdit())
+    def _build_run(self, section, defaults):
+        """Iterations, output folder, Run / Cancel run, progress, results and charts."""
+        lay = section.layout
+        out = section.add_form()
+        self.iterations = QtGui.QSpinBox()
+        self.iterations.setRange(1, 1000)
+        self.iterations.setValue(defaults["max_iterations"])
+        out.addRow("Max iterations", self.iterations)
+        lay.addWidget(QtGui.QLabel("Output folder"))
+        self.output_dir = QtGui.QLineEdit()
         self.output_dir.setPlaceholderText(optimize_feature.default_output_dir(self.obj))
-        out.addRow("Output", self.output_dir)
-        layout.addLayout(out)
-
-        run = QtGui.QGroupBox("Run")
-        lay = QtGui.QVBoxLayout(run)
+        self.output_dir.setToolTip("Folder of job.json, optimized.step, history.json and the charts (empty: %s)"
+                                   % optimize_feature.default_output_dir(self.obj))
+        lay.addWidget(self.output_dir)
         buttons = QtGui.QHBoxLayout()
         self.run_button = QtGui.QPushButton("Run")
         self.cancel_button = QtGui.QPushButton("Cancel run")
@@ -274,8 +423,7 @@ class OptimizeTaskPanel(object):
         self.progress.setRange(0, 100)
         self.progress.setValue(0)
         lay.addWidget(self.progress)
-        self.status = QtGui.QLabel("Not run yet")
-        self.status.setWordWrap(True)
+        self.status = _wrapped("Not run yet")
         self.status.setTextInteractionFlags(QtCore.Qt.TextSelectableByMouse)
         lay.addWidget(self.status)
         self.changes = QtGui.QListWidget()
@@ -287,6 +435,7 @@ class OptimizeTaskPanel(object):
         self.before_after = QtGui.QLabel("before/after chart after a run")
         for label, title in ((self.chart, "History"), (self.before_after, "Before/after")):
             label.setAlignment(QtCore.Qt.AlignCenter)
+            label.setWordWrap(True)
             label.setMinimumHeight(150)
             self.charts.addTab(label, title)
         lay.addWidget(self.charts)
@@ -297,10 +446,27 @@ class OptimizeTaskPanel(object):
         lay.addWidget(self.open_chart)
         self.run_button.clicked.connect(self.start_run)
         self.cancel_button.clicked.connect(self.cancel_run)
-        layout.addWidget(run)
-        self._objective_changed()
-        self._mass_changed()
-        return form
+
+    def update_summaries(self):
+        """The one-line summaries the folded sections show."""
+        if self.auto.isChecked():
+            design = "all parameters (auto)"
+        else:
+            design = "%d parameters checked" % len(self.checked_parameters())
+        self.sections["faces"].set_summary("%s; %d supports, %d loaded faces" % (
+            design, len(self.supports.faces()), len(self.loads.faces())))
+        self.sections["objective"].set_summary(self.objective.currentText())
+        bounds = []
+        for text, value in (("V ≤ %g V0", self.volume_ratio.value()), ("V ≥ %g V0", self.min_volume_ratio.value()),
+                            ("m ≤ %g kg", self.max_mass.value()), ("m ≥ %g kg", self.min_mass.value())):
+            if value > 0:
+                bounds.append(text % value)
+        for name, faces in (("draft", self.draft_faces), ("pattern", self.pattern_faces),
+                            ("mirror", self.mirror_faces)):
+            if faces.faces():
+                bounds.append("%s: %d faces" % (name, len(faces.faces())))
+        self.sections["constraints"].set_summary(", ".join(bounds) or "none")
+        self.sections["run"].set_summary("%d iterations; %s" % (self.iterations.value(), self.status.text()))
 
     def _add_face(self, parent, face):
         item = QtGui.QTreeWidgetItem(parent, ["%s (%s)" % (face["name"], face["type"])])
@@ -328,7 +494,14 @@ class OptimizeTaskPanel(object):
         return checked
 
     def _objective_changed(self, *args):
-        uses = optimize_feature.objective_by_type(self.objective.currentData()).uses
+        objective = optimize_feature.objective_by_type(self.objective.currentData())
+        uses = objective.uses
+        short = short_label(objective)
+        explanation = objective.label[len(short):].strip(" ()")
+        self.objective_text.setText(explanation[:1].upper() + explanation[1:] if explanation else objective.tooltip)
+        self.objective_text.setToolTip(objective.tooltip)
+        if hasattr(self, "sections"):
+            self.update_summaries()
         for b in self.axis_point + self.axis_dir:
             b.setEnabled("axis" in uses)
         self.density.setEnabled("density" in uses or "material" in uses or self._mass_bounded())
@@ -416,19 +589,17 @@ class OptimizeTaskPanel(object):
             out.append(key if bounds == [None, None] else key + tuple(bounds))
         return out
 
-    def _faces_point_direction_group(self, layout, title, faces_label, tooltip, point, direction):
+    def _faces_point_direction_group(self, layout, title, text, faces_label, tooltip, point, direction):
         """A group of picked faces with a point [mm] and a direction (x/y/z rows), added to
         ``layout``; returns the face list and the two rows of spin boxes."""
-        group = QtGui.QGroupBox(title)
-        lay = QtGui.QVBoxLayout(group)
+        group, lay = _group(title)
+        lay.addWidget(_wrapped(text))
         faces = analysis_panel.FaceList(faces_label, [], [self.obj])
         faces.setToolTip(tooltip)
         lay.addWidget(faces)
-        point_boxes = [_spin(-1e9, 1e9, v, 3, " mm") for v in point[1]]
-        direction_boxes = [_spin(-1, 1, v, 4) for v in direction[1]]
-        rows = QtGui.QFormLayout()
-        _vector_row(rows, point[0], point_boxes)
-        _vector_row(rows, direction[0], direction_boxes)
+        rows = _form()
+        point_boxes = _vector_rows(rows, point[0], point[1], -COORDINATE_RANGE, COORDINATE_RANGE, 3, " mm")
+        direction_boxes = _vector_rows(rows, direction[0], direction[1], -1, 1, 4)
         lay.addLayout(rows)
         layout.addWidget(group)
         return faces, point_boxes, direction_boxes
@@ -457,6 +628,7 @@ class OptimizeTaskPanel(object):
                 "nitsche_penalty": self.penalty.currentText(),
                 "merge_penalty": self.merge.isChecked() and self.merge.isEnabled(),
                 "max_volume_ratio": ratio if ratio > 0 else None,
+                "min_volume_ratio": self.min_volume_ratio.value() or None,
                 "max_mass": self.max_mass.value() or None, "min_mass": self.min_mass.value() or None}
 
     # -- running -----------------------------------------------------------------------------
@@ -513,6 +685,7 @@ class OptimizeTaskPanel(object):
             self.progress.setValue(0)
             self.progress.setFormat("cancelled" if outcome.state == optimize_runner.CANCELLED else "failed")
             self.status.setText("%s: %s (document unchanged)" % (outcome.state, outcome.message))
+        self.update_summaries()
         FreeCADGui.updateGui()
 
     def _show(self, label, path, history_file):
@@ -521,7 +694,7 @@ class OptimizeTaskPanel(object):
             label.setPixmap(QtGui.QPixmap())
             label.setText("no chart (history in %s)" % history_file)
         else:
-            width = max(200, self.charts.width() - 10)
+            width = max(100, self.charts.contentsRect().width() - 16)  # inside the tab frame
             label.setPixmap(pixmap.scaled(width, 260, QtCore.Qt.KeepAspectRatio, QtCore.Qt.SmoothTransformation))
         label.setToolTip(path or "")
 

@@ -9,7 +9,9 @@ and ``von_mises``, and the cell data ``face`` (B-rep face index). This module
   ``point + scale * displacement``, one mesh vertex per VTU point in the same order,
 * colours the vertices on a blue -> cyan -> green -> yellow -> red scale between the smallest
   and largest von Mises value on the surface (``VertexColors``, a ``PropertyColorList`` with one
-  colour per vertex, which FreeCAD 0.20's mesh view provider shows when its ``Coloring`` is on).
+  colour per vertex, which FreeCAD 0.20's mesh view provider shows when its ``Coloring`` is on),
+* shows the scale beside it in the 3D view: ``von Mises [MPa]`` with the values at the colour
+  stops (:func:`show_legend`, a :mod:`parafab_wb.legend` overlay that is visible with the mesh).
 
 The mesh object keeps ``Displacement``, ``VonMises`` and the applied ``Scale``, so a new
 deformation scale only moves the vertices (:func:`rescale`) without the files or the solver.
@@ -27,6 +29,9 @@ SURFACE_FILE = "surface.vtu"
 AUTO_FRACTION = 0.05
 #: Colour scale from the smallest (first) to the largest (last) value.
 COLOR_STOPS = ((0.0, 0.0, 1.0), (0.0, 1.0, 1.0), (0.0, 1.0, 0.0), (1.0, 1.0, 0.0), (1.0, 0.0, 0.0))
+
+#: Title (with the unit) of the colour scale shown beside the result.
+LEGEND_TITLE = "von Mises [MPa]"
 
 _VTK_TRIANGLE = 5
 #: Properties added to the result ``Mesh::Feature``: (type, name, tooltip).
@@ -163,6 +168,7 @@ def show_surface(mesh_obj, surface, scale):
     mesh_obj.VertexColors = colors(surface.von_mises, lo, hi)
     mesh_obj.Scale = float(scale)
     _show_colors(mesh_obj)
+    show_legend(mesh_obj)
     if FreeCAD.GuiUp and mesh_obj.ViewObject is not None:
         mesh_obj.ViewObject.Visibility = True
     mesh_obj.purgeTouched()
@@ -193,6 +199,21 @@ def clear(mesh_obj):
             if name in mesh_obj.PropertiesList:
                 setattr(mesh_obj, name, [])
         mesh_obj.purgeTouched()
+    show_legend(mesh_obj)  # no values: no scale
+
+
+def show_legend(mesh_obj):
+    """Show the colour scale of result mesh ``mesh_obj`` in the 3D view (GUI only): the
+    smallest von Mises value blue, the largest red, in MPa. Without values the scale is
+    removed. Returns the legend node or ``None``."""
+    if not FreeCAD.GuiUp or mesh_obj is None or getattr(mesh_obj, "ViewObject", None) is None:
+        return None
+    from . import legend
+    values = list(getattr(mesh_obj, "VonMises", None) or [])
+    if not values:
+        legend.remove(mesh_obj.ViewObject)
+        return None
+    return legend.show(mesh_obj.ViewObject, LEGEND_TITLE, min(values), max(values), COLOR_STOPS)
 
 
 def _show_colors(mesh_obj):
