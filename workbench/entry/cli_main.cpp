@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "install_paths.h"
 #include "occt_version.h"
 #include "part_json.h"
 #include "integrate_json.h"
@@ -149,7 +150,8 @@ int main(int argc, char** argv) {
   optimize->add_option("-o,--output", out_dir, "Folder for optimized.step, history.json and history.png")->required();
   bool optimize_progress = false;
   optimize->add_flag("--progress", optimize_progress, "Print one JSON line per iterate to stderr");
-  auto* version = app.add_subcommand("version", "Print versions as JSON");
+  auto* version = app.add_subcommand(
+      "version", "Print the versions and the folder of the chart scripts used, as JSON");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -158,7 +160,10 @@ int main(int argc, char** argv) {
   }
   try {
     if (*version)
-      return emit(json{{"parafab", "0.1.0"}, {"opencascade", parafab::occ::occt_version()}}, out_path);
+      return emit(json{{"parafab", parafab::entry::version()},
+                       {"opencascade", parafab::occ::occt_version()},
+                       {"scripts", parafab::entry::scripts_dir()}},
+                  out_path);
     if (*strip) {
       const json result = parafab::entry::design_strip_json(read_json_file(in_path));
       // Cut sheets first: an infeasible design has no outline (exit 2, JSON error).

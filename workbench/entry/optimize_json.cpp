@@ -14,15 +14,12 @@
 #include "common/error.h"
 #include "face_lookup.h"
 #include "grid_estimate.h"
+#include "install_paths.h"
 #include "json_fields.h"
 #include "part_reader.h"
 #include "shape_modify.h"
 #include "shape_optimization.h"
 #include "xfem/sparse_cholesky.h"
-
-#ifndef PARAFAB_SCRIPTS_DIR
-#define PARAFAB_SCRIPTS_DIR ""
-#endif
 
 namespace parafab::entry {
 
@@ -719,7 +716,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_VERIFY(f && (f << h.dump(2) << "\n"), "cannot write " << history);
     }
     // The chart: a small matplotlib script (optional: the history is complete without it).
-    const std::string script = std::string(PARAFAB_SCRIPTS_DIR) + "/plot_optimization.py";
+    const std::string script = scripts_dir() + "/plot_optimization.py";
     const std::string png = out_dir + "/history.png";
     if (chart && std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
       const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";

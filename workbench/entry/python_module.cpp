@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "common/error.h"
+#include "install_paths.h"
 #include "occt_version.h"
 #include "integrate_json.h"
 #include "part_json.h"
@@ -497,5 +498,8 @@ PYBIND11_MODULE(parafab, m) {
       py::arg("path"), py::arg("job"),
       "Strips from plane sections of a surface or solid (same job and result JSON as `parafab sections`).");
   m.def("occt_version", &parafab::occ::occt_version, "OpenCASCADE version ParaFab links against.");
-  m.attr("__version__") = "0.1.0";
+  m.def("scripts_dir", &parafab::entry::scripts_dir,
+        "Folder of the chart scripts this module runs (the installed copy, $PARAFAB_SCRIPTS_DIR, "
+        "or the source tree's for a build tree).");
+  m.attr("__version__") = parafab::entry::version();
 }
