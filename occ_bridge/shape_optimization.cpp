@@ -363,7 +363,10 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   // Set by the switch refresh (below): the frozen evaluation of the same point, whose geometry
   // and re-cut are re-solved with the elements' own switches.
   const Evaluation* refresh_of = nullptr;
+  struct Interrupted {};  // unwinds from an evaluation out of L-BFGS to the end of the run
+  auto interrupted = [&]() { return options.interrupted && options.interrupted(); };
   auto evaluate = [&](const Eigen::VectorXd& x, double& F, Eigen::VectorXd& grad) {
+    if (interrupted()) throw Interrupted{};
     ++result.evaluations;
     const Evaluation* reuse = refresh_of;
     refresh_of = nullptr;
@@ -632,7 +635,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
     for (int k = 0; k < nd; ++k) s.design[k] = accepted.p[design[k]];
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     result.iterations.push_back(s);
-    return !progress || progress(s);
+    return (!progress || progress(s)) && !interrupted();
   };
   optimize::LbfgsResult run;
   Eigen::VectorXd x = x0;
@@ -708,6 +711,9 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       previous_g = viol > 0 ? viol : previous_g;
     }
     if (outer_index >= options.max_outer) outer_index = options.max_outer - 1;
+  } catch (const Interrupted&) {
+    run.status = "cancelled";  // as a callback's false: the accepted iterate stands (below)
+    run.done = false;
   } catch (const Error& e) {
     result.status = "invalid_start";
     result.message = std::string("the start cannot be evaluated: ") + e.what() +
@@ -717,7 +723,7 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
   // Restoration: if the outer iterations end above the tolerance, Newton steps on the volume
   // alone along dV/dx (V is smooth in x; a few steps) onto the bound minus half the tolerance.
   if (bounded && accepted.ok && signed_violation(accepted.volume, V0) > options.volume_tolerance &&
-      run.status != "cancelled") {
+      run.status != "cancelled" && !interrupted()) {
     volume_only = true;
     Evaluation good = accepted;
     Eigen::VectorXd xr(nd), gr;
@@ -745,10 +751,23 @@ ShapeOptimizationResult optimize_shape(const PartShape& part, const ShapeOptimiz
       }
     }
   }
+  if (run.status == "cancelled") {
+    // Interrupted (a signal, Cancel, the callback): the best valid iterate so far is the result.
+    result.done = false;
+    result.status = "interrupted";
+    result.message = "interrupted after " + std::to_string(result.iterations.size()) +
+                     " accepted iterates; the last valid one is kept";
+    if (!accepted.part) {  // before the start was accepted: the part as read is the best so far
+      result.message = "interrupted before the start was evaluated: the part is unchanged";
+      result.part = std::make_shared<PartShape>(part);
+      result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      return result;
+    }
+  }
   result.final_violation = std::max(0.0, bounded ? signed_violation(accepted.volume, V0) : 0.0);
-  result.done = run.done;
-  result.status = run.status;
-  result.message = run.message;
+  const bool interrupted_run = result.status == "interrupted";
+  result.done = run.done && !interrupted_run;
+  if (!interrupted_run) result.status = run.status, result.message = run.message;
   if (bounded && result.final_violation > options.volume_tolerance && run.done) {
     result.done = false;
     result.status = "infeasible";

@@ -104,6 +104,10 @@ struct ShapeOptimizationOptions {
   /// evaluations against −23.6 % in 31 without; the L-bracket's 52 "auto" parameters 167
   /// evaluations and C 21.6 against 49 and 19.2 without. Hence off by default.
   bool estimate_multiplier = false;
+  /// Polled before every evaluation and after every accepted iterate (a signal handler's flag,
+  /// FreeCAD's Cancel): true ends the run at once with status "interrupted" and the best valid
+  /// iterate so far as `part` (the part as read if none was accepted yet). Empty: never.
+  std::function<bool()> interrupted;
   /// A run ends feasible when the relative violation (V/V0 − ratio) is at most this; if the
   /// outer iterations end above it, a volume-only Newton restoration moves onto the bound.
   double volume_tolerance = 1e-7;
@@ -219,7 +223,8 @@ struct ShapeOptimizationResult {
   double seconds = 0;
 };
 
-/// Called after every accepted iterate; returning false cancels (the last valid model is kept).
+/// Called after every accepted iterate; returning false interrupts the run (status
+/// "interrupted", the last valid model is kept), as ShapeOptimizationOptions::interrupted does.
 using ShapeProgress = std::function<bool(const ShapeIterate&)>;
 
 /// Throws parafab::Error for invalid options (unknown objective, design index out of range);

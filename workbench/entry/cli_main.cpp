@@ -2,6 +2,9 @@
 // Exit codes: 0 result written (a strip or rod may still be infeasible: see "feasible"),
 // 2 invalid input (JSON error on stdout), 1 internal error.
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <csignal>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -21,6 +24,8 @@
 #include "strip_improve_json.h"
 #include "strip_stabilize_json.h"
 #include "rod_json.h"
+#include "output_files.h"
+#include "request_schema.h"
 
 namespace {
 
@@ -32,12 +37,23 @@ int emit(const json& j, const std::string& out_path) {
     std::cout << text << "\n";
     return 0;
   }
-  std::ofstream f(out_path);
-  if (!f || !(f << text << "\n")) {
+  try {
+    parafab::entry::write_text_atomically(out_path, text + "\n");  // temporary name, then rename
+  } catch (const parafab::Error&) {
     std::cout << parafab::entry::error_json("cannot write output file " + out_path, "io").dump(2) << "\n";
     return 2;
   }
   return 0;
+}
+
+// SIGINT / SIGTERM during `parafab optimize`: the first one asks the run to stop at the next
+// evaluation and write its best valid iterate (exit 128 + signal); a second one kills at once.
+volatile std::sig_atomic_t interrupt_signal = 0;
+extern "C" void on_interrupt(int signal_number) {
+  interrupt_signal = signal_number;
+  std::signal(signal_number, SIG_DFL);
+  const char note[] = "parafab: interrupted; writing the best valid iterate so far (again to stop at once)\n";
+  [[maybe_unused]] const auto written = ::write(2, note, sizeof(note) - 1);
 }
 
 int fail(const std::string& message, const std::string& kind, int code) {
@@ -152,6 +168,9 @@ int main(int argc, char** argv) {
   optimize->add_flag("--progress", optimize_progress, "Print one JSON line per iterate to stderr");
   auto* version = app.add_subcommand(
       "version", "Print the versions and the folder of the chart scripts used, as JSON");
+  auto* reference = app.add_subcommand(
+      "reference", "Print the JSON reference (Markdown): the known keys of every request and job");
+  reference->add_option("-o,--output", out_path, "Write it to this file instead of stdout");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -159,6 +178,15 @@ int main(int argc, char** argv) {
     return fail(std::string("command line: ") + e.what() + " (see parafab --help)", "usage", 2);
   }
   try {
+    if (*reference) {
+      const std::string md = parafab::entry::schema::reference_markdown();
+      if (out_path.empty()) {
+        std::cout << md;
+        return 0;
+      }
+      parafab::entry::write_text_atomically(out_path, md);
+      return 0;
+    }
     if (*version)
       return emit(json{{"parafab", parafab::entry::version()},
                        {"opencascade", parafab::occ::occt_version()},
@@ -194,9 +222,14 @@ int main(int argc, char** argv) {
       if (optimize_progress)
         progress = [](const json& it) {
           std::cerr << json{{"progress", it}}.dump() << std::endl;
-          return true;
+          return interrupt_signal == 0;
         };
-      return emit(parafab::entry::optimize_part_json(in_path, read_json_file(job_path), out_dir, progress), "");
+      std::signal(SIGINT, on_interrupt);
+      std::signal(SIGTERM, on_interrupt);
+      const json history = parafab::entry::optimize_part_json(in_path, read_json_file(job_path), out_dir, progress,
+                                                              [] { return interrupt_signal != 0; });
+      const int code = emit(history, "");
+      return interrupt_signal != 0 ? 128 + interrupt_signal : code;
     }
     if (*revolution) return emit(parafab::entry::revolution_strips_json(read_json_file(in_path)), out_path);
     if (*sections) return emit(parafab::entry::strip_sections_json(in_path, read_json_file(job_path)), out_path);

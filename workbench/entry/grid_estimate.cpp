@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "common/error.h"
 #include "json_fields.h"
@@ -85,6 +86,24 @@ void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options,
   }
 }
 
+void refuse_loaded_supports(const std::vector<xfem::DirichletCondition>& supports,
+                            const std::vector<xfem::TractionCondition>& loads) {
+  for (size_t i = 0; i < supports.size(); ++i)
+    for (size_t j = 0; j < loads.size(); ++j)
+      if (supports[i].face == loads[j].face)
+        PARAFAB_INPUT_ERROR("supports[" << i << "] and loads[" << j << "] are both on face " << supports[i].face
+                                        << ": a supported face takes no load (clamp one face, load another)");
+}
+
+std::string amount(double x) {
+  if (!std::isfinite(x)) return x > 0 ? "infinitely many" : "an undefined number of";
+  if (std::fabs(x) < 1e15) return std::to_string(std::llround(x));
+  std::ostringstream os;
+  os.precision(2);
+  os << x;
+  return os.str();
+}
+
 int default_cells(xfem::ElementType element) { return element == xfem::ElementType::Hex27 ? 8 : 16; }
 
 GridEstimate estimate_grid(const occ::PartInfo& part, const occ::GridOptions& grid) {
@@ -112,10 +131,11 @@ nlohmann::json to_json(const GridEstimate& e) {
 
 void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint) {
   if (e.fits) return;
-  PARAFAB_INPUT_ERROR(what << " has about " << e.cells_total << " cells (" << e.cells[0] << " x " << e.cells[1]
-                           << " x " << e.cells[2] << ", about " << e.cut_cells << " of them cut) and needs about "
-                           << e.memory_mb << " MB and " << e.seconds << " s for cutting, more than 70% of the "
-                           << e.physical_mb << " MB of memory: " << override_hint);
+  PARAFAB_INPUT_ERROR(what << " has about " << amount(e.cells_total) << " cells (" << amount(e.cells[0]) << " x "
+                           << amount(e.cells[1]) << " x " << amount(e.cells[2]) << ", about " << amount(e.cut_cells)
+                           << " of them cut) and needs about " << amount(e.memory_mb) << " MB and "
+                           << amount(e.seconds) << " s for cutting, more than 70% of the " << amount(e.physical_mb)
+                           << " MB of memory: " << override_hint);
 }
 
 }  // namespace parafab::entry

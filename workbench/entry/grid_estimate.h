@@ -65,4 +65,13 @@ SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementT
 /// Throws parafab::Error with the estimate and `override_hint` unless e.fits.
 void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint);
 
+/// A face that is both supported and loaded is an input error naming both entries (the load would
+/// act on a clamped face: no work, no effect, and certainly not what the job meant).
+void refuse_loaded_supports(const std::vector<xfem::DirichletCondition>& supports,
+                            const std::vector<xfem::TractionCondition>& loads);
+
+/// A count or size for a message: an integer while it fits, else "1.2e+19" (std::lround of a
+/// huge estimate would print -9223372036854775808).
+std::string amount(double x);
+
 }  // namespace parafab::entry

@@ -12,6 +12,8 @@
 #include <tbb/global_control.h>
 
 #include "common/error.h"
+#include "output_files.h"
+#include "request_schema.h"
 #include "face_lookup.h"
 #include "grid_estimate.h"
 #include "install_paths.h"
@@ -132,6 +134,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& pa
     s->tractions.push_back(t);
     s->forces.push_back(force);
   }
+  refuse_loaded_supports(s->dirichlet, s->tractions);
   if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
   if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
   nitsche_of_job(job, s->solver, !s->hyperelastic);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
@@ -280,19 +283,22 @@ occ::ObjectiveSpec objective_spec(const NamedPart& part, const json& obj, const 
 // Writes `part` as out_dir/name (the folder created), never over the input part; the path.
 std::string write_beside(const occ::PartShape& part, const std::string& out_dir, const std::string& name,
                          const std::string& part_path) {
-  std::filesystem::create_directories(out_dir);
+  require_writable_folder(out_dir);
   const std::string step = out_dir + "/" + name;
-  PARAFAB_VERIFY(std::filesystem::weakly_canonical(step) != std::filesystem::weakly_canonical(part_path),
-                 "the output " << step << " would overwrite the input part");
-  occ::write_step(part, step);
+  if (std::filesystem::weakly_canonical(step) == std::filesystem::weakly_canonical(part_path))
+    PARAFAB_INPUT_ERROR("the output " << step << " would overwrite the input part: choose another output folder");
+  AtomicFile file(step);  // a reader never sees a half-written STEP under the final name
+  occ::write_step(part, file.temporary());
+  file.commit();
   return step;
 }
 
 }  // namespace
 
 json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
-                        const OptimizeProgressFn& progress) {
-  if (!job.is_object()) PARAFAB_INPUT_ERROR("the optimization job must be a JSON object");
+                        const OptimizeProgressFn& progress, const InterruptFn& interrupted) {
+  schema::check(job, schema::Format::Optimization);
+  if (!out_dir.empty()) require_writable_folder(out_dir);  // before the work, not after it
   // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
   if (job.contains("chart") && !job["chart"].is_boolean())
     PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
@@ -356,8 +362,8 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       size_estimate = {{"unknowns", e.dofs}, {"peak_mb", e.peak_mb}, {"peak_mb_min", e.peak_mb_min},
                        {"limit_mb", limit_mb}, {"cut", to_json(cut)}};
       if (e.peak_mb_min > limit_mb)
-        PARAFAB_INPUT_ERROR("this grid needs at least about " << std::lround(e.peak_mb_min) << " MB per evaluation ("
-                            << std::lround(e.dofs) << " unknowns), more than the " << std::lround(limit_mb)
+        PARAFAB_INPUT_ERROR("this grid needs at least about " << amount(e.peak_mb_min) << " MB per evaluation ("
+                            << amount(e.dofs) << " unknowns), more than the " << amount(limit_mb)
                             << " MB allowed (70% of the memory): use fewer cells (grid.cells) or a larger grid.cell_size");
       refuse_if_too_big(cut, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
     }
@@ -406,9 +412,13 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     }
   }
   const json fixed = job.value("fixed_faces", json::array());
+  if (!fixed.is_array()) PARAFAB_INPUT_ERROR("fixed_faces must be a list of face indices or {\"face\"} / {\"point\"} entries");
   for (size_t i = 0; i < fixed.size(); ++i) {
-    if (!fixed[i].is_number_integer()) PARAFAB_INPUT_ERROR("fixed_faces[" << i << "] must be a face index");
-    o.parameterization.fixed_faces.push_back(fixed[i].get<int>());
+    // A face index, or {"face": i} / {"point": [x, y, z]} as every other face reference.
+    const std::string path = "fixed_faces[" + std::to_string(i) + "]";
+    if (fixed[i].is_number_integer()) o.parameterization.fixed_faces.push_back(face_index(named, json{{"face", fixed[i]}}, path));
+    else if (fixed[i].is_object()) o.parameterization.fixed_faces.push_back(face_index(named, fixed[i], path));
+    else PARAFAB_INPUT_ERROR(path << " must be a face index, {\"face\": i} or {\"point\": [x, y, z]}, got " << fixed[i].dump());
   }
   const json ties = job.value("ties", json::array());
   for (size_t i = 0; i < ties.size(); ++i) {
@@ -577,6 +587,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     for (size_t k = 0; k < st.size(); ++k) o.design_start[k] = number(st[k], "start[" + std::to_string(k) + "]");
   }
 
+  o.interrupted = interrupted;
   occ::ShapeProgress report;
   if (progress)
     report = [&](const occ::ShapeIterate& it) {
@@ -603,8 +614,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
       for (size_t k = 0; k < r.design_names.size(); ++k)
         h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
-      std::ofstream f(out_dir + "/history.json");
-      PARAFAB_VERIFY(f && (f << h.dump(2) << "\n"), "cannot write " << out_dir << "/history.json");
+      write_text_atomically(out_dir + "/history.json", h.dump(2) + "\n");
       written = "; the nearest valid model is written to " + step + " (not optimized; history.json lists the violations)";
     }
     PARAFAB_INPUT_ERROR("the constraints of " << part_path << " cannot all hold: " << r.message << written);
@@ -711,10 +721,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   if (!out_dir.empty()) {
     h["optimized_step"] = write_beside(*r.part, out_dir, "optimized.step", part_path);
     const std::string history = out_dir + "/history.json";
-    {
-      std::ofstream f(history);
-      PARAFAB_VERIFY(f && (f << h.dump(2) << "\n"), "cannot write " << history);
-    }
+    write_text_atomically(history, h.dump(2) + "\n");
     // The chart: a small matplotlib script (optional: the history is complete without it).
     const std::string script = scripts_dir() + "/plot_optimization.py";
     const std::string png = out_dir + "/history.png";
@@ -723,8 +730,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
     }
     if (!h.contains("chart")) h["chart"] = nullptr;
-    std::ofstream f(history);
-    f << h.dump(2) << "\n";
+    write_text_atomically(history, h.dump(2) + "\n");
   }
   return h;
 }

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <utility>
 
+#include "request_schema.h"
 #include "common/error.h"
 #include "install_paths.h"
 #include "occt_version.h"
@@ -429,10 +430,28 @@ PYBIND11_MODULE(parafab, m) {
             const py::object keep_going = progress(to_python(it));
             return keep_going.is_none() || keep_going.cast<bool>();
           };
+        // Ctrl-C in Python (SIGINT, seen by PyErr_CheckSignals in the main thread) interrupts the
+        // run as the callback's False does; once the files are written, KeyboardInterrupt is raised.
+        bool keyboard_interrupt = false;
+        auto interrupted = [&keyboard_interrupt]() {
+          if (keyboard_interrupt) return true;
+          py::gil_scoped_acquire acquire;
+          if (PyErr_CheckSignals() != 0) {
+            PyErr_Clear();
+            keyboard_interrupt = true;
+          }
+          return keyboard_interrupt;
+        };
         nlohmann::json out;
         {
           py::gil_scoped_release release;
-          out = parafab::entry::optimize_part_json(path, in, out_dir, report);
+          out = parafab::entry::optimize_part_json(path, in, out_dir, report, interrupted);
+        }
+        if (keyboard_interrupt) {
+          PyErr_SetString(PyExc_KeyboardInterrupt, ("optimization interrupted; the best valid iterate so far is in " +
+                                                    (out_dir.empty() ? std::string("the history only") : out_dir))
+                                                       .c_str());
+          throw py::error_already_set();
         }
         return to_python(std::move(out));
       },
@@ -440,7 +459,8 @@ PYBIND11_MODULE(parafab, m) {
       "Shape optimization of a part on its own CAD parameters (same job and history JSON as `parafab optimize`); "
       "writes optimized.step, history.json and history.png into out_dir when given. progress(iterate) is called "
       "after every accepted iterate with {iteration, objective, constraint_violation, seconds}; returning False "
-      "cancels (status 'cancelled', the last valid model is kept). The part file is only read.");
+      "interrupts (status 'interrupted', the best valid iterate so far written). Ctrl-C does the same, then "
+      "raises KeyboardInterrupt. The part file is only read.");
   // A simulation that keeps its grid: update(new_part) re-cuts only the blocks a change touches.
   py::class_<parafab::entry::SimulationSession>(
       m, "Simulation",
@@ -501,5 +521,7 @@ PYBIND11_MODULE(parafab, m) {
   m.def("scripts_dir", &parafab::entry::scripts_dir,
         "Folder of the chart scripts this module runs (the installed copy, $PARAFAB_SCRIPTS_DIR, "
         "or the source tree's for a build tree).");
+  m.def("json_reference", &parafab::entry::schema::reference_markdown,
+        "The JSON reference (Markdown): the known keys of every request and job, as `parafab reference` prints.");
   m.attr("__version__") = parafab::entry::version();
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "strips/revolution_surface.h"
 
 namespace parafab::entry {
@@ -34,7 +35,7 @@ json points(const std::vector<Vec2>& p) {
 }  // namespace
 
 json revolution_strips_json(const json& job) {
-  if (!job.is_object()) PARAFAB_INPUT_ERROR("the revolution job must be a JSON object");
+  schema::check(job, schema::Format::Revolution);
   RevolutionMeridianOptions mo;
   mo.a = num(job, "a", 0.0, "a");
   mo.b = vec2(job, "b", mo.b, "b");

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "rods/bspline_curve3.h"
 #include "rods/rod_design.h"
 #include "rods/rod_stability.h"
@@ -130,7 +131,7 @@ json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 constexpr double kDefaultSectionFactor = 4.0;
 
 json design_rod_json(const json& request) {
-  if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  schema::check(request, schema::Format::Rod);
   RodDesignOptions o;
   o.geometry.circularity_factor = kDefaultSectionFactor;
   o.material = parse_material(request);
@@ -186,6 +187,10 @@ json design_rod_json(const json& request) {
   const RodDesign d = design_rod(curve, count, o);  // throws for κ = 0 with its location
 
   json out;
+  if (request.contains("name")) {
+    if (!request["name"].is_string()) PARAFAB_INPUT_ERROR("name must be a string, got " << request["name"].dump());
+    out["name"] = request["name"];
+  }
   out["feasible"] = d.ok();
   out["status"] = to_string(d.status);
   out["reason"] = d.ok() ? (d.lp.parallel ? "parallel curve: twist-free rod (Eq. 5.13)" : "") : d.message;

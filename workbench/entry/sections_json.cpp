@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "json_fields.h"
 #include "part_reader.h"
 #include "plane_sections.h"
@@ -24,7 +25,7 @@ json vec(const Eigen::Vector3d& v) { return json_write::coordinates(v); }
 }  // namespace
 
 json strip_sections_json(const std::string& part_path, const json& job) {
-  if (!job.is_object()) PARAFAB_INPUT_ERROR("the sections job must be a JSON object");
+  schema::check(job, schema::Format::Sections);
   occ::ReadOptions ro;
   ro.surfaces_allowed = true;
   const auto shape = occ::read_part(part_path, ro);

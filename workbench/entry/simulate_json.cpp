@@ -21,6 +21,8 @@
 
 #include "common/bit_hash.h"
 #include "common/error.h"
+#include "output_files.h"
+#include "request_schema.h"
 #include "json_fields.h"
 #include "cut_cell_classifier.h"
 #include "face_lookup.h"
@@ -129,7 +131,8 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
       vm[i] = xfem::von_mises(stress(owner[i], pts[i]));
     }
   });
-  std::ofstream f(path);
+  AtomicFile file(path);  // never a half-written result under the final name
+  std::ofstream f(file.temporary());
   if (!f) PARAFAB_INPUT_ERROR("cannot write " << path);
   const size_t ncells = hexes.size() + vertices.size();
   f << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
@@ -155,6 +158,9 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
   for (size_t i = 0; i < hexes.size(); ++i) f << "12\n";
   for (size_t i = 0; i < vertices.size(); ++i) f << "1\n";
   f << "</DataArray>\n</Cells>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
+  f.close();
+  PARAFAB_VERIFY(f, "cannot write " << path);
+  file.commit();
 }
 
 
@@ -162,7 +168,8 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
 // (what FreeCAD shows as the deformed, coloured part; ParaView reads it as well).
 void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, const std::vector<Vec3>& disp,
                        const std::vector<double>& vm) {
-  std::ofstream f(path);
+  AtomicFile file(path);  // never a half-written result under the final name
+  std::ofstream f(file.temporary());
   if (!f) PARAFAB_INPUT_ERROR("cannot write " << path);
   f << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
     << "<UnstructuredGrid><Piece NumberOfPoints=\"" << mesh.points.size() << "\" NumberOfCells=\""
@@ -186,6 +193,9 @@ void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, co
   f << "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
   for (size_t i = 0; i < mesh.triangles.size(); ++i) f << "5\n";
   f << "</DataArray>\n</Cells>\n</Piece></UnstructuredGrid>\n</VTKFile>\n";
+  f.close();
+  PARAFAB_VERIFY(f, "cannot write " << path);
+  file.commit();
 }
 
 }  // namespace
@@ -266,7 +276,7 @@ struct SimulationSession::InsideCache {
 };
 
 SimulationSession::SimulationSession(const std::string& part_path, const json& job) : job_(job) {
-  if (!job.is_object()) PARAFAB_INPUT_ERROR("the job must be a JSON object");
+  schema::check(job, schema::Format::Simulation);
   load_part(part_path);
   setup_ = parse_job();
 }
@@ -363,6 +373,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
     else PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
     S->tractions.push_back(t);
   }
+  refuse_loaded_supports(S->dirichlet, S->tractions);
   if (job.contains("gravity")) S->fo.gravity = vec3(job["gravity"], "gravity");
   nitsche_of_job(job, S->fo, model_name_is_linear(S->model));  // default: local for linear hex27
   if (job.contains("incompatible_modes")) {  // linear model only; Newton uses plain hexahedra
@@ -453,10 +464,10 @@ json SimulationSession::estimate() const {
 void SimulationSession::refuse_if_too_big() const {
   const Setup& S = *setup_;
   if (S.peak_mb_min > S.limit_mb)
-    PARAFAB_INPUT_ERROR("this grid needs at least about " << std::lround(S.peak_mb_min) << " MB (" << std::lround(S.dofs)
-                        << " unknowns; " << std::lround(S.peak_mb) << " MB for a compact part), more than the "
-                        << std::lround(S.limit_mb) << " MB allowed (memory_limit_mb; default 70% of the "
-                        << std::lround(S.physical_mb) << " MB of memory): use fewer cells");
+    PARAFAB_INPUT_ERROR("this grid needs at least about " << amount(S.peak_mb_min) << " MB (" << amount(S.dofs)
+                        << " unknowns; " << amount(S.peak_mb) << " MB for a compact part), more than the "
+                        << amount(S.limit_mb) << " MB allowed (memory_limit_mb; default 70% of the "
+                        << amount(S.physical_mb) << " MB of memory): use fewer cells");
   entry::refuse_if_too_big(S.cut_estimate, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
 }
 
@@ -464,6 +475,7 @@ json SimulationSession::run(const std::string& out_dir, const ProgressFn& progre
   auto report = [&](const char* phase, double fraction) {
     if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
   };
+  if (!out_dir.empty()) require_writable_folder(out_dir);  // before the work, not after it
   refuse_if_too_big();
   std::optional<tbb::global_control> threads;  // for the whole run
   if (setup_->threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->threads);
@@ -546,7 +558,7 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
   out["accuracy"] = {{"target", S.target}, {"met", met}, {"estimated_error", std::isfinite(estimated) ? json(estimated) : json(nullptr)},
                      {"order", order}, {"quantity", out["probes"].empty() ? "max_displacement" : "probe displacements"},
                      {"levels", levels}, {"stopped", met ? "target met" : stop}};
-  if (!out_dir.empty()) std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
+  if (!out_dir.empty()) write_text_atomically(out_dir + "/result.json", out.dump(2) + "\n");
   return out;
 }
 
@@ -555,6 +567,7 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
     if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
   };
   if (!model_) return run(out_dir, progress);
+  if (!out_dir.empty()) require_writable_folder(out_dir);
   std::shared_ptr<const occ::PartShape> old_part = part_;
   std::unique_ptr<Setup> old_setup = std::move(setup_);
   try {
@@ -870,7 +883,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   out["points_located_by_nearest_rule_point"] = locator.nearest_rule_point_fallbacks();
   if (!out_dir.empty()) {
     const auto t_write = std::chrono::steady_clock::now();
-    std::filesystem::create_directories(out_dir);
+    require_writable_folder(out_dir);
     report("write", 0.95);
     write_vtu(out_dir + "/result.vtu", grid.elements, r, stress);
     // The exact boundary, triangulated to a tenth of a cell and to edges of at most half a
@@ -899,7 +912,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     out["surface_vertices"] = mesh.points.size();
     out["points_located_by_nearest_rule_point"] = locator.nearest_rule_point_fallbacks();
     out["seconds"]["write"] = seconds_since(t_write);
-    std::ofstream(out_dir + "/result.json") << out.dump(2) << "\n";
+    write_text_atomically(out_dir + "/result.json", out.dump(2) + "\n");
   }
   return out;
 }

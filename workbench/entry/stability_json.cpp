@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "strip_json.h"
 
 namespace parafab::entry {
@@ -85,7 +86,7 @@ json stability_to_json(const StripStability& s, double length) {
 }
 
 json strip_stability_json(const json& request) {
-  if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  schema::check(request, schema::Format::Strip);
   json req = request;
   json st = req.contains("stability") ? req["stability"] : json::object();
   if (st.is_boolean()) {

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "json_fields.h"
 #include "strip_json.h"
 #include "strips/curve_fairing.h"
@@ -69,7 +70,7 @@ std::pair<BSplineCurve2, json> fair_points_json(const std::vector<Vec2>& P, cons
 }
 
 json improve_strip_json(const json& request, double target_R) {
-  if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  schema::check(request, schema::Format::StripImprove);
   // The descent lowers R of LP Eq. 4.4 (clamped ends, κ₀ = 0, linear law; thesis §4.6.2), as
   // improve_strip_fabricability does: other designs are refused (as strip-stabilize does), not
   // reported as done on Eq. 4.4. Gravity is designed afterwards (Eq. 4.6) and done tests it.

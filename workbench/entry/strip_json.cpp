@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "strips/composite_strip.h"
 #include "strips/perforated_strip.h"
 #include "strips/strip_design.h"
@@ -209,7 +210,7 @@ json_write::ColumnarResult design_strip_columns(const json& request) {
   auto since = [](std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
   };
-  if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  schema::check(request, schema::Format::Strip);
   StripDesignOptions o;
   const json& material = require(request, "material", "request");
   o.youngs_modulus = number(require(material, "E", "material"), "material.E");

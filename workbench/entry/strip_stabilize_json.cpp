@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "request_schema.h"
 #include "json_fields.h"
 #include "strip_improve_json.h"
 #include "strip_json.h"
@@ -20,7 +21,7 @@ json num(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 }  // namespace
 
 json stabilize_strip_json(const json& request, double R_max) {
-  if (!request.is_object()) PARAFAB_INPUT_ERROR("the request must be a JSON object");
+  schema::check(request, schema::Format::StripStabilize);
   // Algorithm 4.2 rests on Theorem 1 (no gravity, clamped ends, linear law, κ₀ = 0).
   for (const char* k : {"gravity", "boundary", "natural_curvature"})
     if (request.contains(k))
