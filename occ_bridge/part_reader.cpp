@@ -15,7 +15,12 @@
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
 #include <GProp_GProps.hxx>
+#include <Interface_Check.hxx>
+#include <Interface_CheckIterator.hxx>
+#include <Interface_InterfaceModel.hxx>
 #include <STEPControl_Reader.hxx>
+#include <TCollection_HAsciiString.hxx>
+#include <XSControl_WorkSession.hxx>
 #include <Standard_Failure.hxx>
 #include <StepBasic_Product.hxx>
 #include <StepBasic_ProductDefinition.hxx>
@@ -368,6 +373,19 @@ std::shared_ptr<const PartShape> read_part(const std::string& path, const ReadOp
   return guarded(path + " (reading STEP)", [&] {
     if (reader.ReadFile(path.c_str()) != IFSelect_RetDone)
       PARAFAB_INPUT_ERROR("part file " << path << " is not a readable STEP file" << log.detail());
+    // A file whose entities fail their load checks (a reference to an entity that is not there,
+    // a parameter of the wrong type) is refused here: OCCT 7.6's translator dereferences such
+    // entities without checking and crashes (found by tests/fuzz/fuzz_inputs.cpp).
+    const Interface_CheckIterator checks = reader.WS()->ModelCheckList();
+    for (checks.Start(); checks.More(); checks.Next()) {
+      const Handle(Interface_Check)& check = checks.Value();
+      if (!check->HasFailed()) continue;
+      const int n = checks.Number();  // 0: the file as a whole
+      const std::string where = n > 0 && n <= reader.Model()->NbEntities()
+                                    ? std::string("entity ") + reader.Model()->StringLabel(reader.Model()->Value(n))->ToCString()
+                                    : std::string("the file");
+      PARAFAB_INPUT_ERROR("part file " << path << " is not a valid STEP file: " << where << ": " << check->CFail(1));
+    }
     if (reader.TransferRoots() == 0 || reader.NbShapes() == 0)
       PARAFAB_INPUT_ERROR("part file " << path << ": STEP holds no shape that OpenCASCADE can transfer"
                                        << log.detail());

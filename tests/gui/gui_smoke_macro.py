@@ -472,6 +472,11 @@ def run_optimize(check):
     check("optimize_cancel_outcome", panel.outcome.state == optimize_runner.CANCELLED, panel.outcome)
     check("optimize_cancel_nothing_added", len(doc.Objects) == len(names) + 1)
     check("optimize_cancel_progress_bar", panel.progress.format() == "cancelled", panel.progress.format())
+    # Cancel sends SIGTERM: the CLI writes its best valid iterate so far (not added) and says so.
+    best = panel.outcome.result or {}
+    check("optimize_cancel_best_written", best.get("status") == "interrupted"
+          and os.path.isfile(best.get("optimized_step", "")), panel.outcome)
+    check("optimize_cancel_status_names_file", "optimized.step (not added)" in panel.status.text(), panel.status.text())
     panel.accept()
     FreeCADGui.updateGui()
     check("optimize_panel_closed", not FreeCADGui.Control.activeDialog())

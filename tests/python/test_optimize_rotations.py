@@ -88,7 +88,7 @@ class OptimizeRotations(unittest.TestCase):
                  (dict(PATTERN, faces=[on_hole(0)]), "at least two faces"),
                  (dict(PATTERN, degrees=0), "degrees must be in (-360, 360) and not 0"),
                  (dict(PATTERN, axis={"point": [0, 0, 0], "direction": [0, 0, 0]}), "the axis is zero"),
-                 (dict(PATTERN, angle=60), "rotations[0].angle is not a known field"),
+                 (dict(PATTERN, angle=60), "rotations[0].angle: unknown key"),
                  (dict(PATTERN, faces=[on_hole(0), "hole"]), "rotations[0].faces[1] must be a face index or a point")]
         for entry, text in cases:
             with self.assertRaises(parafab.Error, msg=text) as e:

@@ -127,7 +127,7 @@ class OptimizeSum(unittest.TestCase):
         for objective, field in [({"type": "sum"}, "objective.terms"),
                                  ({"type": "sum", "terms": []}, "objective.terms"),
                                  ({"type": "sum", "terms": [{"type": "sum", "terms": [{"type": "mass"}]}]},
-                                  "objective.terms[0].type"),
+                                  "objective.terms[0].terms: unknown key"),
                                  ({"type": "sum", "terms": [{"type": "mass"}, {"type": "weight"}]},
                                   "objective.terms[1].type 'weight' is unknown"),
                                  ({"type": "sum", "terms": [{"type": "mass", "weight": "two"}]},

@@ -240,7 +240,7 @@ class OptimizeTarget(unittest.TestCase):
         self.assertIn("needs the matched face", error({"type": "target"}))
         self.assertIn("objective.target.sphere: radius must be positive",
                       error({"type": "target", "point": TOP, "target": {"sphere": {"center": [0, 0, 0], "radius": -1}}}))
-        self.assertIn("'cone' is not a target surface", error({"type": "target", "point": TOP, "target": {"cone": {}}}))
+        self.assertIn("objective.target.cone: unknown key", error({"type": "target", "point": TOP, "target": {"cone": {}}}))
         self.assertIn("objective.target.torus: major_radius must exceed radius",
                       error({"type": "target", "point": TOP,
                              "target": {"torus": {"center": [0, 0, 0], "axis": [0, 0, 1], "major_radius": 1,

@@ -211,9 +211,9 @@ class RuleFailuresAreReported(unittest.TestCase):
         self.assertEqual(r["rule_failures"], [])
 
     def test_bad_quadrature_fields_are_named(self):
-        for quad, text in [({"degree_boost": -1}, "quadrature.degree_boost must be in 0..12"),
-                           ({"degree_boost": 13}, "quadrature.degree_boost must be in 0..12"),
-                           ({"depth": 3}, "quadrature.depth is not a field of quadrature")]:
+        for quad, text in [({"degree_boost": -1}, "quadrature.degree_boost must be an integer 0..12"),
+                           ({"degree_boost": 13}, "quadrature.degree_boost must be an integer 0..12"),
+                           ({"depth": 3}, "quadrature.depth: unknown key in the simulation job")]:
             with self.assertRaises(Exception) as ctx:
                 parafab.simulate(CYLINDER, self.job(quadrature=quad))
             self.assertIn(text, str(ctx.exception))

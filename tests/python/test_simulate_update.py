@@ -128,7 +128,7 @@ class SimulationUpdate(unittest.TestCase):
     def test_bad_reuse_fields_are_named(self):
         for bad, field in [({"tolerance": 2}, "reuse.tolerance"), ({"max_iterations": -1}, "reuse.max_iterations"),
                            ({"elements": 1}, "reuse.elements"), ("yes", "reuse"),
-                           ({"factorisation": False}, "reuse.factorisation is not a field")]:
+                           ({"factorisation": False}, "reuse.factorisation: unknown key")]:
             with self.assertRaises(Exception) as cm:
                 parafab.Simulation(BEFORE, job(reuse=bad))
             self.assertIn(field, str(cm.exception))

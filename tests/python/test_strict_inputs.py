@@ -75,6 +75,10 @@ class UnknownKeys(unittest.TestCase):
         opt = {"objective": {"type": "sum", "terms": [{"type": "volume", "wieght": 2}]}}
         self.assertRefused(["optimize", WHEEL], opt, 'objective.terms[0].wieght: unknown key in the optimization job, '
                                                      'did you mean "weight"?', ["-o", tempfile.mkdtemp()])
+        # A simulation job reused as an optimization job: its simulation-only keys are named.
+        opt = dict(load("simulations", "l_bracket.json"), objective={"type": "compliance"})
+        self.assertRefused(["optimize", BRACKET], opt, "probes: unknown key in the optimization job (a simulation-job "
+                                                       "key it does not use: remove it)", ["-o", tempfile.mkdtemp()])
         rod = dict(load("rods", "helix.json"), stabilty=False)
         self.assertRefused(["rod"], rod, 'stabilty: unknown key in the rod request, did you mean "stability"?')
         improve = dict(load("strips", "wave.json"), improve={"target_r": 3})
@@ -115,10 +119,10 @@ class Numbers(unittest.TestCase):
         job["grid"] = dict(job.get("grid", {}), cells=2.5)
         code, out, _ = cli(["simulate", BRACKET], job)
         self.assertEqual(code, 2, out)
-        self.assertIn("grid.cells must be a whole number, got 2.5", error_of(out))
+        self.assertIn("grid.cells must be an integer (a whole number), got 2.5", error_of(out))
         code, out, _ = cli(["strip"], dict(load("strips", "wave.json"), samples=100.5))
         self.assertEqual(code, 2, out)
-        self.assertIn("samples must be a whole number, got 100.5", error_of(out))
+        self.assertIn("samples must be an integer (a whole number), got 100.5", error_of(out))
         # 4.0 is a whole number: it runs as 4 (the estimate only, no solve).
         job["grid"]["cells"] = 4.0
         code, out, _ = cli(["simulate", BRACKET], job, ["--estimate"])

@@ -244,8 +244,8 @@ class BadInput(unittest.TestCase):
         ({"gravity": {"direction": [0, -1]}}, "gravity needs exactly one of"),
         ({"gravity": {"direction": [0, -1], "beta_l3": 1e-3, "density": 600}}, "gravity needs exactly one of"),
         ({"gravity": {"direction": [0, -1], "density": "heavy"}}, "gravity.density must be a number"),
-        ({"gravity": {"dir": [0, -1], "beta_l3": 1e-3}}, "gravity.dir is not a known field"),
-        ({"boundary": {"start": {"free_z": True}}}, "boundary.start.free_z is not a known field"),
+        ({"gravity": {"dir": [0, -1], "beta_l3": 1e-3}}, "gravity.dir: unknown key"),
+        ({"boundary": {"start": {"free_z": True}}}, "boundary.start.free_z: unknown key"),
         ({"boundary": {"end": {"free_x": 1}}}, "boundary.end.free_x must be true or false"),
         ({"boundary": {"end": {"free_angle": True}}}, "boundary.end.free_angle"),
         ({"natural_curvature": "2"}, "natural_curvature must be a number"),
@@ -277,7 +277,7 @@ class BadInput(unittest.TestCase):
                             ({"curvature_limit": -1}, "material.law.curvature_limit must be positive"),
                             ({"hardening": 0.1}, "material.law.hardening needs material.law.curvature_limit"),
                             ({"table_curvature": [0, 1]}, "needs both table_curvature and table_moment"),
-                            ({"quadratic": 1}, "material.law.quadratic is not a known field")):
+                            ({"quadratic": 1}, "material.law.quadratic: unknown key")):
             req = request(ellipse_arc(n=41))
             req["material"]["law"] = law
             with self.subTest(law=law):

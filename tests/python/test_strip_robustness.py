@@ -129,7 +129,7 @@ class Robustness(unittest.TestCase):
 
     def test_bad_options_name_the_field(self):
         for value, needle in (("yes", "robustness must be true, false or"),
-                              ({"stiffness": 0.5}, "robustness.stiffness is not a known field"),
+                              ({"stiffness": 0.5}, "robustness.stiffness: unknown key"),
                               ({"stiffness_change": 1.5}, "robustness.stiffness_change must lie in (0, 1), got 1.5"),
                               ({"gravity_change": "x"}, "robustness.gravity_change must be a number"),
                               ({"angle_deg": 0}, "robustness.angle_deg must lie in (0, 90), got 0"),

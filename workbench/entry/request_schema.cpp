@@ -179,12 +179,12 @@ NodePtr make_strip_request() {
        note()});
 }
 
-NodePtr fair_options() {
+NodePtr fair_options(const char* type = "object") {
   return object({{"poles", integer(6, 1000), "Poles of the fitted B-spline."},
                  {"fairness", kNumber, "Weight of the fairness term."},
                  {"min_separation", kNumber, "Least distance of two kept inflections (relative)."},
                  {"end_separation", kNumber, "Least distance of a kept inflection from an end (relative)."}},
-                "object");
+                type);
 }
 
 std::vector<Field> repair_common() {
@@ -231,7 +231,7 @@ NodePtr rod_request() {
                 {"degree", integer(1, 7), "Degree of the interpolant (default 3)."}}),
         "The 3D curve the rod takes at equilibrium (required)."},
        {"material",
-        object({{"preset", leaf("\"SmoothSil 960\""), "A named material."},
+        object({{"preset", kString, "A named material: \"SmoothSil 960\"."},
                 {"E", kNumber, "Young's modulus (Pa)."},
                 {"nu", kNumber, "Poisson's ratio."},
                 {"density", kNumber, "Density (kg/m^3)."}}),
@@ -302,7 +302,7 @@ NodePtr simulation_job() {
         object({{"cells", integer(1, 100000), "Cells along the part's longest side (default 8 hex27, 16 hex8)."},
                 {"cell_size", kNumber, "Cell size instead of cells."},
                 {"origin", kVec3, "A point the grid planes pass through (default: centred on the part)."},
-                {"method", leaf("\"face\""), "Cut route; \"face\" is the only one."},
+                {"method", kString, "Cut route; \"face\" is the only one."},
                 {"block_cells", kAny, "Refused (belonged to the retired splitter route)."},
                 {"target", kNumber, "Accuracy target in (0, 1): grids refined until the estimated error is below it."},
                 {"max_cells", integer(1, 100000), "Finest grid the target may reach (default 64)."}}),
@@ -373,7 +373,7 @@ NodePtr optimization_job() {
        {"grid",
         object({{"cells", integer(1, 100000), "Cells along the longest side."},
                 {"cell_size", kNumber, "Cell size instead of cells."},
-                {"method", leaf("\"face\""), "Cut route; \"face\" is the only one."},
+                {"method", kString, "Cut route; \"face\" is the only one."},
                 {"block_cells", kAny, "Refused (retired)."},
                 {"target", kAny, "Refused: the grid stays fixed while the shape moves."}}),
         "The fixed grid of every evaluation."},
@@ -406,7 +406,7 @@ NodePtr optimization_job() {
        {"orthogonal", array(object(with(face_ref("drafted"), {{"axis", kVec3, "Axis the face stays parallel to."}}))),
         "Draft: faces kept parallel to an axis."},
        {"constraints",
-        array(object({{"type", leaf("\"volume\" | \"mass\""), ""},
+        array(object({{"type", kString, "\"volume\" or \"mass\"."},
                       {"max_ratio", kNumber, "Volume: V / V0 at most."},
                       {"min_ratio", kNumber, "Volume: V / V0 at least."},
                       {"density", kNumber, "Mass: density (default material.density)."},
@@ -437,7 +437,7 @@ NodePtr sections_job() {
        {"samples", integer(8, 100000), "Samples of each section curve (default 60)."},
        {"units", leaf("\"mm\" | \"cm\" | \"m\""), "Units of the part (default mm)."},
        {"strip", extended(strip_request_base(), "the strip request", {}), "The strip request of every section (without curve)."},
-       {"fair", fair_options(), "\"auto\", true, false or the fit's options."},
+       {"fair", fair_options("\"auto\", true, false or object"), "Fit the section points first (default \"auto\": where they have spurious inflections)."},
        {"part", kString, "The part's file name, for scripts (.ci/main.sh); the CLI takes the part as its argument."},
        note()});
 }
@@ -475,6 +475,42 @@ size_t distance(const std::string& a, const std::string& b) {
       if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
     }
   return d[a.size()][b.size()];
+}
+
+bool accepts_other(const Node& n) { return n.type.find(" or ") != std::string::npos; }
+
+std::string where(const std::string& path) { return path.empty() ? std::string("the request") : path; }
+
+// The plain leaf types; a union ("\"mm\" | \"cm\"", "number | null") is the parser's to check.
+void check_leaf_type(const json& v, const Node& n, const std::string& path) {
+  const std::string& t = n.type;
+  auto fail = [&](const char* what) { PARAFAB_INPUT_ERROR(where(path) << " must be " << what << ", got " << v.dump()); };
+  auto numbers = [&](size_t size) {
+    if (!v.is_array() || (size && v.size() != size)) return false;
+    return std::all_of(v.begin(), v.end(), [](const json& x) { return x.is_number(); });
+  };
+  if ((t == "number" || t == "integer") && !v.is_number()) fail(t == "number" ? "a number" : "an integer");
+  if (t == "boolean" && !v.is_boolean()) fail("true or false");
+  if (t == "string" && !v.is_string()) fail("a string");
+  if (t == "[x, y, z]" && !numbers(3)) fail("[x, y, z] (three numbers)");
+  if (t == "[x, y]" && !numbers(2)) fail("[x, y] (two numbers)");
+  if (t == "[number, ...]" && !numbers(0)) fail("a list of numbers");
+  // A choice of strings ("\"mm\" | \"cm\" | \"m\""): one of them (a near miss named).
+  if (!t.empty() && t[0] == '"') {
+    std::vector<std::string> choices;
+    for (size_t a = 0; a < t.size();) {
+      const size_t b = t.find(" | ", a);
+      const std::string c = t.substr(a, b == std::string::npos ? std::string::npos : b - a);
+      if (c.size() < 2 || c.front() != '"' || c.back() != '"') return;  // an open list ("..."): the parser's
+      choices.push_back(c.substr(1, c.size() - 2));
+      a = b == std::string::npos ? t.size() : b + 3;
+    }
+    if (!v.is_string()) fail(("one of " + t).c_str());
+    if (std::find(choices.begin(), choices.end(), v.get<std::string>()) != choices.end()) return;
+    const std::string near = nearest(v.get<std::string>(), choices);
+    PARAFAB_INPUT_ERROR(where(path) << " must be one of " << t << ", got " << v.dump()
+                                    << (near.empty() ? "" : ", did you mean \"" + near + "\"?"));
+  }
 }
 
 }  // namespace
@@ -523,7 +559,11 @@ std::string name_of(Format format) {
 void check(const json& value, const Node& node, const std::string& path, const std::string& what) {
   switch (node.kind) {
     case Node::Kind::Object: {
-      if (!value.is_object()) return;  // true/false/"auto"/[x, y, z]: the parser's alternatives
+      if (!value.is_object()) {
+        // A documented alternative ("true / false or object", "\"auto\" or array"): the parser's.
+        if (accepts_other(node)) return;
+        PARAFAB_INPUT_ERROR(where(path) << " must be a JSON object {" << quoted_list(node) << "}, got " << value.dump());
+      }
       for (auto it = value.begin(); it != value.end(); ++it) {
         const std::string key_path = path.empty() ? it.key() : path + "." + it.key();
         const Field* f = find_field(node, it.key());
@@ -540,14 +580,18 @@ void check(const json& value, const Node& node, const std::string& path, const s
       return;
     }
     case Node::Kind::Array:
-      if (!value.is_array()) return;
+      if (!value.is_array()) {
+        if (accepts_other(node)) return;
+        PARAFAB_INPUT_ERROR(where(path) << " must be a list (" << node.type << "), got " << value.dump());
+      }
       for (size_t i = 0; i < value.size(); ++i) check(value[i], *node.item, path + "[" + std::to_string(i) + "]", what);
       return;
     case Node::Kind::Leaf:
+      check_leaf_type(value, node, path);
       if (node.type == "integer" && value.is_number()) {
         const double x = value.get<double>();
         if (!std::isfinite(x) || x != std::floor(x))
-          PARAFAB_INPUT_ERROR(path << " must be a whole number, got " << value.dump());
+          PARAFAB_INPUT_ERROR(path << " must be an integer (a whole number), got " << value.dump());
         if (x < static_cast<double>(node.min) || x > static_cast<double>(node.max))
           PARAFAB_INPUT_ERROR(path << " must be an integer " << node.min << ".." << node.max << ", got " << value.dump());
       }
@@ -557,6 +601,11 @@ void check(const json& value, const Node& node, const std::string& path, const s
 
 void check(const json& request, Format format) {
   if (!request.is_object()) PARAFAB_INPUT_ERROR("the " << name_of(format) << " must be a JSON object, got " << request.type_name());
+  if (format == Format::Optimization)  // a simulation job reused: say which keys it does not use
+    for (auto it = request.begin(); it != request.end(); ++it)
+      if (!find_field(*of(format), it.key()) && find_field(*of(Format::Simulation), it.key()))
+        PARAFAB_INPUT_ERROR(it.key() << ": unknown key in the optimization job (a simulation-job key it does not use: "
+                                        "remove it)");
   check(request, *of(format), "", name_of(format));
 }
 

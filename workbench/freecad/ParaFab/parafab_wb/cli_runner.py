@@ -140,6 +140,10 @@ class SimulationProcess(QtCore.QObject):
         """``(phase, fraction)`` of a stderr line, or ``None`` for other output."""
         return parse_progress(line)
 
+    def cancelled_outcome(self, exit_code, stdout):
+        """The Outcome of a cancelled run (the process killed: nothing to read)."""
+        return Outcome(CANCELLED, message=self.CANCEL_MESSAGE)
+
     def _error(self, error):
         if error == QtCore.QProcess.FailedToStart and not self.finished:
             self.finished = True
@@ -153,7 +157,7 @@ class SimulationProcess(QtCore.QObject):
         self._read_stderr()
         stdout = bytes(self.process.readAllStandardOutput()).decode("utf-8", "replace")
         if self.cancelled:
-            outcome = Outcome(CANCELLED, message=self.CANCEL_MESSAGE)
+            outcome = self.cancelled_outcome(exit_code, stdout)
         elif exit_status == QtCore.QProcess.CrashExit:
             outcome = Outcome(ERROR, message="parafab crashed%s" % (
                 ": " + " ".join(self._other_stderr[-3:]) if self._other_stderr else ""))

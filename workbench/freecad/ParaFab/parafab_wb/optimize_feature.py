@@ -37,6 +37,8 @@ import tempfile
 import FreeCAD
 
 CANCELLED = "cancelled"
+#: The history status of a run stopped by Cancel, a signal or the progress callback.
+INTERRUPTED = "interrupted"
 RESULT_SUFFIX = "_optimized"
 
 
@@ -672,8 +674,10 @@ def add_result(obj, history, out_dir, placement=None):
     result."""
     import Part
     status = history.get("status", "")
-    if status == CANCELLED:
-        raise OptimizeError("optimization cancelled by the user: the document is unchanged")
+    if status in (CANCELLED, INTERRUPTED):
+        where = history.get("optimized_step")
+        raise OptimizeError("optimization cancelled by the user: the document is unchanged%s"
+                            % ("; the best valid iterate so far is " + where if where else ""))
     step = history.get("optimized_step") or os.path.join(out_dir, "optimized.step")
     if not os.path.isfile(step):
         raise OptimizeError("the optimizer wrote no %s (status %s: %s)" % (step, status, history.get("message", "")))

@@ -3,8 +3,10 @@
 :class:`OptimizeRun` writes the part and job (:func:`optimize_feature.prepare`), runs
 ``parafab optimize PART JOB -o OUTDIR --progress`` (:class:`OptimizeProcess`; one JSON line
 ``{"progress": {iteration, objective, ...}}`` per iterate on stderr), and when the process ends
-adds the optimized solid beside the original (:func:`optimize_feature.add_result`). Cancel kills
-the process: nothing is added. Errors (bad input, the CLI's JSON error, an invalid result) only
+adds the optimized solid beside the original (:func:`optimize_feature.add_result`). Cancel sends
+SIGTERM: the CLI stops at its next evaluation and writes its best valid iterate so far into the
+output folder (``optimized.step``, ``history.json`` with status "interrupted"; killed if it has not
+ended within :attr:`OptimizeProcess.KILL_AFTER_MS`); nothing is added to the document. Errors (bad input, the CLI's JSON error, an invalid result) only
 set the outcome's message.
 
 Only ``QtCore`` is used, so this works in ``freecadcmd`` too (with a ``QCoreApplication``).
@@ -25,7 +27,36 @@ class OptimizeProcess(cli_runner.SimulationProcess):
 
     SUBCOMMAND = "optimize"
     CANCEL_MESSAGE = "optimization cancelled by the user"
+    #: After Cancel, how long the CLI may take to write its best iterate before it is killed.
+    KILL_AFTER_MS = 30000
     iterate = QtCore.Signal(object)
+
+    def cancel(self):
+        """Ask the CLI to stop (SIGTERM); it writes the best valid iterate so far and exits. Only
+        once: a second SIGTERM would kill it before it has written (the CLI's own rule)."""
+        if self.running() and not self.cancelled:
+            self.cancelled = True
+            self.process.terminate()
+            QtCore.QTimer.singleShot(self.KILL_AFTER_MS, self._kill_if_running)
+
+    def _kill_if_running(self):
+        if self.running():
+            self.process.kill()
+
+    def cancelled_outcome(self, exit_code, stdout):
+        """CANCELLED, with the interrupted run's history (status "interrupted") when the CLI wrote
+        one, and a message saying where its best iterate is."""
+        try:
+            history = json.loads(stdout)
+        except ValueError:
+            history = None
+        if isinstance(history, dict) and history.get("status") == "interrupted" and history.get("optimized_step"):
+            return cli_runner.Outcome(
+                CANCELLED, result=history,
+                message="%s after %d iterates; the best valid one so far is %s (not added)"
+                        % (self.CANCEL_MESSAGE, max(len(history.get("iterations", [])) - 1, 0),
+                           history["optimized_step"]))
+        return cli_runner.Outcome(CANCELLED, message=self.CANCEL_MESSAGE)
 
     def __init__(self, max_iterations, parent=None):
         super(OptimizeProcess, self).__init__(parent)
