@@ -2,7 +2,8 @@
 (hex8 on 16 / 32 / 48 cells, hex27 on 8 / 16 / 24; linear, gravity, the bottom face fixed):
 estimated / solved unknowns, the fill constant C = factor bytes / (8 n^(4/3)) of CHOLMOD's exact
 factor (result `solver.factor_mb`), and the estimate's peak figures (`peak_mb_min`, `peak_mb`)
-over the CLI's peak resident memory (/usr/bin/time). The README's "Estimate first" figures.
+over the CLI's peak resident memory (/usr/bin/time). The figures of tests/bench/README.md, "Size estimate against
+measured runs" (the estimate: resources/doc/simulation.md, "Estimate first").
 
 Usage: /usr/bin/python3 tests/bench/bench_estimate.py [--out DIR]   (about 3 min)
 """

@@ -4,7 +4,7 @@ at its hub hole (a cylinder), 2 kN on the rim, aluminium, hex8, one thread, `par
 at degrees 5, 8 and 12 on 16 and 24 cells. Medians over repeats (the degrees interleaved),
 assembly and wall time as ratios against degree 5 in the same run. What the degree buys is the
 shape gradient's agreement with the solver on curved supports, measured by
-ShapeCompliance.ASupportsOwnMotionHasAnExactGradient (README "A support's own motion"); the
+ShapeCompliance.ASupportsOwnMotionHasAnExactGradient (optimization.md, "A support's own motion"); the
 compliance is printed to show how little the solution itself moves.
 Usage: /usr/bin/python3 tests/bench/bench_nitsche_degree.py [--repeats N] [--out DIR]"""
 import argparse

@@ -18,7 +18,7 @@ def run(part, cells):
     info = json.loads(subprocess.run([CLI, "inspect", part], capture_output=True, text=True, check=True).stdout)
     lo, hi = info["bbox"]["min"], info["bbox"]["max"]
     # The support: the face nearest the bottom centre of the bounding box, else any face touching it.
-    # hex8, the element of the README's figures for this benchmark (the default is hex27 since 2026-11-27).
+    # hex8, the element of this benchmark's figures in tests/bench/README.md (the default is hex27 since 2026-11-27).
     job = {"material": {"E": 210000, "nu": 0.3, "density": 7.85e-9}, "element": "hex8", "grid": {"cells": cells},
            "gravity": [0, 0, -9810]}
     candidates = [[0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2]], [lo[0], 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])]]

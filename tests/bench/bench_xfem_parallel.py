@@ -38,7 +38,7 @@ def median(v):
     return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
-ELEMENT = "hex8"  # --element; hex8 is the element of the README's first figures (the default is hex27 since 2026-11-27)
+ELEMENT = "hex8"  # --element; hex8 is the element of the first figures in tests/bench/README.md (the default is hex27 since 2026-11-27)
 
 
 def run_child(cli, cells, threads, out_dir):

@@ -617,7 +617,7 @@ class OptimizeFeatureTest(unittest.TestCase):
 
     def test_volume_bounds_in_the_job(self):
         """The panel's Max / Min volume ratio become one {"type": "volume"} entry with the CLI's keys
-        max_ratio / min_ratio (README "Shape optimization"); only the bounds set are sent, crossing
+        max_ratio / min_ratio (resources/doc/optimization.md); only the bounds set are sent, crossing
         bounds are refused naming both."""
         shape = self.wheel.Shape.copy()
         job = optimize_feature.build_job(shape, dict(self.options, min_volume_ratio=0.9), self.wheel.Placement)

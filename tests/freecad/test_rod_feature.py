@@ -172,7 +172,7 @@ class TestRodFeature(RodTestCase):
     def test_default_helix_rod_is_stable_and_factor_one_is_not(self):
         """The default SectionFactor (4) gives a stable helix rod; factor 1 (most circular) an
         unstable one. Independent check: the forward simulation (Validate) stays on the curve
-        for the stable rod and leaves it for the unstable one (README: 9.9e-6 and 0.49 L)."""
+        for the stable rod and leaves it for the unstable one (resources/doc/rods.md: 9.9e-6 and 0.49 L)."""
         _, rod = self.rod_on("Helix", _helix().toShape(), Validate=True)
         self.assertAlmostEqual(rod.SectionFactor, 4.0)
         self.assert_feasible_rod(rod)

@@ -471,7 +471,7 @@ TEST(BsplinePoles, PeriodicFacePoleComplianceDerivativeMatchesThePipeline) {
               "%.10g / %.10g (steps 2e-4 / 1e-3 L, %.2e apart)\n",
               g.gradient[index], dc.derivative, fine, wide, std::abs(fine - wide) / std::abs(wide));
   EXPECT_LE(std::abs(g.gradient[index] - dc.derivative), 2e-9 * std::abs(dc.derivative));
-  EXPECT_GT(std::abs(fine - wide) / std::abs(wide), 1e-4);  // the README's "1e-4–3e-4 apart"
+  EXPECT_GT(std::abs(fine - wide) / std::abs(wide), 1e-4);  // optimization.md's "1e-4–3e-4"
 }
 
 // A block 60 × 30 × 10 whose top is the plane z = 10 for x ≤ 20 and, for x ≥ 20, a B-spline

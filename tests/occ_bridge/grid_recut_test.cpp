@@ -217,8 +217,8 @@ TEST(GridBlocks, BlocksGiveTheCutOfOneGlobalSplit) {
                   what.c_str(), a.cut_cells.size(), cut, a.subvolumes.size(), d);
       // Measured: ≤ 1e-10 aligned except the housing (6e-9); turned 2.5e-9 … 3.4e-8 (l_bracket):
       // the two splits trim the same faces along differently computed curves, and the rules
-      // are accurate to about 1e-8 of a cell (README, cut-cell benchmark: worst 8.6e-9). A piece
-      // in the wrong cell or a missing piece differs by O(1).
+      // are accurate to about 1e-8 of a cell (resources/doc/simulation.md; worst 8.6e-9 in the
+      // cut-cell benchmark). A piece in the wrong cell or a missing piece differs by O(1).
       EXPECT_LT(d, 5e-8) << what;
     }
   }

@@ -112,7 +112,7 @@ int real_cut_cells(const GridModel& m) {
 // skew axis and shifted against the grid, so that the clamped and the loaded faces cut cells.
 // 8000 × 1000 × 1000 mm, E = 210 GPa, ν = 0.3, 9 MN at the free end. Independent references:
 // Euler–Bernoulli 87.77 mm, Timoshenko 88.84 mm, and CalculiX tet10 on a Gmsh mesh of the 3D
-// clamp 88.05 mm (tests/reference/test_calculix_reference.py, README benchmarks). The tip
+// clamp 88.05 mm (tests/reference/test_calculix_reference.py, tests/bench/README.md). The tip
 // deflection is the mean over a 9 × 9 lattice of points on the free end face.
 TEST(LinearXfem, CantileverApproachesEulerBernoulli) {
   const auto box = make_part(BRepPrimAPI_MakeBox(8000, 1000, 1000).Shape(), "cantilever");
@@ -312,9 +312,9 @@ TEST(LinearXfem, PlateThinnerThanACellBendsLikeABeam) {
               0.06);  // measured 1.036 (weak clamp)
 }
 
-// Why the local Nitsche penalty is the jobs' default on hex27 but not on hex8 (README "Local
-// Nitsche penalty"): on the same plate, hex8 (incompatible modes) with the local penalty at
-// κ = 4 is 14 % soft where the fixed β = 100 is 4 %, while hex27 gives the same 0.988 of beam
+// Why the local Nitsche penalty is the jobs' default on hex27 but not on hex8
+// (resources/doc/simulation.md, "Local Nitsche penalty"): on the same plate, hex8 (incompatible
+// modes) with the local penalty at κ = 4 is 14 % soft where the fixed β = 100 is 4 %, while hex27 gives the same 0.988 of beam
 // theory with either (the probe at the end face's centre in parafab.simulate: 0.9965).
 TEST(LinearXfem, PlateThinnerThanACellLocalPenaltyByElement) {
   using Penalty = xfem::LinearXfemOptions::NitschePenalty;

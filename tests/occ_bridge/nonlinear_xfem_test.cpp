@@ -84,7 +84,7 @@ TEST(NonlinearXfem, NeoHookeanUniaxialCompressionMatchesClosedForm) {
       if (beta < 1000) worst_fixed = worst;
     } else {
       // The smaller local penalty costs accuracy here: why the hyperelastic models keep the
-      // fixed one by default (README "Local Nitsche penalty"). Measured 4.8e-3 (β = 100: 5.2e-4).
+      // fixed one by default (simulation.md, "Local Nitsche penalty"). Measured 4.8e-3 (β = 100: 5.2e-4).
       EXPECT_NEAR(worst / L, 4.8e-3, 0.3e-3);
       EXPECT_GT(worst, 5 * worst_fixed);
     }

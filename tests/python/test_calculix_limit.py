@@ -1,6 +1,6 @@
 """tests/bench/calculix_limit.py: the limit h -> 0 that the X-CAD benchmarks measure errors
 against. On u(h) = u0 + c h^p it must return u0 and p (closed form); on the L-bracket runs kept
-in tests/reference/calculix_limits.json it must give the README's figures; a kept set that does
+in tests/reference/calculix_limits.json it must give the figures of tests/bench/README.md; a kept set that does
 not match a fresh run must be refused with the reason."""
 import os
 import sys
@@ -31,7 +31,7 @@ class Limit(unittest.TestCase):
         print("L-bracket: limit %.6f, order %.3f, h = 1.5 mm %.2f %% from it, order-1 spread %.2f %%"
               % (lim["u_probe"], lim["order"], 100 * abs(kept[1][1] - lim["u_probe"]) / abs(lim["u_probe"]),
                  100 * lim["uncertainty"]))
-        # README "Against the limit h -> 0": -0.111390 mm, order 1.36, 0.74 %, +-0.20 %
+        # tests/bench/README.md, "XFEM against Gmsh + CalculiX" (the limit h -> 0): -0.111390 mm, order 1.36, 0.74 %, +-0.20 %
         self.assertAlmostEqual(lim["u_probe"], -0.111390, delta=5e-7)
         self.assertAlmostEqual(lim["order"], 1.36, delta=0.005)
         self.assertAlmostEqual(abs(-0.11056151982143436 - lim["u_probe"]) / abs(lim["u_probe"]), 0.0074, delta=5e-5)

@@ -1,6 +1,6 @@
 """Absolute bounds on a design parameter (`parameters[i].min` / `.max` of `parafab optimize`):
 the motor-housing fin case of tests/bench/bench_optimize_housing.py, where without a bound the
-optimizer thins the first fin from 2 mm to 0.28 mm (README, "Motor housing"). With its -x face
+optimizer thins the first fin from 2 mm to 0.28 mm (tests/bench/README.md, "Motor housing"; resources/doc/optimization.md, "The job"). With its -x face
 offset held at most 8.25 (the fin at least 1.5 mm thick, its +x face mirrored about x = 9) the
 bound is active at the end, the other fins take the material, and a fresh simulation of the
 written part on a finer grid still finds it stiffer. Bad bounds are errors naming the entry."""

@@ -222,7 +222,7 @@ class OptimizeCompliance(unittest.TestCase):
 
 
     def test_merge_penalty_is_refused_where_its_ties_fail_and_runs_where_they_hold(self):
-        # Thesis Eq. 6.24 (README "Pieces that join"): refused with a bad law and with objectives
+        # Thesis Eq. 6.24 (optimization.md, "Pieces that join"): refused with a bad law and with objectives
         # whose gradients have no tie term, naming the problem; nothing is written.
         code, err = cli(["optimize", self.part, "-o", os.path.join(self.dir, "b")],
                         dict(JOB, merge_penalty={"law": "cubic"}))

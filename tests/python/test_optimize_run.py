@@ -191,7 +191,7 @@ class OptimizeRun(unittest.TestCase):
         # differ are evaluated again (measured 3 of 10).
         self.assertTrue(h["freeze_switches"])
         self.assertGreaterEqual(h["switch_refreshes"], 1)
-        self.assertEqual(h["nitsche_surface_degree"], 8)  # the curved clamps' rules (README)
+        self.assertEqual(h["nitsche_surface_degree"], 8)  # the curved clamps' rules (optimization.md)
         # Every block parameter of every free face (plane: n, d; cylinder: c, a, r), none of the held ones.
         self.assertEqual(len(h["parameters"]), sum(4 if f["type"] == "plane" else 7 for f in free))
         designed = {int(p["name"].split()[1]) for p in h["parameters"]}

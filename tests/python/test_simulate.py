@@ -15,7 +15,7 @@ import parafab  # noqa: E402
 CLI = os.environ.get("PARAFAB_CLI", "build/workbench/entry/parafab")
 SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "samples")
 BRACKET = os.path.join(SAMPLES, "parts", "l_bracket.step")
-# CalculiX tet10 on the Gmsh mesh of l_bracket.step, h = 1.5 mm, the sample job (README,
+# CalculiX tet10 on the Gmsh mesh of l_bracket.step, h = 1.5 mm, the sample job (tests/bench/README.md,
 # "XFEM against Gmsh + CalculiX"; re-measured with
 #   /usr/bin/python3 tests/reference/calculix_reference.py samples/simulations/l_bracket.json \
 #       --parafab samples/parts/l_bracket.step --size 1.5 --quiet

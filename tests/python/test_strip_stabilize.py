@@ -76,7 +76,7 @@ class StripStabilizeEntry(unittest.TestCase):
         self.assertGreater(after, 0)
         self.assertAlmostEqual(r["design"]["R"], r["R_after"], delta=1e-9 * r["R_after"])
         # R_max = 10 bounds the p-norm estimate R_p (<= R), not R: R_after is above R_max
-        # (README; measured 2026-11-28: R_after 12.71, last R_p 10.014, largest R_p 10.084).
+        # (resources/doc/strips.md, "Stability recovery"; measured 2026-11-28: R_after 12.71, last R_p 10.014, largest R_p 10.084).
         self.assertEqual(r["R_max"], 10.0)
         self.assertGreater(r["R_after"], 12.5)
         self.assertLess(r["R_after"], 12.9)

@@ -28,7 +28,7 @@ Measured (2 threads):                        u_x(20,10,10)  u_x(20,20,10)
     CalculiX h = 2.5 (TURN_TOL = 1.5 %). At 12 cells Newton does not converge on
     the turned block: Nitsche beta = 100 is not coercive on some cut cells there (the
     linear run reports an indefinite stiffness, solved by LU), so the neo-Hooke energy is not
-    convex near them (README, "Hyperelastic"; beta = 1000 converges but locks the clamp).
+    convex near them (resources/doc/simulation.md, "Hyperelastic laws, Nitsche β and the local penalty"; beta = 1000 converges but locks the clamp).
     With "nitsche_penalty": "local" (each clamped cut cell's penalty from its flux eigenvalue)
     the turned block at 12 cells converges in 12 Newton iterations: neo-Hooke 1.3585 / 1.1964,
     linear 1.1273 / 1.0233, within 0.4-1.2 % of CalculiX h = 2.5 (TURN_TOL).
@@ -302,7 +302,7 @@ class ClampedRubberBlockTest(unittest.TestCase):
 
 @unittest.skipUnless(parafab is not None, "parafab module not built")
 class TurnedBlockAtTwelveCellsTest(unittest.TestCase):
-    """Where the hyperelastic path fails, and why (README, "Hyperelastic"): on the turned block
+    """Where the hyperelastic path fails, and why (resources/doc/simulation.md, "Hyperelastic laws"): on the turned block
     at 12 cells Nitsche's default beta = 100 is not coercive on some cut cells of the clamped
     faces. The linear solve says so and still gives the aligned grid's bulge (LU); neo-Hooke does
     not converge and says so; beta = 1000 makes the matrix positive definite and neo-Hooke

@@ -83,7 +83,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   std::string in_path, out_path;
   auto* strip = app.add_subcommand("strip", "Design a bending-active strip for a plane curve (JSON in, JSON out)");
-  strip->add_option("input", in_path, "Strip request JSON (see README: JSON formats)")->required();
+  strip->add_option("input", in_path, "Strip request JSON (see resources/doc/json-reference.md)")->required();
   strip->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   std::string dxf_path, svg_path;
   strip->add_option("--dxf", dxf_path, "Also write the flat outline (cut sheet, mm) as ASCII DXF R12");
@@ -97,18 +97,18 @@ int main(int argc, char** argv) {
   double target_R = 0;
   auto* improve = app.add_subcommand(
       "strip-improve", "Lower the stiffness ratio R of a strip curve by moving its control points (thesis §4.6.2; JSON)");
-  improve->add_option("input", in_path, "Strip request JSON, optionally with \"improve\": {...} (see README)")->required();
+  improve->add_option("input", in_path, "Strip request JSON, optionally with \"improve\": {...} (see resources/doc/strips.md)")->required();
   improve->add_option("--target-R", target_R, "Target stiffness ratio (overrides improve.target_R; default 3.5)");
   improve->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   double R_max = 0;
   auto* stabilize = app.add_subcommand(
       "strip-stabilize",
       "Make an unstable strip curve stable by moving its control points (thesis §4.5.4, Algorithm 4.2; JSON)");
-  stabilize->add_option("input", in_path, "Strip request JSON, optionally with \"stabilize\": {...} (see README)")->required();
+  stabilize->add_option("input", in_path, "Strip request JSON, optionally with \"stabilize\": {...} (see resources/doc/strips.md)")->required();
   stabilize->add_option("--R-max", R_max, "Bound on the stiffness ratio R (overrides stabilize.R_max; default 10)");
   stabilize->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
-  rod->add_option("input", in_path, "Rod request JSON (see README: JSON formats)")->required();
+  rod->add_option("input", in_path, "Rod request JSON (see resources/doc/json-reference.md)")->required();
   rod->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* inspect = app.add_subcommand("inspect", "Face model of a STEP/BREP part: types, NURBS, edges, tangencies (JSON)");
   parafab::entry::InspectOptions inspect_options;
@@ -153,11 +153,11 @@ int main(int argc, char** argv) {
   auto* sections = app.add_subcommand(
       "sections", "Strips from plane sections of a surface or solid (JSON job: planes, split, strip request)");
   sections->add_option("part", in_path, "Surface or solid (.step/.stp/.brep/.brp)")->required();
-  sections->add_option("job", job_path, "Sections job JSON (see README: Strips from sections)")->required();
+  sections->add_option("job", job_path, "Sections job JSON (see resources/doc/strips.md: Strips from sections)")->required();
   sections->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* revolution = app.add_subcommand(
       "revolution", "Meridian of a surface of revolution tiled by strips without gaps, and the strips (JSON)");
-  revolution->add_option("job", in_path, "Revolution job JSON (see README)")->required();
+  revolution->add_option("job", in_path, "Revolution job JSON (see resources/doc/strips.md)")->required();
   revolution->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* optimize = app.add_subcommand(
       "optimize", "Shape optimization of a part on its own CAD parameters, tangencies kept (JSON job)");

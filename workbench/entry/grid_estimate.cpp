@@ -13,9 +13,10 @@ namespace parafab::entry {
 
 // Measured with `/usr/bin/time -f %M parafab integrate PART --cells 16|32` (l_bracket, ring,
 // housing; 2026-11-23): peak memory grows by 0.006–0.009 MB per cut cell above a base of about
-// 45 MB, and the cut plus rules take 2.5 ms per cut cell on a quiet machine (README, cut-cell
-// benchmark; the splitter dominates). The cut-cell count 1.0 · area / h² was 1.4–1.6× the
-// cells actually cut at 32 cells (2.2× at 16 on the housing): on the safe side.
+// 45 MB, and the cut plus rules take 2.5 ms per cut cell on a quiet machine (the cut-cell
+// benchmark of that day, when the splitter dominated; current figures in tests/bench/README.md).
+// The cut-cell count 1.0 · area / h² was 1.4–1.6× the cells actually cut at 32 cells (2.2× at
+// 16 on the housing): on the safe side.
 constexpr double kBaseMb = 45;
 constexpr double kMbPerCutCell = 0.012;
 constexpr double kMbPerCell = 0.0005;
@@ -56,7 +57,7 @@ void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options) {
 void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options, bool linear_model) {
   using Penalty = xfem::LinearXfemOptions::NitschePenalty;
   // The default where the job names no penalty: local where it was measured better (the linear
-  // model on hex27), fixed elsewhere (README "Local Nitsche penalty").
+  // model on hex27), fixed elsewhere (resources/doc/simulation.md, "Local Nitsche penalty").
   options.nitsche_penalty =
       linear_model && options.element == xfem::ElementType::Hex27 ? Penalty::Local : Penalty::Fixed;
   if (job.contains("nitsche_penalty")) {

@@ -42,7 +42,8 @@ void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options);
 /// "local" for the linear model on hex27 (`options.element`, set first) and "fixed" (β = 100)
 /// otherwise: hex8's local penalty at κ = 4 is soft on a plate thinner than a cell (tip 1.14 ×
 /// beam theory against fixed 1.04; hex27 0.997 with both), and the hyperelastic models'
-/// linearized Nitsche terms lose accuracy with the smaller local penalty (README).
+/// linearized Nitsche terms lose accuracy with the smaller local penalty (resources/doc/simulation.md,
+/// "Local Nitsche penalty").
 /// "nitsche_surface_degree" (2..20): the least degree of the patch rules on curved clamped
 /// faces (LinearXfemOptions::dirichlet_surface_degree, default 8; below surface_degree, 5 or
 /// hex27's 8, it changes nothing).
@@ -52,7 +53,7 @@ void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options,
 /// 8 hex27 cells along the part's longest side, nodes every half cell for hex27).
 int default_cells(xfem::ElementType element);
 
-/// Size of a linear solve on cells of size h (README "Estimate first"): unknowns
+/// Size of a linear solve on cells of size h (resources/doc/simulation.md, "Estimate first"): unknowns
 /// 3 (m³V/h³ + b m²A/h²) (m = 2, b = 2 for hex27; m = 1, b = 1.5 for hex8) capped by the box's
 /// nodes; CHOLMOD's factor 8·C·n^{4/3} bytes with C = 26 (compact parts, factor_mb) and C = 7
 /// (thin-walled ones, factor_mb_min); the run's peak adds 5 (hex8) or 9 (hex27) kB per unknown

@@ -70,7 +70,7 @@ occ::ParameterRef parameter_ref(const NamedPart& part, const json& item, const s
 }
 
 // The elasticity job of the compliance objective, in the fields of the simulation job
-// (README "Simulation"): material {E, nu, density}, grid {cells, cell_size, block_cells,
+// (resources/doc/simulation.md, "Simulation (linear XFEM)"): material {E, nu, density}, grid {cells, cell_size, block_cells,
 // method}, supports, loads (a traction per area stays fixed; a total force stays fixed and is
 // spread over the load face of every model, as `parafab simulate` does), gravity, the Nitsche
 // penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. material.model: linear,
@@ -96,7 +96,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& pa
     if (s->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1, got " << s->load_steps);
   }
   // hex8 by default (unlike `parafab simulate`): the optimizer's gradient checks and figures were
-  // measured with it, and a solve costs less (README "Element"); a job may name hex27.
+  // measured with it, and a solve costs less (resources/doc/simulation.md, "Element"); a job may name hex27.
   s->solver.element = element_of_job(job, xfem::ElementType::Hex8);
   const json grid = job.value("grid", json::object());
   if (grid.contains("target")) PARAFAB_INPUT_ERROR("objective compliance: grid.target is not supported (the grid stays fixed)");
@@ -142,7 +142,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& pa
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     s->solver.incompatible_modes = job["incompatible_modes"].get<bool>();
   }
-  // Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (README "Pieces that join").
+  // Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (resources/doc/optimization.md, "Pieces that join").
   if (job.contains("merge_penalty")) {
     const json& mp = job["merge_penalty"];
     if (!(mp.is_boolean() || mp.is_object()))

@@ -2,7 +2,8 @@
 // a JSON job (parameters, objective, constraints, max_iterations; supports/loads of the
 // simulation job fix their faces; objective "compliance" also reads material, grid, supports,
 // loads and gravity like `parafab simulate`) and an output folder for optimized.step, history.json and
-// history.png. Format in README ("Shape optimization").
+// history.png. Format in resources/doc/optimization.md ("The job") and
+// resources/doc/json-reference.md.
 #pragma once
 
 #include <functional>

@@ -312,7 +312,7 @@ PYBIND11_MODULE(parafab, m) {
       },
       py::arg("request"),
       "Design a bending-active strip. `request` and the returned dict follow the strip JSON "
-      "format of the README (SI units): curve (bspline or points), material {E, thickness}, "
+      "format (resources/doc/json-reference.md; SI units): curve (bspline or points), material {E, thickness}, "
       "min_width, tolerance; optional gravity, boundary, natural_curvature, material.law, "
       "smooth, validate, composite, perforated.");
   m.def(
@@ -355,7 +355,7 @@ PYBIND11_MODULE(parafab, m) {
       },
       py::arg("request"),
       "Design a Kirchhoff rod (thesis ch. 5). `request` and the returned dict follow the rod JSON "
-      "format of the README (SI units): curve (3D bspline or points), material, max_radius, w_reg, "
+      "format (resources/doc/json-reference.md; SI units): curve (3D bspline or points), material, max_radius, w_reg, "
       "section {factor}, loads, samples, validate.");
   m.def(
       "inspect_part",

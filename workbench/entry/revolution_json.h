@@ -1,6 +1,7 @@
 // Surfaces of revolution tiled by strips (thesis §4.8.4): `parafab revolution JOB.json` and
 // parafab.revolution_strips: a meridian from ⟨e₁,γ⟩κ = a + ⟨b,γ⟩ (CVODE) and the n strips
-// that cover the surface without gaps. Format in README.
+// that cover the surface without gaps. Format in resources/doc/strips.md
+// ("Surfaces of revolution").
 #pragma once
 
 #include <nlohmann/json.hpp>

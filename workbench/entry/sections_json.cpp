@@ -69,7 +69,7 @@ json strip_sections_json(const std::string& part_path, const json& job) {
   else if (units == "m") scale = 1.0;
   else PARAFAB_INPUT_ERROR("units must be \"mm\", \"cm\" or \"m\", got \"" << units << "\"");
   const json strip = job.value("strip", json::object());
-  if (!strip.is_object()) PARAFAB_INPUT_ERROR("strip must be a strip request without \"curve\" (see README)");
+  if (!strip.is_object()) PARAFAB_INPUT_ERROR("strip must be a strip request without \"curve\" (see resources/doc/strips.md, \"Strips from sections\")");
   if (strip.contains("curve")) PARAFAB_INPUT_ERROR("strip.curve is set by the sections; remove it");
 
   // §4.8.2 fairing of the section points ("fair"): "auto" (default) designs from the quartic

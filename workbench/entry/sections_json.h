@@ -1,6 +1,7 @@
 // Strips from sections (thesis §4.8.2): `parafab sections PART JOB.json` and
 // parafab.strip_sections: plane sections of a surface or solid, every section curve designed
-// as a bending-active strip with the strip request of JOB["strip"]. Format in README.
+// as a bending-active strip with the strip request of JOB["strip"]. Format in resources/doc/strips.md
+// ("Strips from sections").
 #pragma once
 
 #include <nlohmann/json.hpp>

@@ -320,8 +320,8 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   S->law = xfem::make_material(S->model, mat.youngs_modulus, mat.poisson_ratio);
   // The basis on the grid: "hex27" (triquadratic Lagrange, the default: on the turned cantilever,
   // the L-bracket and the tube it reaches every error level of the benchmark sooner than hex8,
-  // README "hex8 and hex27 ...") or "hex8" (trilinear with incompatible modes); the rules of
-  // uncut and cut cells are raised to match.
+  // tests/bench/README.md, "XFEM against Gmsh + CalculiX") or "hex8" (trilinear with
+  // incompatible modes); the rules of uncut and cut cells are raised to match.
   S->fo.element = element_of_job(job, xfem::ElementType::Hex27);
 
   occ::GridModelOptions& go = S->go;
@@ -429,8 +429,8 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
 }
 
 // Estimate before running, from the part's box, volume V and area A only. Calibrated on the
-// eight sample parts, hex8 on 16–48 and hex27 on 8–24 cells (2026-11-28, README "Estimate
-// first, then the exact factor size"):
+// eight sample parts, hex8 on 16–48 and hex27 on 8–24 cells (2026-11-28, resources/doc/simulation.md,
+// "Estimate first, then the exact factor size"):
 // - DOF nodes m³V/h³ inside plus b·m²A/h² along the surface (the cut cells' outer nodes and the
 //   enriched copies), m = 1 (hex8) or 2 (hex27): b was 0.5 (the aligned box) to 1.4 for hex8
 //   and 1.2 to 2.0 for hex27 (2.9 once, the wrench on 8 cells: 1,152 unknowns). b = 1.5 / 2.0.
@@ -492,8 +492,9 @@ json SimulationSession::run(const std::string& out_dir, const ProgressFn& progre
 // observed order p = log(Δ_{k−1}/Δ_k) / log r, clamped to [0.5, 1], the Richardson estimate
 // of the error of the finest grid, e_k = Δ_k / (r^p − 1). The cap at first order is on
 // purpose: with Nitsche on partly cut faces the bracket converges like h before it converges
-// like h², and a higher observed order there underestimated its error 2× (README). Stops when
-// e_k ≤ target (at least three grids), or at grid.max_cells / the memory limit (not met).
+// like h², and a higher observed order there underestimated its error 2×
+// (resources/doc/simulation.md, "An accuracy target"). Stops when e_k ≤ target (at least
+// three grids), or at grid.max_cells / the memory limit (not met).
 template <class Report>
 json SimulationSession::run_to_target(const std::string& out_dir, const Report& report) {
   Setup& S = *setup_;
@@ -531,7 +532,7 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
     }
     json level{{"cells", cells}, {"dofs", out["dofs"]}, {"seconds", out["seconds"]}};
     // This level's symbolic analysis: each grid has its own sparsity pattern, so it cannot reuse
-    // the previous level's (README "Parallel and without repeated work").
+    // the previous level's (resources/doc/simulation.md, "No repeated work").
     if (out.contains("solver")) {
       const double analyzed = out["solver"]["analyze_seconds"].get<double>();
       level["analyze_seconds"] = analyzed - analyzed_before;

@@ -1,6 +1,7 @@
 // The simulation job of `parafab simulate` / parafab.simulate (thesis §6.4): a part, a JSON
 // job (material, grid, supports, loads, gravity, outputs) and an output folder; returns the
-// result JSON and writes result.json and result.vtu there. Format in README ("Simulation").
+// result JSON and writes result.json and result.vtu there. Format in resources/doc/simulation.md
+// ("Simulation (linear XFEM)") and resources/doc/json-reference.md.
 #pragma once
 
 #include <memory>

@@ -1,6 +1,7 @@
 // The strip JSON format shared by the CLI (`parafab strip`) and the Python module
 // (`parafab.design_strip`): input parsing with errors that name the offending field, and
-// the result as JSON. Documented in README.md ("JSON formats").
+// the result as JSON. Documented in resources/doc/json-reference.md and
+// resources/doc/strips.md ("The request and the result").
 #pragma once
 
 #include <nlohmann/json.hpp>

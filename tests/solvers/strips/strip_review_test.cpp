@@ -393,7 +393,7 @@ TEST(CompositeWeight, DesignCarriesTheWeightOfBothLayers) {
     const StripDesign d = design_strip(curve, o);
     ASSERT_TRUE(d.feasible) << d.reason;
     EXPECT_GT(d.weight_iterations, 1);
-    // README: 12–17 iterations (measured 2026-11-28: 12 ellipse arc, 17 one inflection)
+    // resources/doc/strips.md: 12–17 iterations (measured 2026-11-28: 12 ellipse arc, 17 one inflection)
     EXPECT_GE(d.weight_iterations, 12);
     EXPECT_LE(d.weight_iterations, 17);
     EXPECT_LT(d.weight_change, 1e-12);

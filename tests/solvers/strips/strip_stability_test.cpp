@@ -245,8 +245,8 @@ TEST(StripStability, ReleasedByEnergyDescentUnstableDesignsLeaveAndStableOnesRet
       energy_ratio_max = std::max(energy_ratio_max, eq.energy / r.energy);
     }
   }
-  // README: the released energy is 1.29–4.0× lower (measured 2026-11-28: 1.287 three
-  // inflections, 4.000 elastica with 4 inflections).
+  // resources/doc/strips.md ("Strip stability"): the released energy is 1.29–4.0× lower
+  // (measured 2026-11-28: 1.287 three inflections, 4.000 elastica with 4 inflections).
   std::printf("[release] unstable designs: equilibrium / released energy %.3f … %.3f\n", energy_ratio_min,
               energy_ratio_max);
   EXPECT_NEAR(energy_ratio_min, 1.287, 0.01);

@@ -5,7 +5,7 @@ Non-GUI core of the "Optimize shape" command (the task panel is :mod:`parafab_wb
 * :func:`face_model` -- the faces of a solid, their parameter names and the relation groups
   (faces linked by the face model's tangency or coaxial relations: moving one drags the others
   along).
-* :func:`build_job` -- the ``parafab optimize`` job (README "Shape optimization") from panel
+* :func:`build_job` -- the ``parafab optimize`` job (resources/doc/optimization.md, "The job") from panel
   options that name faces the FreeCAD way (``FaceN`` = ParaFab face N − 1).
 * :func:`optimize_shape` -- export the solid, run ``parafab.optimize`` in-process and add the
   optimized solid as a NEW ``Part::Feature`` beside the original (:func:`add_result`).
@@ -545,7 +545,7 @@ def build_job(shape, options, placement=None):
             raise OptimizeError("clamp penalty must be 'fixed' or 'local', got %r" % (penalty,))
         job["nitsche_penalty"] = penalty  # explicit: the engine's default depends on the element
     if opts.get("merge_penalty"):
-        # Only compliance's gradient has the ties' term (README "Pieces that join").
+        # Only compliance's gradient has the ties' term (resources/doc/optimization.md, "Pieces that join").
         if objective.type != "compliance":
             raise OptimizeError("smooth joins (merge penalty) need the compliance objective alone, got '%s'"
                                 % objective.type)
