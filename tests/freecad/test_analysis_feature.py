@@ -168,6 +168,27 @@ class AnalysisFeatureTest(unittest.TestCase):
             self.assertEqual(pipeline.State, ["Up-to-date"], name)
             self.assertTrue(all(o.isValid() for o in self.doc.Objects), name)
 
+    def test_fem_result_object_reads_surface_vtu(self):
+        """FreeCAD FEM's result object (Fem.readResult, what its result viewer shows: colour by von
+        Mises, animate by displacement) takes surface.vtu's fields at every vertex."""
+        self.make()
+        try:
+            import Fem
+            import ObjectsFem
+        except ImportError:
+            self.skipTest("FreeCAD's Fem module is not available")
+        path = os.path.join(self.tmp, "surface.vtu")
+        result = ObjectsFem.makeResultMechanical(self.doc, "FemResult")
+        Fem.readResult(path, result.Name)
+        self.doc.recompute()
+        points, _, arrays = _read_vtu(path)
+        vm, d = arrays["von_mises"], arrays["displacement"]
+        self.assertEqual(len(result.vonMises), points)
+        self.assertEqual(len(result.DisplacementVectors), points)
+        self.assertAlmostEqual(max(result.vonMises), max(vm), delta=1e-6 * max(vm))
+        largest = max(_norm(*d[3 * i:3 * i + 3]) for i in range(points))
+        self.assertAlmostEqual(max(v.Length for v in result.DisplacementVectors), largest, delta=1e-6 * largest)
+
     def test_estimate_matches_the_solver(self):
         a = self.make(Cells=CELLS)
         with open(os.path.join(self.tmp, "result.json")) as f:

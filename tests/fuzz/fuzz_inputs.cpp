@@ -28,6 +28,7 @@
 #include "common/error.h"
 #include "optimize_json.h"
 #include "part_json.h"
+#include "part_preflight.h"
 #include "revolution_json.h"
 #include "rod_json.h"
 #include "sections_json.h"
@@ -202,6 +203,7 @@ int run_case(const std::string& format, const std::string& text, const std::stri
     if (format == "step") {
       const std::string path = tmp + "/part.step";
       std::ofstream(path) << text;
+      preflight_part_read(path);  // as the CLI reads a part: a crashing OCCT is an input error
       inspect_part_json(path);
       return 0;
     }

@@ -204,6 +204,36 @@ class OutputFolder(unittest.TestCase):
             self.assertEqual(os.listdir(d), ["file"])  # nothing written beside
 
 
+class CorruptStep(unittest.TestCase):
+    """Two corruptions tests/fuzz/fuzz_inputs.cpp found crashing OCCT 7.6's STEP translator."""
+
+    def inspect(self, text):
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "part.step")
+            with open(path, "w") as f:
+                f.write(text)
+            p = subprocess.run([CLI, "inspect", path], capture_output=True, text=True, timeout=120)
+            return p.returncode, json.loads(p.stdout)
+
+    def test_missing_entity_is_refused_by_the_load_check(self):
+        with open(os.path.join(SAMPLES, "parts", "cylinder.step")) as f:
+            lines = [l for l in f.read().split("\n") if not l.startswith("#87 = ")]  # a LINE a pcurve needs
+        code, out = self.inspect("\n".join(lines))
+        self.assertEqual(code, 2, out)
+        self.assertIn("is not a valid STEP file", error_of(out))
+        self.assertIn("Unresolved Reference", error_of(out))
+
+    def test_reference_of_the_wrong_type_is_an_input_error_not_a_crash(self):
+        with open(os.path.join(SAMPLES, "parts", "cylinder.step")) as f:
+            text = f.read()
+        bad = "#86 = DEFINITIONAL_REPRESENTATION('',(#17),#91);"  # a pcurve pointing at a non-curve
+        text = text.replace("#86 = DEFINITIONAL_REPRESENTATION('',(#87),#91);", bad)
+        self.assertIn(bad, text)
+        code, out = self.inspect(text)
+        self.assertEqual(code, 2, out)
+        self.assertIn("crashes OpenCASCADE's reader", error_of(out))
+
+
 class Reference(unittest.TestCase):
     def test_json_reference_is_current(self):
         p = subprocess.run([CLI, "reference"], capture_output=True, text=True)

@@ -25,6 +25,7 @@
 #include "strip_stabilize_json.h"
 #include "rod_json.h"
 #include "output_files.h"
+#include "part_preflight.h"
 #include "request_schema.h"
 
 namespace {
@@ -178,6 +179,9 @@ int main(int argc, char** argv) {
     return fail(std::string("command line: ") + e.what() + " (see parafab --help)", "usage", 2);
   }
   try {
+    // Parts are read once in a child process first: OCCT crashing on a corrupt STEP file is then
+    // an input error (exit 2, JSON), not a segmentation fault.
+    if (*inspect || *integrate || *simulate || *optimize || *sections) parafab::entry::preflight_part_read(in_path);
     if (*reference) {
       const std::string md = parafab::entry::schema::reference_markdown();
       if (out_path.empty()) {

@@ -178,6 +178,12 @@ void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, co
   write_lines(f, disp.size(), [&](size_t i, Text& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
   f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
   write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
+  // The same fields under the names FreeCAD FEM's reader maps to a mechanical result object
+  // (Fem.readResult: "Displacement" -> DisplacementVectors, "von Mises Stress" -> vonMises).
+  f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"Displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  write_lines(f, disp.size(), [&](size_t i, Text& os) { os << disp[i].x() << ' ' << disp[i].y() << ' ' << disp[i].z() << '\n'; });
+  f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von Mises Stress\" format=\"ascii\">\n";
+  write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
   f << "</DataArray>\n</PointData>\n<CellData Scalars=\"face\">\n<DataArray type=\"Int32\" Name=\"face\" format=\"ascii\">\n";
   for (int fi : mesh.triangle_face) f << fi << '\n';
   f << "</DataArray>\n</CellData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
