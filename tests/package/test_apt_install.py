@@ -13,9 +13,12 @@ import glob
 import json
 import os
 import shutil
-import subprocess
 import tempfile
+import sys
 import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from test_package import run  # noqa: E402  (run a command, failing with its output)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, os.pardir, os.pardir))
@@ -23,14 +26,6 @@ BUILD = os.path.abspath(os.environ.get("PARAFAB_BUILD_DIR", os.path.join(REPO, "
 BUILD_CLI = os.environ.get("PARAFAB_CLI", os.path.join(BUILD, "workbench", "entry", "parafab"))
 STRIP_SAMPLE = os.path.join(REPO, "samples", "strips", "elliptic_arc.json")
 WB = "/usr/share/freecad/Mod/ParaFab"
-
-
-def run(cmd, env=None, cwd=None, timeout=300, check=True):
-    p = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True, timeout=timeout)
-    if check and p.returncode != 0:
-        raise AssertionError("%s exited with %d\nstdout:\n%s\nstderr:\n%s"
-                             % (" ".join(cmd), p.returncode, p.stdout[-3000:], p.stderr[-3000:]))
-    return p
 
 
 def installed():
@@ -56,12 +51,12 @@ class AptInstall(unittest.TestCase):
         if installed():  # a package left by an interrupted run of this test
             run(["apt-get", "purge", "-y", "parafab"], env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
         out = os.path.join(cls.tmp, "cpack")
-        run(["cpack", "-G", "DEB", "--config", os.path.join(BUILD, "CPackConfig.cmake"), "-B", out], cwd=cls.tmp)
+        run(["cpack", "-G", "DEB", "--config", os.path.join(BUILD, "CPackConfig.cmake"), "-B", out], cwd=cls.tmp, timeout=300)
         cls.deb = sorted(glob.glob(os.path.join(out, "parafab_*.deb")))[-1]
         cls.files = [line.split(None, 5)[5].split(" -> ")[0][1:]
                      for line in run(["dpkg-deb", "-c", cls.deb]).stdout.splitlines() if not line.startswith("d")]
         cls.install = run(["apt-get", "install", "-y", "--no-install-recommends", cls.deb],
-                          env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"), check=False)
+                          env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"), check=False, timeout=300)
         cls.reference = json.loads(run([BUILD_CLI, "strip", STRIP_SAMPLE]).stdout)
 
     @classmethod
