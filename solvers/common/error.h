@@ -14,6 +14,13 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// The caller stopped the run (a progress callback returned false): not an input error, though
+/// caught as one where that is all a caller distinguishes. Python: parafab.Cancelled.
+class Cancelled : public Error {
+ public:
+  using Error::Error;
+};
+
 namespace detail {
 [[noreturn]] inline void fail(const char* file, int line, const std::string& message) {
   std::ostringstream os;

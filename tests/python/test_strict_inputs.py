@@ -101,6 +101,17 @@ class UnknownKeys(unittest.TestCase):
             parafab.design_rod(dict(load("rods", "helix.json"), sampels=50))
         self.assertIn('sampels: unknown key in the rod request, did you mean "samples"?', str(e.exception))
 
+    def test_cancel_is_typed_and_callbacks_must_say_yes_or_no(self):
+        job = load("simulations", "l_bracket.json")
+        with self.assertRaises(parafab.Cancelled) as e:  # a parafab.Error, told apart by its type
+            parafab.simulate(BRACKET, job, progress=lambda phase, fraction: phase != "cut")
+        self.assertIsInstance(e.exception, parafab.Error)
+        self.assertIn("during cut", str(e.exception))
+        with self.assertRaises(parafab.Error) as e:
+            parafab.simulate(BRACKET, job, progress=lambda phase, fraction: "stop")
+        self.assertNotIsInstance(e.exception, parafab.Cancelled)
+        self.assertIn("the progress callback must return True, False or None, got 'stop'", str(e.exception))
+
     def test_every_sample_passes(self):
         # The samples hold every documented top-level key they use; a schema that forgot one
         # would refuse them here (and in the main job).

@@ -28,13 +28,21 @@ namespace py = pybind11;
 
 namespace {
 
+// What a Python progress callback returned: None or True go on, False stops; anything else
+// ("stop", 0) is an error naming it rather than a guess.
+bool keep_going_of(const py::object& r) {
+  if (r.is_none()) return true;
+  if (py::isinstance<py::bool_>(r)) return r.cast<bool>();
+  throw parafab::Error("the progress callback must return True, False or None, got " +
+                       py::repr(r).cast<std::string>());
+}
+
 // progress(phase, fraction) from Python; returning False cancels the run.
 parafab::entry::ProgressFn progress_function(const py::object& progress) {
   if (progress.is_none()) return {};
   return [progress](const char* phase, double fraction) {
     py::gil_scoped_acquire acquire;
-    const py::object keep_going = progress(phase, fraction);
-    return keep_going.is_none() || keep_going.cast<bool>();
+    return keep_going_of(progress(phase, fraction));
   };
 }
 // dict -> nlohmann::json through Python's own json module (exact for floats and ints): the
@@ -247,7 +255,9 @@ py::object to_python(parafab::entry::json_write::ColumnarResult&& r) {
 
 PYBIND11_MODULE(parafab, m) {
   m.doc() = "ParaFab: bending-active strips (thesis ch. 4); rods and X-CAD follow.";
-  py::register_exception<parafab::Error>(m, "Error", PyExc_ValueError);
+  const auto error = py::register_exception<parafab::Error>(m, "Error", PyExc_ValueError);
+  // Registered after Error, so tried first: a cancelled run is parafab.Cancelled (a parafab.Error).
+  py::register_exception<parafab::Cancelled>(m, "Cancelled", error.ptr());
   m.def(
       "strip_stability",
       [](const py::dict& request) {
@@ -418,7 +428,7 @@ PYBIND11_MODULE(parafab, m) {
       "simulate`); writes result.json, result.vtu and surface.vtu into out_dir when given. "
       "threads > 0 overrides the job's \"threads\" (default: all cores). "
       "progress(phase, fraction) is called at phase boundaries; returning False cancels the run "
-      "(parafab.Error 'simulation cancelled by the user').");
+      "(parafab.Cancelled, a parafab.Error: 'simulation cancelled by the user').");
   m.def(
       "optimize",
       [](const std::string& path, const py::dict& job, const std::string& out_dir, const py::object& progress) {
@@ -427,8 +437,7 @@ PYBIND11_MODULE(parafab, m) {
         if (!progress.is_none())
           report = [progress](const nlohmann::json& it) {
             py::gil_scoped_acquire acquire;
-            const py::object keep_going = progress(to_python(it));
-            return keep_going.is_none() || keep_going.cast<bool>();
+            return keep_going_of(progress(to_python(it)));
           };
         // Ctrl-C in Python (SIGINT, seen by PyErr_CheckSignals in the main thread) interrupts the
         // run as the callback's False does; once the files are written, KeyboardInterrupt is raised.

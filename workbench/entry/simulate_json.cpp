@@ -479,7 +479,8 @@ void SimulationSession::refuse_if_too_big() const {
 
 json SimulationSession::run(const std::string& out_dir, const ProgressFn& progress) {
   auto report = [&](const char* phase, double fraction) {
-    if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
+    if (progress && !progress(phase, fraction))
+      throw Cancelled("simulation cancelled by the user (during " + std::string(phase) + ")");
   };
   if (!out_dir.empty()) require_writable_folder(out_dir);  // before the work, not after it
   refuse_if_too_big();
@@ -571,7 +572,8 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
 
 json SimulationSession::update(const std::string& new_part_path, const std::string& out_dir, const ProgressFn& progress) {
   auto report = [&](const char* phase, double fraction) {
-    if (progress && !progress(phase, fraction)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during " << phase << ")");
+    if (progress && !progress(phase, fraction))
+      throw Cancelled("simulation cancelled by the user (during " + std::string(phase) + ")");
   };
   if (!model_) return run(out_dir, progress);
   if (!out_dir.empty()) require_writable_folder(out_dir);
@@ -926,7 +928,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
 
 json simulate_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
                         const ProgressFn& progress) {
-  if (progress && !progress("read", 0.0)) PARAFAB_INPUT_ERROR("simulation cancelled by the user (during read)");
+  if (progress && !progress("read", 0.0)) throw Cancelled("simulation cancelled by the user (during read)");
   SimulationSession session(part_path, job);
   return session.run(out_dir, progress);
 }
