@@ -25,6 +25,11 @@ from parafab_wb import analysis_feature  # noqa: E402
 from parafab_wb import cli_runner  # noqa: E402
 from PySide import QtCore  # noqa: E402
 
+#: GUI modules loaded by importing the feature and its run object (FreeCAD imports the feature
+#: module to restore documents, also headless: none may be needed).
+_GUI_MODULES_AT_IMPORT = sorted(m for m in sys.modules if m.split(".")[0] == "FreeCADGui"
+                                or m.split(".")[-1] in ("QtGui", "QtWidgets"))
+
 #: Grid of the display/cancel tests: small, so the suite stays fast.
 CELLS = 10
 
@@ -269,6 +274,15 @@ class AnalysisFeatureTest(unittest.TestCase):
         self.assertEqual(outcome.state, cli_runner.ERROR)
         self.assertIn("Face99", outcome.message)
         self.assertEqual(_snapshot(self.doc, self.tmp), before)
+
+    def test_feature_and_run_object_load_without_gui(self):
+        self.assertFalse(FreeCAD.GuiUp)
+        self.assertEqual(_GUI_MODULES_AT_IMPORT, [])
+        # Documents saved before the view provider moved to analysis_view name it by its old path.
+        from parafab_wb import analysis_view
+        self.assertIs(analysis_feature.ViewProviderAnalysis, analysis_view.ViewProviderAnalysis)
+        with self.assertRaises(AttributeError):
+            analysis_feature.NoSuchName
 
     def test_find_cli(self):
         old = os.environ.get("PARAFAB_CLI")

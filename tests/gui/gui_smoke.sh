@@ -6,7 +6,7 @@
 # Installs the workbench (tests/freecad/install_wb.sh) into a throw-away HOME,
 # runs FreeCAD on gui_smoke_macro.py under xvfb-run and checks the status
 # file written by the macro (also runs "Plot strip profile").  Artifacts (status.json, strip.png, analysis.png, analysis_panel.png,
-# optimize_panel_open.png, optimize_panel.png, optimize.png, optimize_out/, gui_smoke.FCStd, gui_smoke_analysis.FCStd, analysis_out/, freecad.log) go to
+# optimize_panel_open.png, optimize_panel.png, optimize.png, optimize_out/, gui_smoke.FCStd, gui_smoke_analysis.FCStd, gui_smoke_analysis_legacy.FCStd, analysis_out/, freecad.log) go to
 # $PARAFAB_ARTIFACT_DIR
 # (default: BUILD_DIR/gui-artifacts).  Timeout: $PARAFAB_GUI_TIMEOUT
 # seconds (default 180).  Exits non-zero on failure or timeout.
@@ -20,7 +20,7 @@ artifacts=${PARAFAB_ARTIFACT_DIR:-$build_dir/gui-artifacts}
 mkdir -p "$artifacts"
 artifacts=$(cd "$artifacts" && pwd)
 rm -rf "$artifacts/status.json" "$artifacts/strip.png" "$artifacts/gui_smoke.FCStd" \
-       "$artifacts/analysis.png" "$artifacts/analysis_panel.png" "$artifacts/gui_smoke_analysis.FCStd" "$artifacts/analysis_out" \
+       "$artifacts/analysis.png" "$artifacts/analysis_panel.png" "$artifacts/gui_smoke_analysis.FCStd" "$artifacts/gui_smoke_analysis_legacy.FCStd" "$artifacts/analysis_out" \
        "$artifacts/optimize_panel.png" "$artifacts/optimize_panel_open.png" "$artifacts/optimize.png" "$artifacts/optimize_out"
 
 tmp_home=$(mktemp -d "${TMPDIR:-/tmp}/parafab_gui_home.XXXXXX")

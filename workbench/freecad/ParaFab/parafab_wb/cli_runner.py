@@ -1,14 +1,20 @@
-"""Run ``parafab simulate`` in a separate process (QProcess) for the task panel.
+"""Run the ``parafab`` CLI in a separate process (QProcess): the run objects of the task panels.
 
 * :func:`find_cli` locates the ``parafab`` executable: ``$PARAFAB_CLI``, then beside the
   installed ``parafab`` Python module, then in the workbench folder, then on ``PATH``.
-* :class:`SimulationProcess` runs ``parafab simulate PART JOB -o OUTDIR --progress``, turns
-  the JSON lines on stderr into ``progress(phase, fraction)`` signals and the end of the process
-  into one ``done(Outcome)`` signal: solved (the result JSON from stdout), error (the CLI's JSON
-  error, exit status 2, or a crash) or cancelled (:meth:`SimulationProcess.cancel` kills it).
-* :class:`AnalysisRun` prepares the files for an ``Analysis`` feature and records the outcome
-  in it with :func:`analysis_feature.apply_run`: only a solved run changes the document.
+* :class:`CliProcess` runs ``parafab SUBCOMMAND PART JOB -o OUTDIR --progress``, turns the JSON
+  lines on stderr into ``progress(phase, fraction)`` signals and the end of the process into one
+  ``done(Outcome)`` signal: solved (the result JSON from stdout), error (the CLI's JSON error,
+  exit status 2, or a crash) or cancelled (:meth:`CliProcess.cancel`). A subcommand overrides
+  what differs: :class:`SimulationProcess` (``simulate``: cancel kills it) here,
+  ``optimize_runner.OptimizeProcess`` (``optimize``: cancel asks it to stop with SIGTERM).
+* :class:`CliRun` is one run for a task panel: it writes the part and job files
+  (:meth:`CliRun.prepare`), starts the process and records the outcome (:meth:`CliRun.record`)
+  before it re-emits ``done``. :class:`AnalysisRun` here runs an ``Analysis`` feature's inputs
+  and records them with :func:`analysis_job.apply_run` (only a solved run changes the document);
+  ``optimize_runner.OptimizeRun`` adds the optimized solid.
 
+Outcomes are :class:`outcome.Outcome` (re-exported here with SOLVED, ERROR and CANCELLED).
 Only ``QtCore`` is used, so this works in ``freecadcmd`` too (with a ``QCoreApplication``).
 """
 
@@ -19,10 +25,11 @@ import tempfile
 
 from PySide import QtCore
 
-from . import analysis_feature
+from . import analysis_job
+from .outcome import CANCELLED, ERROR, SOLVED, Outcome  # noqa: F401  (re-exported)
 
 CLI_NAME = "parafab"
-SOLVED, ERROR, CANCELLED = "solved", "error", analysis_feature.CANCELLED
+NOT_FOUND = "the parafab executable was not found (set PARAFAB_CLI, or install it beside the workbench)"
 
 
 def _executable(path):
@@ -48,18 +55,6 @@ def find_cli():
         if _executable(path):
             return path
     return shutil.which(CLI_NAME)
-
-
-class Outcome(object):
-    """How a run ended: ``state`` is SOLVED, ERROR or CANCELLED."""
-
-    def __init__(self, state, result=None, message=""):
-        self.state = state
-        self.result = result
-        self.message = message
-
-    def __repr__(self):
-        return "Outcome(%r, %r)" % (self.state, self.message)
 
 
 def parse_progress(line):
@@ -88,18 +83,20 @@ def parse_output(exit_code, stdout):
     return Outcome(ERROR, message="parafab exited with status %d%s" % (exit_code, (": " + text[-500:]) if text else ""))
 
 
-class SimulationProcess(QtCore.QObject):
-    """One ``parafab simulate --progress`` process."""
+class CliProcess(QtCore.QObject):
+    """One ``parafab SUBCOMMAND PART JOB -o OUTDIR --progress`` process; subclasses set the
+    subcommand and override what differs (:meth:`cancel`, :meth:`parse_progress`,
+    :meth:`cancelled_outcome`)."""
 
     progress = QtCore.Signal(str, float)
     done = QtCore.Signal(object)
 
-    #: The subcommand run and the text of a cancelled run (subclasses run other subcommands).
-    SUBCOMMAND = "simulate"
-    CANCEL_MESSAGE = "simulation cancelled by the user"
+    #: The subcommand run and the text of a cancelled run.
+    SUBCOMMAND = ""
+    CANCEL_MESSAGE = "cancelled by the user"
 
     def __init__(self, parent=None):
-        super(SimulationProcess, self).__init__(parent)
+        super(CliProcess, self).__init__(parent)
         self.process = None
         self.cancelled = False
         self.finished = False
@@ -116,6 +113,11 @@ class SimulationProcess(QtCore.QObject):
 
     def running(self):
         return self.process is not None and self.process.state() != QtCore.QProcess.NotRunning
+
+    def wait(self, msecs):
+        """Block until the process has ended (at most ``msecs``)."""
+        if self.process is not None:
+            self.process.waitForFinished(msecs)
 
     def cancel(self):
         """Kill the process; ``done`` then reports CANCELLED."""
@@ -166,48 +168,58 @@ class SimulationProcess(QtCore.QObject):
         self.done.emit(outcome)
 
 
-class AnalysisRun(QtCore.QObject):
-    """Run ``inputs`` of an ``Analysis`` feature through the CLI and record the outcome.
+class SimulationProcess(CliProcess):
+    """One ``parafab simulate --progress`` process (cancel kills it)."""
 
-    ``progress(phase, fraction)`` and ``done(Outcome)`` are re-emitted from the process; when
-    ``done`` fires, the outcome has already been stored by :func:`analysis_feature.apply_run`.
+    SUBCOMMAND = "simulate"
+    CANCEL_MESSAGE = "simulation cancelled by the user"
+
+
+class CliRun(QtCore.QObject):
+    """One run of the CLI for a task panel: :meth:`prepare` the files, run :meth:`make_process`,
+    :meth:`record` the outcome (then ``outcome`` is set and ``done(Outcome)`` emitted).
+
+    ``progress(phase, fraction)`` is re-emitted from the process. Errors before the process
+    starts (no CLI, bad input) end the run at once with ERROR. Subclasses implement
+    :meth:`prepare` and override :meth:`make_process` and :meth:`record`.
     """
 
     progress = QtCore.Signal(str, float)
     done = QtCore.Signal(object)
 
-    def __init__(self, analysis, inputs, cli=None, parent=None):
-        super(AnalysisRun, self).__init__(parent)
-        self.analysis = analysis
-        self.inputs = dict(inputs)
+    def __init__(self, cli=None, parent=None):
+        super(CliRun, self).__init__(parent)
         self.cli = cli or find_cli()
-        self.out_dir = analysis_feature.output_dir(analysis, self.inputs)
         self.process = None
         self.outcome = None
-        self._tmp = None
+
+    def prepare(self):
+        """Check the inputs and write the files; returns ``(part, job, job_path, out_dir)``
+        (``job``: the job as a dict). Raises on bad input."""
+        raise NotImplementedError
+
+    def make_process(self, job):
+        """The :class:`CliProcess` that runs ``job``."""
+        return SimulationProcess(self)
+
+    def record(self, outcome):
+        """Put ``outcome`` into the document; returns the outcome to report (ERROR when
+        recording failed)."""
+        return outcome
 
     def start(self):
-        """Check the inputs, write the part and job files, start the CLI. Input errors end the
-        run at once (``done`` with ERROR)."""
+        """Prepare and start the CLI; ``done`` is emitted when the run has ended."""
         try:
             if not self.cli:
-                raise analysis_feature.AnalysisError(
-                    "the parafab executable was not found (set PARAFAB_CLI, or install it beside the workbench)")
-            job = analysis_feature.job_from_inputs(self.analysis.Part, self.inputs)
-            os.makedirs(self.out_dir, exist_ok=True)
-            self._tmp = tempfile.mkdtemp(prefix="parafab_run_")
-            part = os.path.join(self._tmp, "part.brep")
-            self.analysis.Part.Shape.exportBrep(part)
-            job_path = os.path.join(self._tmp, "job.json")
-            with open(job_path, "w") as f:
-                json.dump(job, f, indent=1)
+                raise RuntimeError(NOT_FOUND)
+            part, job, job_path, out_dir = self.prepare()
         except Exception as exc:
             self._done(Outcome(ERROR, message=str(exc) or type(exc).__name__))
             return
-        self.process = SimulationProcess(self)
+        self.process = self.make_process(job)
         self.process.progress.connect(self.progress)
         self.process.done.connect(self._done)
-        self.process.start(self.cli, part, job_path, self.out_dir)
+        self.process.start(self.cli, part, job_path, out_dir)
 
     def running(self):
         return self.process is not None and self.process.running()
@@ -216,23 +228,60 @@ class AnalysisRun(QtCore.QObject):
         if self.process is not None:
             self.process.cancel()
 
+    def wait(self, msecs):
+        """Block until the process has ended (at most ``msecs``); its ``done`` comes with the
+        next event processing."""
+        if self.process is not None:
+            self.process.wait(msecs)
+
+    def cleanup(self):
+        """Remove temporary files (called once the run has ended)."""
+
     def _done(self, outcome):
+        self.cleanup()
+        self.outcome = self.record(outcome)
+        self.done.emit(self.outcome)
+
+
+class AnalysisRun(CliRun):
+    """Run ``inputs`` of an ``Analysis`` feature through ``parafab simulate`` and record the
+    outcome: when ``done`` fires, it has been stored by :func:`analysis_job.apply_run`."""
+
+    def __init__(self, analysis, inputs, cli=None, parent=None):
+        super(AnalysisRun, self).__init__(cli, parent)
+        self.analysis = analysis
+        self.inputs = dict(inputs)
+        self.out_dir = analysis_job.output_dir(analysis, self.inputs)
+        self._tmp = None
+
+    def prepare(self):
+        job = analysis_job.job_from_inputs(self.analysis.Part, self.inputs)
+        os.makedirs(self.out_dir, exist_ok=True)
+        self._tmp = tempfile.mkdtemp(prefix="parafab_run_")
+        part = os.path.join(self._tmp, "part.brep")
+        self.analysis.Part.Shape.exportBrep(part)
+        job_path = os.path.join(self._tmp, "job.json")
+        with open(job_path, "w") as f:
+            json.dump(job, f, indent=1)
+        return part, job, job_path, self.out_dir
+
+    def cleanup(self):
         if self._tmp:
             shutil.rmtree(self._tmp, ignore_errors=True)
             self._tmp = None
+
+    def record(self, outcome):
         try:
-            analysis_feature.apply_run(self.analysis, self.inputs, outcome.state, outcome.result,
-                                       self.out_dir, outcome.message)
+            analysis_job.apply_run(self.analysis, self.inputs, outcome, self.out_dir)
         except Exception as exc:  # e.g. a malformed surface.vtu
             outcome = Outcome(ERROR, result=outcome.result, message="cannot show the result: %s" % exc)
-            analysis_feature.apply_run(self.analysis, self.inputs, ERROR, message=outcome.message)
-        self.outcome = outcome
-        self.done.emit(outcome)
+            analysis_job.apply_run(self.analysis, self.inputs, outcome)
+        return outcome
 
 
 def run_blocking(run, timeout_ms=300000, on_progress=None):
-    """Start ``run`` (an :class:`AnalysisRun`) and wait in a local event loop until it ends;
-    returns its Outcome (for scripts and tests)."""
+    """Start ``run`` (a :class:`CliRun`) and wait in a local event loop until it ends; returns
+    its Outcome (for scripts and tests; ``None`` after ``timeout_ms``, the run then cancelled)."""
     loop = QtCore.QEventLoop()
     run.done.connect(lambda outcome: loop.quit())
     if on_progress is not None:
@@ -242,6 +291,5 @@ def run_blocking(run, timeout_ms=300000, on_progress=None):
     loop.exec_()
     if run.outcome is None:
         run.cancel()
-        if run.process is not None and run.process.process is not None:
-            run.process.process.waitForFinished(5000)
+        run.wait(5000)
     return run.outcome

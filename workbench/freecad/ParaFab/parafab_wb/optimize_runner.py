@@ -1,7 +1,8 @@
 """Run ``parafab optimize`` in a separate process (QProcess) for the "Optimize shape" panel.
 
-:class:`OptimizeRun` writes the part and job (:func:`optimize_feature.prepare`), runs
-``parafab optimize PART JOB -o OUTDIR --progress`` (:class:`OptimizeProcess`; one JSON line
+The subcommand-specific parts of the run objects of :mod:`parafab_wb.cli_runner`:
+:class:`OptimizeRun` (a ``cli_runner.CliRun``) writes the part and job (:func:`optimize_feature.prepare`), runs
+``parafab optimize PART JOB -o OUTDIR --progress`` (:class:`OptimizeProcess`, a ``cli_runner.CliProcess``; one JSON line
 ``{"progress": {iteration, objective, ...}}`` per iterate on stderr), and when the process ends
 adds the optimized solid beside the original (:func:`optimize_feature.add_result`). Cancel sends
 SIGTERM: the CLI stops at its next evaluation and writes its best valid iterate so far into the
@@ -22,7 +23,7 @@ from . import optimize_feature
 SOLVED, ERROR, CANCELLED = cli_runner.SOLVED, cli_runner.ERROR, cli_runner.CANCELLED
 
 
-class OptimizeProcess(cli_runner.SimulationProcess):
+class OptimizeProcess(cli_runner.CliProcess):
     """One ``parafab optimize --progress`` process; ``iterate(dict)`` per optimizer iterate."""
 
     SUBCOMMAND = "optimize"
@@ -50,7 +51,8 @@ class OptimizeProcess(cli_runner.SimulationProcess):
             history = json.loads(stdout)
         except ValueError:
             history = None
-        if isinstance(history, dict) and history.get("status") == "interrupted" and history.get("optimized_step"):
+        if isinstance(history, dict) and history.get("status") == optimize_feature.INTERRUPTED \
+                and history.get("optimized_step"):
             return cli_runner.Outcome(
                 CANCELLED, result=history,
                 message="%s after %d iterates; the best valid one so far is %s (not added)"
@@ -75,50 +77,32 @@ class OptimizeProcess(cli_runner.SimulationProcess):
         return "iteration %d: objective %.4g" % (k, f), min(1.0, k / float(self.max_iterations))
 
 
-class OptimizeRun(QtCore.QObject):
+class OptimizeRun(cli_runner.CliRun):
     """Optimize ``obj`` with panel ``options`` through the CLI; on success ``result_object`` is
-    the new solid and ``history`` the run's history."""
+    the new solid and ``history`` the run's history. ``iterate(dict)`` per optimizer iterate."""
 
-    progress = QtCore.Signal(str, float)
     iterate = QtCore.Signal(object)
-    done = QtCore.Signal(object)
 
     def __init__(self, obj, options, out_dir=None, cli=None, parent=None):
-        super(OptimizeRun, self).__init__(parent)
+        super(OptimizeRun, self).__init__(cli, parent)
         self.obj = obj
         self.options = dict(options)
         self.out_dir = out_dir
-        self.cli = cli or cli_runner.find_cli()
-        self.process = None
-        self.outcome = None
         self.history = None
         self.result_object = None
         self._placement = None
 
-    def start(self):
-        try:
-            if not self.cli:
-                raise optimize_feature.OptimizeError(
-                    "the parafab executable was not found (set PARAFAB_CLI, or install it beside the workbench)")
-            part, job, job_path, self.out_dir, self._placement = optimize_feature.prepare(
-                self.obj, self.options, self.out_dir)
-        except Exception as exc:
-            self._done(cli_runner.Outcome(ERROR, message=str(exc) or type(exc).__name__))
-            return
-        self.process = OptimizeProcess(job.get("max_iterations", 20), self)
-        self.process.progress.connect(self.progress)
-        self.process.iterate.connect(self.iterate)
-        self.process.done.connect(self._done)
-        self.process.start(self.cli, part, job_path, self.out_dir)
+    def prepare(self):
+        part, job, job_path, self.out_dir, self._placement = optimize_feature.prepare(
+            self.obj, self.options, self.out_dir)
+        return part, job, job_path, self.out_dir
 
-    def running(self):
-        return self.process is not None and self.process.running()
+    def make_process(self, job):
+        process = OptimizeProcess(job.get("max_iterations", 20), self)
+        process.iterate.connect(self.iterate)
+        return process
 
-    def cancel(self):
-        if self.process is not None:
-            self.process.cancel()
-
-    def _done(self, outcome):
+    def record(self, outcome):
         if outcome.state == SOLVED:
             self.history = outcome.result
             try:
@@ -126,8 +110,7 @@ class OptimizeRun(QtCore.QObject):
                                                                  self._placement)
             except Exception as exc:
                 outcome = cli_runner.Outcome(ERROR, result=outcome.result, message=str(exc))
-        self.outcome = outcome
-        self.done.emit(outcome)
+        return outcome
 
 
 def run_blocking(run, timeout_ms=300000, on_progress=None):
