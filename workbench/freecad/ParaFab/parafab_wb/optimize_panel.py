@@ -10,10 +10,11 @@ supports and loads (their faces stay fixed unless a checked parameter is on one:
 start mass density × ``Shape.Volume`` shown beside them, crossing bounds or a bound without a
 density named in the panel). **Run** runs ``parafab optimize``
 in a QProcess (:class:`optimize_runner.OptimizeRun`): the progress bar follows its iterates,
-**Cancel run** kills it and leaves the document as it was. A finished run adds
+**Cancel run** stops it (SIGTERM: the CLI writes its best iterate so far, not added) and leaves the
+document as it was. A finished run adds
 ``<Label>_optimized`` beside the original and shows the objective before → after, the parameter
 changes and the history chart (``history.png``). **OK** keeps the results, **Cancel** removes
-them (one undo transaction).
+them (one undo transaction). Running, cancelling and closing are :class:`task_panel.RunTaskPanel`'s.
 
 GUI only: imported by the command.
 """
@@ -22,12 +23,10 @@ import FreeCAD
 import FreeCADGui
 from PySide import QtCore, QtGui
 
-from . import analysis_panel
-from . import icon_path
 from . import optimize_feature
 from . import optimize_runner
-
-_active = None
+from . import task_panel
+from .task_panel import FaceList, selected_faces, spin as _spin, wrapped as _wrapped
 
 BOUND_TOOLTIP = ("Absolute bound of a checked parameter (double-click to edit; empty: none), e.g. a "
                  "minimum hole radius or wall position. Offsets and axis points are in the solid's own "
@@ -42,34 +41,17 @@ def short_label(objective):
 
 def active_panel():
     """The open :class:`OptimizeTaskPanel`, or ``None``."""
-    return _active
+    return OptimizeTaskPanel.active()
 
 
 def open_panel(obj, faces=()):
     """Show the panel for solid ``obj``; ``faces`` (``FaceN``) start checked. Returns the panel."""
-    global _active
-    if FreeCADGui.Control.activeDialog():
-        FreeCADGui.Control.closeDialog()
-    _active = OptimizeTaskPanel(obj, faces)
-    FreeCADGui.Control.showDialog(_active)
-    return _active
+    return OptimizeTaskPanel.show(obj, faces)
 
 
 #: Largest coordinate [mm] and force [N] the spin boxes take (their width follows the widest value).
 COORDINATE_RANGE = 1e6
 FORCE_RANGE = 1e7
-
-
-def _spin(lo, hi, value, decimals=3, suffix="", prefix=""):
-    box = QtGui.QDoubleSpinBox()
-    box.setRange(lo, hi)
-    box.setDecimals(decimals)
-    box.setValue(value)
-    if suffix:
-        box.setSuffix(suffix)
-    if prefix:
-        box.setPrefix(prefix)
-    return box
 
 
 def _combo(min_chars=10):
@@ -95,14 +77,6 @@ def _form():
     form.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)
     form.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
     return form
-
-
-def _wrapped(text, tooltip=""):
-    label = QtGui.QLabel(text)
-    label.setWordWrap(True)
-    if tooltip:
-        label.setToolTip(tooltip)
-    return label
 
 
 class Section(QtGui.QWidget):
@@ -162,6 +136,16 @@ class Section(QtGui.QWidget):
         return form
 
 
+def _bound_row(form, label, hi, decimals, suffix, tooltip):
+    """A spin box from 0 ("no bound") to ``hi`` under ``label``, its own row of ``form``."""
+    box = _spin(0.0, hi, 0.0, decimals, suffix)
+    box.setSpecialValueText("no bound")
+    box.setToolTip(tooltip)
+    form.addRow(QtGui.QLabel(label))
+    form.addRow(box)
+    return box
+
+
 def _group(title):
     """A titled box inside a section (draft, pattern, mirror, ...); returns it and its layout."""
     group = QtGui.QGroupBox(title)
@@ -170,19 +154,17 @@ def _group(title):
     return group, lay
 
 
-class OptimizeTaskPanel(object):
+class OptimizeTaskPanel(task_panel.RunTaskPanel):
     """The task dialog (``form`` + accept/reject) for optimizing one solid."""
 
+    TITLE = "Optimize shape"
+    ICON = "ParaFab_OptimizeShape.svg"
+    TRANSACTION = "Optimize shape"
+    PROGRESS_FORMAT = "%s  %%p%%"
+
     def __init__(self, obj, faces=()):
-        self.obj = obj
-        self.doc = obj.Document
-        self.run = None
-        self.outcome = None
+        super(OptimizeTaskPanel, self).__init__(obj)
         self.results = []
-        self._own_transaction = False
-        if not self.doc.HasPendingTransaction:
-            self.doc.openTransaction("Optimize shape")
-            self._own_transaction = True
         try:
             self.model = optimize_feature.face_model(obj)
             model_error = ""
@@ -191,9 +173,7 @@ class OptimizeTaskPanel(object):
             model_error = str(exc)
         vobj = getattr(obj, "ViewObject", None)
         self._transparency = vobj.Transparency if vobj is not None else 0
-        self.form = self._build()
-        self.form.setWindowTitle("Optimize shape")
-        self.form.setWindowIcon(QtGui.QIcon(icon_path("ParaFab_OptimizeShape.svg")))
+        self.form = self.set_window(self._build())
         if not self.check_faces(list(faces)):
             self.auto.setChecked(True)  # nothing picked: a default that runs as it is
         if model_error:
@@ -261,7 +241,7 @@ class OptimizeTaskPanel(object):
         lay.addWidget(self.tree)
         pick = QtGui.QPushButton("Check selected faces")
         pick.setToolTip("Check the offset/radius of the faces selected in the 3D view")
-        pick.clicked.connect(lambda: self.check_faces(analysis_panel.selected_faces([self.obj])))
+        pick.clicked.connect(lambda: self.check_faces(selected_faces([self.obj])))
         lay.addWidget(pick)
         self.auto.toggled.connect(self.tree.setDisabled)
         self.auto.toggled.connect(lambda *args: self.update_summaries())
@@ -269,8 +249,8 @@ class OptimizeTaskPanel(object):
         loads, loads_lay = _group("Supports and loads")
         loads_lay.addWidget(_wrapped("Fixed faces, unless a checked parameter is on one (then it moves with its "
                                      "face). Objectives with a material need both."))
-        self.supports = analysis_panel.FaceList("Supports (fixed faces)", [], [self.obj])
-        self.loads = analysis_panel.FaceList("Loaded faces", [], [self.obj])
+        self.supports = FaceList("Supports (fixed faces)", [], [self.obj])
+        self.loads = FaceList("Loaded faces", [], [self.obj])
         loads_lay.addWidget(self.supports)
         loads_lay.addWidget(self.loads)
         force = _form()
@@ -336,30 +316,14 @@ class OptimizeTaskPanel(object):
         bounds, bounds_lay = _group("Volume and mass")
         grid = _form()
         bounds_lay.addLayout(grid)
-        self.volume_ratio = _spin(0.0, 10.0, 0.0, 3)
-        self.volume_ratio.setSpecialValueText("no bound")
-        self.volume_ratio.setToolTip("Volume at most this times the original's (0: no bound); the job's "
-                                     "{\"type\": \"volume\", \"max_ratio\"}")
-        grid.addRow(QtGui.QLabel("Max volume ratio"))
-        grid.addRow(self.volume_ratio)
-        self.min_volume_ratio = _spin(0.0, 10.0, 0.0, 3)
-        self.min_volume_ratio.setSpecialValueText("no bound")
-        self.min_volume_ratio.setToolTip("Volume at least this times the original's (0: no bound); the job's "
-                                         "{\"type\": \"volume\", \"min_ratio\"}")
-        grid.addRow(QtGui.QLabel("Min volume ratio"))
-        grid.addRow(self.min_volume_ratio)
+        self.volume_ratio = _bound_row(grid, "Max volume ratio", 10.0, 3, "", "Volume at most this times the "
+                                       "original's (0: no bound); the job's {\"type\": \"volume\", \"max_ratio\"}")
+        self.min_volume_ratio = _bound_row(grid, "Min volume ratio", 10.0, 3, "", "Volume at least this times the "
+                                           "original's (0: no bound); the job's {\"type\": \"volume\", \"min_ratio\"}")
         mass_tip = ("%s mass of the optimized solid in kg: density (Objective, kg/m³) × 1e-9 × volume (mm³); "
                     "0: no bound. Sent as the job's {\"type\": \"mass\"} constraint with the density in kg/mm³")
-        self.max_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
-        self.max_mass.setSpecialValueText("no bound")
-        self.max_mass.setToolTip(mass_tip % "Largest")
-        grid.addRow(QtGui.QLabel("Max mass"))
-        grid.addRow(self.max_mass)
-        self.min_mass = _spin(0.0, 1e9, 0.0, 6, " kg")
-        self.min_mass.setSpecialValueText("no bound")
-        self.min_mass.setToolTip(mass_tip % "Smallest")
-        grid.addRow(QtGui.QLabel("Min mass"))
-        grid.addRow(self.min_mass)
+        self.max_mass = _bound_row(grid, "Max mass", 1e9, 6, " kg", mass_tip % "Largest")
+        self.min_mass = _bound_row(grid, "Min mass", 1e9, 6, " kg", mass_tip % "Smallest")
         self.start_mass = _wrapped("", "The original's mass: what the mass bounds are compared with at the start")
         grid.addRow("Start mass", self.start_mass)
         self.mass_message = _wrapped("")
@@ -374,7 +338,7 @@ class OptimizeTaskPanel(object):
         draft, draft_lay = _group("Draft")
         draft_lay.addWidget(_wrapped("Walls stay parallel to the pull direction (undercut-free for casting or "
                                      "moulding along it)."))
-        self.draft_faces = analysis_panel.FaceList("Draft faces (planes, cylinders, cones)", [], [self.obj])
+        self.draft_faces = FaceList("Draft faces (planes, cylinders, cones)", [], [self.obj])
         self.draft_faces.setToolTip("Planar faces whose normal stays orthogonal to the pull direction, cylinders "
                                     "and cones whose axis stays parallel to it (undercut-free for casting or "
                                     "moulding along it)")
@@ -412,20 +376,7 @@ class OptimizeTaskPanel(object):
         self.output_dir.setToolTip("Folder of job.json, optimized.step, history.json and the charts (empty: %s)"
                                    % optimize_feature.default_output_dir(self.obj))
         lay.addWidget(self.output_dir)
-        buttons = QtGui.QHBoxLayout()
-        self.run_button = QtGui.QPushButton("Run")
-        self.cancel_button = QtGui.QPushButton("Cancel run")
-        self.cancel_button.setEnabled(False)
-        buttons.addWidget(self.run_button)
-        buttons.addWidget(self.cancel_button)
-        lay.addLayout(buttons)
-        self.progress = QtGui.QProgressBar()
-        self.progress.setRange(0, 100)
-        self.progress.setValue(0)
-        lay.addWidget(self.progress)
-        self.status = _wrapped("Not run yet")
-        self.status.setTextInteractionFlags(QtCore.Qt.TextSelectableByMouse)
-        lay.addWidget(self.status)
+        self.add_run_widgets(lay)
         self.changes = QtGui.QListWidget()
         self.changes.setMaximumHeight(90)
         self.changes.setToolTip("Design parameters: initial -> final")
@@ -444,8 +395,6 @@ class OptimizeTaskPanel(object):
         self.open_chart.setEnabled(False)
         self.open_chart.clicked.connect(self.show_chart)
         lay.addWidget(self.open_chart)
-        self.run_button.clicked.connect(self.start_run)
-        self.cancel_button.clicked.connect(self.cancel_run)
 
     def update_summaries(self):
         """The one-line summaries the folded sections show."""
@@ -523,7 +472,7 @@ class OptimizeTaskPanel(object):
     def use_selected_target(self):
         """The first face selected in the 3D view on the solid becomes the matched face; returns
         its name or ``None``."""
-        for name in analysis_panel.selected_faces([self.obj]):
+        for name in selected_faces([self.obj]):
             if self.set_target_face(name):
                 return name
         FreeCAD.Console.PrintWarning("ParaFab: select the matched face of %s in the 3D view first\n" % self.obj.Label)
@@ -594,7 +543,7 @@ class OptimizeTaskPanel(object):
         ``layout``; returns the face list and the two rows of spin boxes."""
         group, lay = _group(title)
         lay.addWidget(_wrapped(text))
-        faces = analysis_panel.FaceList(faces_label, [], [self.obj])
+        faces = FaceList(faces_label, [], [self.obj])
         faces.setToolTip(tooltip)
         lay.addWidget(faces)
         rows = _form()
@@ -633,45 +582,16 @@ class OptimizeTaskPanel(object):
 
     # -- running -----------------------------------------------------------------------------
 
-    def start_run(self):
-        if self.running():
-            return False
-        problem = self.mass_problem()
-        if problem:
-            self.status.setText("Not run: %s" % problem)
-            return False
-        self.outcome = None
-        self.progress.setValue(0)
-        self.progress.setFormat("starting %p%")
-        self.status.setText("Running…")
-        self.run_button.setEnabled(False)
-        self.cancel_button.setEnabled(True)
-        self.run = optimize_runner.OptimizeRun(self.obj, self.options(), self.output_dir.text().strip() or None)
-        self.run.progress.connect(self._progress)
-        self.run.done.connect(self._done)
-        self.run.start()
-        return True
+    def run_problem(self):
+        return self.mass_problem()
 
-    def cancel_run(self):
-        if self.run is not None:
-            self.run.cancel()
+    def make_run(self):
+        return optimize_runner.OptimizeRun(self.obj, self.options(), self.output_dir.text().strip() or None)
 
-    def running(self):
-        return self.run is not None and self.run.running()
-
-    def _progress(self, phase, fraction):
-        self.progress.setValue(int(round(100 * fraction)))
-        self.progress.setFormat("%s  %%p%%" % phase)
-
-    def _done(self, outcome):
-        self.outcome = outcome
-        self.run_button.setEnabled(True)
-        self.cancel_button.setEnabled(False)
+    def show_outcome(self, outcome):
         if outcome.state == optimize_runner.SOLVED:
             new = self.run.result_object
             self.results.append(new)
-            self.progress.setValue(100)
-            self.progress.setFormat("done")
             extra = "".join("; " + text for text in (optimize_feature.target_summary(new),
                                                      optimize_feature.mass_summary(new)) if text)
             self.status.setText("%s added: %s; volume × %.4f%s; written to %s" % (
@@ -682,11 +602,8 @@ class OptimizeTaskPanel(object):
             self._show(self.before_after, new.BeforeAfterChart, new.HistoryFile)
             self.open_chart.setEnabled(True)
         else:
-            self.progress.setValue(0)
-            self.progress.setFormat("cancelled" if outcome.state == optimize_runner.CANCELLED else "failed")
             self.status.setText("%s: %s (document unchanged)" % (outcome.state, outcome.message))
         self.update_summaries()
-        FreeCADGui.updateGui()
 
     def _show(self, label, path, history_file):
         pixmap = QtGui.QPixmap(path) if path else QtGui.QPixmap()
@@ -716,35 +633,10 @@ class OptimizeTaskPanel(object):
 
     # -- task dialog -------------------------------------------------------------------------
 
-    def getStandardButtons(self):
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
-
-    def _stop(self):
-        if self.running():
-            self.run.cancel()
-            self.run.process.process.waitForFinished(5000)
-            QtCore.QCoreApplication.processEvents()
-
-    def _close(self):
-        global _active
-        if _active is self:
-            _active = None
-        FreeCADGui.Control.closeDialog()
-
-    def accept(self):
-        """OK: keep the optimized solids."""
-        self._stop()
-        if self._own_transaction:
-            self.doc.commitTransaction()
-        self._close()
-        return True
-
-    def reject(self):
-        """Cancel: stop a run and remove what the panel added."""
-        self._stop()
-        if self._own_transaction:
-            self.doc.abortTransaction()
-        for new in self.results:  # also when undo is off
+    def undo(self):
+        """Cancel: remove the solids the panel added (also when undo is off), restore the
+        original's transparency."""
+        for new in self.results:
             try:
                 if self.doc.getObject(new.Name) is not None:
                     self.doc.removeObject(new.Name)
@@ -752,5 +644,3 @@ class OptimizeTaskPanel(object):
                 pass
         if self.obj.ViewObject is not None:
             self.obj.ViewObject.Transparency = self._transparency
-        self._close()
-        return True
