@@ -122,6 +122,20 @@ class ImportGraphTest(unittest.TestCase):
             for n in sorted(seen):
                 self.assertEqual(_gui(external[n]), [], "%s (imported by %s at module level)" % (n, m))
 
+    def test_layers_import_downwards(self):
+        """Document objects <- run objects <- task panels: a document-object module imports no
+        run object or panel (its view provider, GUI only, may open its panel), a run object no
+        panel or view provider."""
+        edges, _ = graph()
+        runs = {"cli_runner", "optimize_runner"}
+        panels = {m for m in edges if m.endswith("_panel")}
+        views = {m for m in edges if m.endswith("_view")}
+        self.assertTrue(panels >= {"analysis_panel", "optimize_panel", "task_panel"}, panels)
+        for m in sorted(set(feature_modules()) | {"analysis_job", "optimize_feature", "outcome"}):
+            self.assertEqual(sorted(edges[m] & (runs | panels)), [], m)
+        for m in sorted(runs):
+            self.assertEqual(sorted(edges[m] & (panels | views)), [], m)
+
     def test_only_panels_and_commands_build_widgets(self):
         _, external = graph()
         for m, names in sorted(external.items()):
