@@ -1,14 +1,15 @@
 """Run ``parafab optimize`` in a separate process (QProcess) for the "Optimize shape" panel.
 
-The subcommand-specific parts of the run objects of :mod:`parafab_wb.cli_runner`:
-:class:`OptimizeRun` (a ``cli_runner.CliRun``) writes the part and job (:func:`optimize_feature.prepare`), runs
-``parafab optimize PART JOB -o OUTDIR --progress`` (:class:`OptimizeProcess`, a ``cli_runner.CliProcess``; one JSON line
+The optimize-specific parts of the run objects of :mod:`parafab_wb.cli_runner`:
+:class:`OptimizeRun` (a ``cli_runner.CliRun``) writes the part and job
+(:func:`optimize_feature.prepare`), runs ``parafab optimize PART JOB -o OUTDIR --progress``
+(:class:`OptimizeProcess`, a ``cli_runner.CliProcess``; one JSON line
 ``{"progress": {iteration, objective, ...}}`` per iterate on stderr), and when the process ends
 adds the optimized solid beside the original (:func:`optimize_feature.add_result`). Cancel sends
-SIGTERM: the CLI stops at its next evaluation and writes its best valid iterate so far into the
-output folder (``optimized.step``, ``history.json`` with status "interrupted"; killed if it has not
-ended within :attr:`OptimizeProcess.KILL_AFTER_MS`); nothing is added to the document. Errors (bad input, the CLI's JSON error, an invalid result) only
-set the outcome's message.
+SIGTERM once: the CLI stops at its next evaluation and writes its best valid iterate so far into
+the output folder (``optimized.step``, ``history.json`` with status "interrupted"; killed if it
+has not ended within :attr:`OptimizeProcess.KILL_AFTER_MS`); nothing is added to the document.
+Errors (bad input, the CLI's JSON error, an invalid result) only set the outcome's message.
 
 Only ``QtCore`` is used, so this works in ``freecadcmd`` too (with a ``QCoreApplication``).
 """
