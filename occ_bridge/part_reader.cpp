@@ -19,6 +19,7 @@
 #include <Interface_CheckIterator.hxx>
 #include <Interface_InterfaceModel.hxx>
 #include <STEPControl_Reader.hxx>
+#include <mutex>
 #include <TCollection_HAsciiString.hxx>
 #include <XSControl_WorkSession.hxx>
 #include <Standard_Failure.hxx>
@@ -368,6 +369,10 @@ std::shared_ptr<const PartShape> read_part(const std::string& path, const ReadOp
     in.seekg(0);
     return make_part(read_brep_stream(in, path), path, options);
   }
+  // OCCT's STEP reader shares global state (Interface_Static, the messenger, the protocol's
+  // libraries): two reads at once failed 2 times in 3. One STEP read at a time in a process.
+  static std::mutex step_reader_mutex;
+  const std::lock_guard<std::mutex> one_reader(step_reader_mutex);
   STEPControl_Reader reader;
   const CaptureStdout log;
   return guarded(path + " (reading STEP)", [&] {

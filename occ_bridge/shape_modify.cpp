@@ -42,6 +42,7 @@
 #include <ShapeAnalysis_Edge.hxx>
 #include <Standard_Failure.hxx>
 #include <STEPControl_Writer.hxx>
+#include <mutex>
 #include <TopExp.hxx>
 #include <TopoDS.hxx>
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
@@ -809,6 +810,9 @@ ModifyResult modify_part(const PartShape& part, const FaceModel& model, const Sh
 }
 
 void write_step(const PartShape& part, const std::string& path) {
+  // The writer's settings (Interface_Static) and the messenger are process-wide: one write at a time.
+  static std::mutex step_writer_mutex;
+  const std::lock_guard<std::mutex> one_writer(step_writer_mutex);
   // The STEP writer prints transfer statistics through OCCT's default messenger (stdout): the
   // CLI's stdout is JSON, so the printers are detached while writing.
   const Handle(Message_Messenger) messenger = Message::DefaultMessenger();

@@ -1471,7 +1471,8 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
       // Cholesky: two steps of iterative refinement; the LU fallback solves once, as before.
       r.u = chol.solve(f, chol.status() == SparseCholesky::Status::Factorized ? 2 : 0);
       r.solved = r.u.allFinite();
-      if (chol.status() == SparseCholesky::Status::FactorizedByLU)
+      r.indefinite = chol.status() == SparseCholesky::Status::FactorizedByLU;
+      if (r.indefinite)
         r.message = options.nitsche_penalty == LinearXfemOptions::NitschePenalty::Fixed
                         ? "stiffness matrix not positive definite (Nitsche β too small for some cut cell: try "
                           "\"nitsche_penalty\": \"local\"; or too few supports); solved by LU"

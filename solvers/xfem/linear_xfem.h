@@ -181,6 +181,9 @@ struct SolveInfo {
 
 struct LinearXfemResult {
   bool solved = false;
+  /// K was not positive definite and was solved by LU: the displacement is not an elastic
+  /// equilibrium to trust (too small a Nitsche penalty, too few supports); `message` says which.
+  bool indefinite = false;
   std::string message;
   int dofs = 0, elements = 0, cut_elements = 0;
   Eigen::VectorXd u;                     ///< 3 per DOF node

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -35,7 +36,10 @@ using nlohmann::json;
 int emit(const json& j, const std::string& out_path) {
   const std::string text = j.dump(2);
   if (out_path.empty()) {
-    std::cout << text << "\n";
+    if (!(std::cout << text << "\n" << std::flush)) {  // a full disk, a closed pipe: not a success
+      std::cerr << "parafab: cannot write the result to standard output\n";
+      return 2;
+    }
     return 0;
   }
   try {
@@ -63,17 +67,29 @@ int fail(const std::string& message, const std::string& kind, int code) {
 }
 
 json read_json_file(const std::string& path) {
+  if (std::filesystem::is_directory(path)) throw parafab::Error("input file " + path + " is a folder, not a file");
   std::ifstream f(path);
   if (!f) throw parafab::Error("cannot open input file " + path);
   std::stringstream ss;
   ss << f.rdbuf();
   if (ss.str().find_first_not_of(" \t\r\n") == std::string::npos)
     throw parafab::Error("input file " + path + " is empty");
+  // Nesting deeper than the formats need is refused while parsing (copies of a request nested
+  // thousands deep would exhaust the stack).
+  const auto depth_limit = [&](int depth, json::parse_event_t event, json&) {
+    if (depth > parafab::entry::schema::kMaxDepth && (event == json::parse_event_t::object_start ||
+                                                       event == json::parse_event_t::array_start))
+      throw parafab::Error("input file " + path + " nests objects or lists deeper than " +
+                           std::to_string(parafab::entry::schema::kMaxDepth) + " levels");
+    return true;
+  };
   try {
-    return json::parse(ss.str());
+    return json::parse(ss.str(), depth_limit);
   } catch (const json::parse_error& e) {
     throw parafab::Error("input file " + path + " is not valid JSON (byte " +
                          std::to_string(e.byte) + "): " + e.what());
+  } catch (const json::exception& e) {  // a number out of range (1e400), ...
+    throw parafab::Error("input file " + path + " is not valid JSON: " + e.what());
   }
 }
 
@@ -99,14 +115,16 @@ int main(int argc, char** argv) {
   auto* improve = app.add_subcommand(
       "strip-improve", "Lower the stiffness ratio R of a strip curve by moving its control points (thesis §4.6.2; JSON)");
   improve->add_option("input", in_path, "Strip request JSON, optionally with \"improve\": {...} (see resources/doc/strips.md)")->required();
-  improve->add_option("--target-R", target_R, "Target stiffness ratio (overrides improve.target_R; default 3.5)");
+  improve->add_option("--target-R", target_R, "Target stiffness ratio (overrides improve.target_R; default 3.5)")
+      ->check(CLI::PositiveNumber);  // 0 stands for "not given" below: a given value must be > 0
   improve->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   double R_max = 0;
   auto* stabilize = app.add_subcommand(
       "strip-stabilize",
       "Make an unstable strip curve stable by moving its control points (thesis §4.5.4, Algorithm 4.2; JSON)");
   stabilize->add_option("input", in_path, "Strip request JSON, optionally with \"stabilize\": {...} (see resources/doc/strips.md)")->required();
-  stabilize->add_option("--R-max", R_max, "Bound on the stiffness ratio R (overrides stabilize.R_max; default 10)");
+  stabilize->add_option("--R-max", R_max, "Bound on the stiffness ratio R (overrides stabilize.R_max; default 10)")
+      ->check(CLI::PositiveNumber);
   stabilize->add_option("-o,--output", out_path, "Write the result here instead of stdout");
   auto* rod = app.add_subcommand("rod", "Design a Kirchhoff rod for a space curve (JSON in, JSON out)");
   rod->add_option("input", in_path, "Rod request JSON (see resources/doc/json-reference.md)")->required();
@@ -181,6 +199,18 @@ int main(int argc, char** argv) {
   try {
     // Parts are read once in a child process first: OCCT crashing on a corrupt STEP file is then
     // an input error (exit 2, JSON), not a segmentation fault.
+    // An output that is an input of the same run is refused before any work (a job file in the
+    // output folder, `inspect X.step -o X.step`).
+    {
+      std::vector<std::string> outputs{out_path, dxf_path, svg_path};
+      if (*simulate && !out_dir.empty())
+        for (const char* name : {"result.json", "result.vtu", "surface.vtu"}) outputs.push_back(out_dir + "/" + name);
+      if (*optimize)
+        for (const char* name : {"optimized.step", "history.json", "history.png", "nearest_valid.step"})
+          outputs.push_back(out_dir + "/" + name);
+      for (const std::string& o : outputs)
+        for (const std::string& i : {in_path, job_path}) parafab::entry::refuse_output_over_input(o, i);
+    }
     if (*inspect || *integrate || *simulate || *optimize || *sections) parafab::entry::preflight_part_read(in_path);
     if (*reference) {
       const std::string md = parafab::entry::schema::reference_markdown();

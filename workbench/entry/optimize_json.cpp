@@ -298,7 +298,13 @@ std::string write_beside(const occ::PartShape& part, const std::string& out_dir,
 json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
                         const OptimizeProgressFn& progress, const InterruptFn& interrupted) {
   schema::check(job, schema::Format::Optimization);
-  if (!out_dir.empty()) require_writable_folder(out_dir);  // before the work, not after it
+  std::optional<FolderLock> lock;  // one run at a time in a folder
+  if (!out_dir.empty()) {  // before the work, not after it
+    require_writable_folder(out_dir);
+    lock.emplace(out_dir);
+    for (const char* name : {"optimized.step", "history.json", "history.png", "nearest_valid.step"})
+      refuse_output_over_input(out_dir + "/" + name, part_path);
+  }
   // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
   if (job.contains("chart") && !job["chart"].is_boolean())
     PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
@@ -511,6 +517,10 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     const json& c = constraints[i];
     const json& t = fields::require(c, "type", path);
     if (t == "volume") {
+      // Ratios of the volume as read: positive (a bound of 0 or below would silently be none).
+      for (const char* key : {"max_ratio", "min_ratio"})
+        if (c.contains(key) && !(number(c[key], path + "." + key) > 0))
+          PARAFAB_INPUT_ERROR(path << "." << key << " must be a positive ratio V / V0, got " << c[key].dump());
       if (c.contains("max_ratio")) o.volume_max_ratio = number(c["max_ratio"], path + ".max_ratio");
       if (c.contains("min_ratio")) o.volume_min_ratio = number(c["min_ratio"], path + ".min_ratio");
     } else if (t == "mass") {

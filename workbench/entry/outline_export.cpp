@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "output_files.h"
 
 namespace parafab::entry {
 
@@ -277,8 +278,11 @@ void write_strip_outline(const json& result, const std::string& path) {
   if (ext == ".dxf") text = strip_outline_dxf(result);
   else if (ext == ".svg") text = strip_outline_svg(result);
   else PARAFAB_INPUT_ERROR("outline file " << path << " must end in .dxf or .svg");
-  std::ofstream f(path);
-  if (!f || !(f << text)) PARAFAB_INPUT_ERROR("cannot write outline file " << path);
+  try {
+    write_text_atomically(path, text);
+  } catch (const Error&) {
+    PARAFAB_INPUT_ERROR("cannot write outline file " << path);
+  }
 }
 
 }  // namespace parafab::entry

@@ -1,5 +1,7 @@
 #include "output_files.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -47,6 +49,32 @@ void AtomicFile::commit() {
   fs::rename(temporary_, path_, ec);
   PARAFAB_VERIFY(!ec, "cannot write " << path_ << ": " << ec.message());
   committed_ = true;
+}
+
+FolderLock::FolderLock(const std::string& dir) : path_(dir + "/.parafab.lock") {
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) PARAFAB_INPUT_ERROR("output folder " << dir << " cannot be written: " << std::strerror(errno));
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd_);
+    fd_ = -1;
+    PARAFAB_INPUT_ERROR("output folder " << dir << " is being written by another parafab run (" << path_
+                                         << " is locked): choose another folder, or wait for that run to end");
+  }
+}
+
+FolderLock::~FolderLock() {
+  if (fd_ < 0) return;
+  ::unlink(path_.c_str());  // before the lock goes: a run waiting on it finds no stale file
+  ::close(fd_);
+}
+
+void refuse_output_over_input(const std::string& output, const std::string& input) {
+  std::error_code ea, eb;
+  if (output.empty() || input.empty() || !fs::exists(input, ea)) return;
+  if (fs::exists(output, eb) ? fs::equivalent(output, input, ea)
+                             : fs::weakly_canonical(output, ea) == fs::weakly_canonical(input, eb))
+    PARAFAB_INPUT_ERROR("the output " << output << " would overwrite the input " << input
+                                      << ": write it elsewhere (another -o)");
 }
 
 void write_text_atomically(const std::string& path, const std::string& text) {

@@ -29,6 +29,26 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+/// An exclusive lock on an output folder for the length of a run (flock on DIR/.parafab.lock): a
+/// second run into the same folder, in this process or another, is refused at once with an input
+/// error naming the folder, so two runs never mix their files. Released (and the lock file
+/// removed) by the destructor, or by the system if the process dies.
+class FolderLock {
+ public:
+  explicit FolderLock(const std::string& dir);
+  ~FolderLock();
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
+/// Refuses (input error) an output that is one of the run's inputs: "the output OUT would
+/// overwrite the input IN". Paths that do not exist yet cannot be inputs.
+void refuse_output_over_input(const std::string& output, const std::string& input);
+
 /// `text` into `path` through an AtomicFile.
 void write_text_atomically(const std::string& path, const std::string& text);
 

@@ -67,7 +67,9 @@ struct NotPlainJson {};
 // round-trips exactly, non-negative ints parse as unsigned and negative ones as signed, ints
 // beyond 64 bits as the nearest double.
 nlohmann::json to_json_direct(PyObject* o, int depth) {
-  if (depth > 500) throw NotPlainJson{};
+  if (depth > parafab::entry::schema::kMaxDepth)
+    throw parafab::Error("the request nests lists or dicts deeper than " +
+                         std::to_string(parafab::entry::schema::kMaxDepth) + " levels");
   if (o == Py_None) return nullptr;
   if (PyBool_Check(o)) return o == Py_True;
   if (PyFloat_Check(o)) {

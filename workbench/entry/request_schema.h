@@ -35,6 +35,10 @@ struct Node {
   NodePtr item;                // arrays
 };
 
+/// How deeply a request may nest (objects and lists): the deepest format needs 6; the copies and
+/// checks of a request nested thousands deep would exhaust the stack.
+constexpr int kMaxDepth = 64;
+
 /// The request formats, one per entry (CLI subcommand, Python function).
 enum class Format { Strip, StripImprove, StripStabilize, Rod, Simulation, Optimization, Sections, Revolution };
 

@@ -166,7 +166,7 @@ json design_rod_json(const json& request) {
     o.dead_load.max_iterations = optional_int(fp, "max_iterations", "fixed_point", o.dead_load.max_iterations, 1, 10000);
   }
   const bool validate = optional_bool(request, "validate", "", false);
-  const int edges = optional_int(request, "validate_edges", "", 100, 3, 100000);
+  const int edges = optional_int(request, "validate_edges", "", 100, 3, 5000);
   // Stability (on by default): inertia of the discrete rod's Hessian at the design.
   const bool stability = optional_bool(request, "stability", "", true);
   const int stability_edges = optional_int(request, "stability_edges", "", 100, 8, 2000);

@@ -43,6 +43,15 @@ namespace {
 
 bool model_name_is_linear(const std::string& model) { return model == "linear"; }
 
+// "ok" only for a result to trust: "not_finite" (a displacement or stress that is not a number),
+// "indefinite" (the linear stiffness was not positive definite: solved by LU, see message),
+// "rule_failures" (some cut-cell rules failed: rule_failures lists them).
+const char* result_status(bool rules_ok, bool indefinite, bool finite) {
+  if (!finite) return "not_finite";
+  if (indefinite) return "indefinite";
+  return rules_ok ? "ok" : "rule_failures";
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -482,7 +491,8 @@ json SimulationSession::run(const std::string& out_dir, const ProgressFn& progre
     if (progress && !progress(phase, fraction))
       throw Cancelled("simulation cancelled by the user (during " + std::string(phase) + ")");
   };
-  if (!out_dir.empty()) require_writable_folder(out_dir);  // before the work, not after it
+  std::optional<FolderLock> lock;  // one run at a time in a folder
+  if (!out_dir.empty()) require_writable_folder(out_dir), lock.emplace(out_dir);  // before the work
   refuse_if_too_big();
   std::optional<tbb::global_control> threads;  // for the whole run
   if (setup_->threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->threads);
@@ -575,8 +585,13 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
     if (progress && !progress(phase, fraction))
       throw Cancelled("simulation cancelled by the user (during " + std::string(phase) + ")");
   };
-  if (!model_) return run(out_dir, progress);
-  if (!out_dir.empty()) require_writable_folder(out_dir);
+  if (!model_) {  // nothing solved yet: the new part is the one to run (not the one of the constructor)
+    load_part(new_part_path);
+    setup_ = parse_job();
+    return run(out_dir, progress);
+  }
+  std::optional<FolderLock> lock;
+  if (!out_dir.empty()) require_writable_folder(out_dir), lock.emplace(out_dir);
   std::shared_ptr<const occ::PartShape> old_part = part_;
   std::unique_ptr<Setup> old_setup = std::move(setup_);
   try {
@@ -854,7 +869,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"points_classified_by_occt", occt_calls},      // the rest by crossing parity in their cut cell
            {"cut_elements_skipped", skipped_elements},     // bounded below the uncut maxima: not evaluated
            {"cut_elements_displacement_only", displacement_only_elements},  // their stress bounded below: u only
-           {"status", grid.rule_failures.empty() ? "ok" : "rule_failures"},
+           {"status", result_status(grid.rule_failures.empty(), r.indefinite && model_name_is_linear(S.model),
+                                    r.u.allFinite() && std::isfinite(umax) && std::isfinite(vmmax) && std::isfinite(r.energy))},
            {"rule_failures", rule_failures},
            {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant
            {"material_model", S.model},
