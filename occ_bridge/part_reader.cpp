@@ -328,7 +328,8 @@ std::shared_ptr<const PartShape> make_part(const TopoDS_Shape& shape, const std:
                                  << "' (solids: " << list_solids(names, n) << ")");
   } else if (n > 1) {
     PARAFAB_INPUT_ERROR(source << ": " << n << " solids (" << list_solids(names, n)
-                               << "); choose one with solid_index (--solid N) or solid_name");
+                               << "); choose one: \"solid\": N in a simulate job, --solid N or --solid-name NAME "
+                                  "for inspect, --solid N for integrate, solid_index / solid_name in Python");
   }
   auto part = std::make_shared<PartShape>();
   part->shape = solids(chosen + 1);

@@ -299,10 +299,15 @@ InterpolatedBSpline interpolate_rows(const Eigen::MatrixXd& points, int degree) 
   std::vector<double> chord(n, 0.0);
   double total = 0.0;
   for (int i = 1; i < n; ++i) total += chord[i] = (points.row(i) - points.row(i - 1)).norm();
-  for (int i = 1; i < n; ++i)
-    if (chord[i] <= 1e-12 * total)
-      PARAFAB_INPUT_ERROR("curve.points[" << i << "] repeats curve.points[" << i - 1 << "] "
+  if (!std::isfinite(total)) PARAFAB_INPUT_ERROR("curve.points are too far apart: their chord length overflows");
+  for (int i = 1; i < n; ++i) {
+    if (chord[i] == 0)
+      PARAFAB_INPUT_ERROR("curve.points[" << i << "] repeats curve.points[" << i - 1 << "] " << row_text(points, i));
+    if (chord[i] <= 1e-12 * total)  // distinct, but closer than the interpolation can tell apart
+      PARAFAB_INPUT_ERROR("curve.points[" << i << "] lies " << chord[i] << " from curve.points[" << i - 1
+                                          << "], less than 1e-12 of the polygon's length " << total << " "
                                           << row_text(points, i));
+  }
   PARAFAB_VERIFY(degree >= 1, "interpolation degree must be >= 1, got " << degree);
   const int p = std::min(degree, n - 1);
   // Chord-length parameters on [0, 1].

@@ -127,7 +127,7 @@ class Inputs(unittest.TestCase):
         """`parafab ARGS JOB AFTER` with TEXT as the job: exit 2 and EXPECTED in the message."""
         path = write(os.path.join(self.dir, "job.json"), text)
         code, out, _ = cli(*(list(args) + [path] + list(after)))
-        self.assertEqual(code, 2, out)
+        self.assertEqual(code, 2, str(out)[:500])
         self.assertIn(expected, message(out))
         return message(out)
 
@@ -173,6 +173,14 @@ class Inputs(unittest.TestCase):
         job = {"objective": {"type": "volume"}, "constraints": [{"type": "volume", "max_ratio": -1}]}
         self.refused(["optimize", WHEEL], job, "constraints[0].max_ratio must be a positive ratio V / V0, got -1",
                      ["-o", os.path.join(self.dir, "o")])
+
+    def test_close_points_are_not_called_repeats(self):
+        req = load("strips", "wave.json")
+        req["curve"] = {"points": [[0, 0], [1e-13, 0], [1, 0.2], [2, 0]]}  # distinct, 1e-13 of 2.2 apart
+        msg = self.refused(["strip"], req, "curve.points[1] lies 1e-13 from curve.points[0]")
+        self.assertNotIn("repeats", msg)
+        req["curve"] = {"points": [[0, 0], [0, 0], [1, 0.2], [2, 0]]}
+        self.refused(["strip"], req, "curve.points[1] repeats curve.points[0]")
 
     def test_a_folder_is_not_called_empty(self):
         code, out, _ = cli("strip", self.dir)

@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
   std::string segments = "parabolic";
   integrate->add_option("part", in_path, "Part file (.step/.stp/.brep/.brp)")->required();
   integrate->add_option("--cells", integrate_options.integration.grid.cells_longest,
-                        "Cells along the longest side of the bounding box")->check(CLI::PositiveNumber);
+                        "Cells along the longest side of the bounding box")->check(CLI::Range(1, 100000));
   integrate->add_option("--cell-size", integrate_options.integration.grid.cell_size,
                         "Cell size in model units (overrides --cells)")->check(CLI::NonNegativeNumber);
   integrate->add_option("--segments", segments, "Boundary curve segments: parabolic or linear")
