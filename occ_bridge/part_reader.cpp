@@ -4,6 +4,8 @@
 
 #include <BRepBndLib.hxx>
 #include <BRepBuilderAPI_Transform.hxx>
+#include <BOPAlgo_CheckResult.hxx>
+#include <BRepAlgoAPI_Check.hxx>
 #include <BRepCheck.hxx>
 #include <BRepCheck_Analyzer.hxx>
 #include <BRepCheck_Result.hxx>
@@ -222,6 +224,23 @@ void validate(const PartShape& part) {
                             << ")");
 }
 
+void refuse_self_intersection(const PartShape& part) {
+  BRepAlgoAPI_Check check(part.shape, /*bTestSE=*/true, /*bTestSI=*/true);
+  if (check.IsValid()) return;
+  std::ostringstream os;
+  for (const BOPAlgo_CheckResult& r : check.Result()) {
+    if (r.GetCheckStatus() != BOPAlgo_SelfIntersect && r.GetCheckStatus() != BOPAlgo_BadType) continue;
+    std::vector<int> faces;
+    for (const TopoDS_Shape& s : r.GetFaultyShapes1())
+      for (TopExp_Explorer f(s, TopAbs_FACE); f.More(); f.Next()) faces.push_back(part.face_index(f.Current()));
+    os << " faces";
+    for (int f : faces) os << " " << f;
+    break;
+  }
+  PARAFAB_INPUT_ERROR(part.source << ": invalid shape: the solid intersects itself (OCCT's Boolean check"
+                                  << (os.str().empty() ? "" : ":" + os.str()) << ")");
+}
+
 [[noreturn]] void no_solid(const TopoDS_Shape& shape, const std::string& src) {
   TopTools_IndexedMapOfShape faces, edges;
   TopExp::MapShapes(shape, TopAbs_FACE, faces);
@@ -341,6 +360,8 @@ std::shared_ptr<const PartShape> make_part(const TopoDS_Shape& shape, const std:
   TopExp::MapShapes(part->shape, TopAbs_EDGE, part->edges);
   TopExp::MapShapes(part->shape, TopAbs_VERTEX, part->vertices);
   guarded(source + " (validating the solid)", [&] { validate(*part); });
+  if (options.check_self_intersection)
+    guarded(source + " (checking self-intersection)", [&] { refuse_self_intersection(*part); });
   return part;
 }
 

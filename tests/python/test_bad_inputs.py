@@ -188,6 +188,25 @@ class Inputs(unittest.TestCase):
         self.assertIn("is a folder, not a file", message(out))
 
 
+class Geometry(unittest.TestCase):
+    def test_a_self_intersecting_solid_is_refused_by_inspect(self):
+        # A bow-tie prism: its wire crosses itself. FreeCAD's isValid() says so, but the STEP read
+        # back passes BRepCheck; OCCT's Boolean check (BRepAlgoAPI_Check) finds the crossing faces.
+        d = tempfile.mkdtemp()
+        step = os.path.join(d, "bowtie.step")
+        script = os.path.join(d, "make.py")
+        write(script, "import Part, FreeCAD\nV = FreeCAD.Vector\n"
+                      "w = Part.makePolygon([V(0,0,0), V(10,10,0), V(10,0,0), V(0,10,0), V(0,0,0)])\n"
+                      "Part.Face(w).extrude(V(0,0,5)).exportStep(%r)\n" % step)
+        subprocess.run(["freecadcmd", script], capture_output=True, timeout=120, env=dict(os.environ, HOME=d))
+        self.assertTrue(os.path.exists(step), "FreeCADCmd did not write the bow-tie")
+        code, out, _ = cli("inspect", step)
+        self.assertEqual(code, 2, str(out)[:300])
+        self.assertIn("the solid intersects itself", message(out))
+        code, out, _ = cli("inspect", BRACKET)  # a valid part passes the same check
+        self.assertEqual(code, 0, str(out)[:300])
+
+
 class Results(unittest.TestCase):
     def test_an_indefinite_solve_is_not_ok(self):
         # Nitsche beta = 0.1 (hex8): the stiffness is indefinite, LU solves it (test_simulate.py).

@@ -61,7 +61,9 @@ json face(const occ::FaceInfo& f) {
 }  // namespace
 
 json inspect_part_json(const std::string& path, const InspectOptions& options) {
-  const auto part = occ::read_part(path, options.read);
+  occ::ReadOptions read = options.read;
+  read.check_self_intersection = true;  // inspect is the check of a part: the thorough one
+  const auto part = occ::read_part(path, read);
   const occ::PartInfo info = occ::part_info(*part);
   const occ::FaceModel model = occ::build_face_model(*part, options.model);
   json faces = json::array(), edges = json::array(), relations = json::array();
