@@ -10,6 +10,7 @@
 #include <BRepGProp.hxx>
 #include <gp_Ax1.hxx>
 #include <gp_Trsf.hxx>
+#include <gp_Vec.hxx>
 #include <BRepTools.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
@@ -457,20 +458,33 @@ PartInfo part_info(const PartShape& part) {
   return info;
 }
 
-std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
-                                              const Eigen::Vector3d& axis, double degrees) {
-  PARAFAB_VERIFY(axis.norm() > 0, "rotation axis must not be zero");
-  gp_Trsf t;
-  t.SetRotation(gp_Ax1(gp_Pnt(center.x(), center.y(), center.z()), gp_Dir(axis.x(), axis.y(), axis.z())),
-                degrees * M_PI / 180.0);
+namespace {
+std::shared_ptr<const PartShape> transformed_part(const PartShape& part, const gp_Trsf& t, const char* what) {
   auto out = std::make_shared<PartShape>(part);
   out->shape = BRepBuilderAPI_Transform(part.shape, t, /*copy=*/true).Shape();
   out->faces.Clear(), out->edges.Clear(), out->vertices.Clear();
   TopExp::MapShapes(out->shape, TopAbs_FACE, out->faces);
   TopExp::MapShapes(out->shape, TopAbs_EDGE, out->edges);
   TopExp::MapShapes(out->shape, TopAbs_VERTEX, out->vertices);
-  PARAFAB_VERIFY(out->faces.Extent() == part.faces.Extent(), "rotation changed the face count");
+  PARAFAB_VERIFY(out->faces.Extent() == part.faces.Extent() && out->edges.Extent() == part.edges.Extent(),
+                 what << " changed the face or edge count");
   return out;
+}
+}  // namespace
+
+std::shared_ptr<const PartShape> translated_part(const PartShape& part, const Eigen::Vector3d& offset) {
+  gp_Trsf t;
+  t.SetTranslation(gp_Vec(offset.x(), offset.y(), offset.z()));
+  return transformed_part(part, t, "translation");
+}
+
+std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
+                                              const Eigen::Vector3d& axis, double degrees) {
+  PARAFAB_VERIFY(axis.norm() > 0, "rotation axis must not be zero");
+  gp_Trsf t;
+  t.SetRotation(gp_Ax1(gp_Pnt(center.x(), center.y(), center.z()), gp_Dir(axis.x(), axis.y(), axis.z())),
+                degrees * M_PI / 180.0);
+  return transformed_part(part, t, "rotation");
 }
 
 }  // namespace parafab::occ
