@@ -375,7 +375,10 @@ RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRu
             }
           return;
         }
-        if (refinement.tolerance > 0 && estimate > local) converged = false;
+        if (refinement.tolerance > 0 && estimate > local) {
+          converged = false;
+          ++r.capped_leaves;
+        }
         r.rule.points.insert(r.rule.points.end(), leaf->rule.points.begin(), leaf->rule.points.end());
         r.rule.weights.insert(r.rule.weights.end(), leaf->rule.weights.begin(), leaf->rule.weights.end());
         r.integral += *leaf_integral;

@@ -77,6 +77,9 @@ struct RefinedAreaRule {
   double moment_residual = 0;  ///< largest leaf moment residual
   int leaves = 0;
   int boosted_leaves = 0;  ///< leaves that carry the degree-boosted rule
+  /// Leaves kept at max_depth with their estimate above the tolerance (the depth cap was hit;
+  /// status NotConverged unless a worse status hides it).
+  int capped_leaves = 0;
   int depth = 0;  ///< deepest leaf
 };
 RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRuleOptions& area,
