@@ -47,6 +47,7 @@ void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused
   });
   // Rule failures are collected per subvolume and reported in subvolume order.
   std::vector<std::string> failure(g.subvolumes.size());
+  std::vector<char> capped(g.subvolumes.size(), 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(g.subvolumes.size()), 1),
                     [&](const tbb::blocked_range<int>& r) {
     for (int s = r.begin(); s != r.end(); ++s) {
@@ -59,11 +60,14 @@ void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused
       } else {
         try {
           xfem::VolumeRule vr = xfem::volume_rule(sv, o.rule);
-          if (vr.status != xfem::RuleStatus::Ok) {
+          capped[s] = vr.flux_capped_leaves > 0;
+          if (vr.status != xfem::RuleStatus::Ok || capped[s]) {
             std::ostringstream msg;
             msg << xfem::to_string(vr.status) << " (volume fraction " << vr.volume / sv.cell.volume()
                 << ", moment residual " << vr.moment_residual << ", flux error estimate " << vr.flux_error_estimate
-                << ", refinement depth " << vr.flux_depth << ")";
+                << ", refinement depth " << vr.flux_depth;
+            if (capped[s]) msg << ", " << vr.flux_capped_leaves << " patch region(s) at the depth cap " << o.rule.max_depth;
+            msg << ")";
             failure[s] = msg.str();
           }
           e.rule = std::move(vr.rule);
@@ -75,10 +79,12 @@ void make_elements(GridModel& m, const GridModelOptions& o, const Reused& reused
     }
   });
   for (size_t s = 0; s < failure.size(); ++s)
-    if (!failure[s].empty()) m.rule_failures.push_back({{0, 0, 0}, static_cast<int>(s), failure[s]});
+    if (!failure[s].empty()) m.rule_failures.push_back({{0, 0, 0}, static_cast<int>(s), failure[s], capped[s] != 0});
   for (const auto& cell : g.cut_cells)
     for (int s : cell.subvolumes) m.elements[first_cut + s].cell = cell.index;
   for (auto& f : m.rule_failures) f.cell = m.elements[first_cut + f.subvolume].cell;
+  m.rules_refinement_capped = 0;
+  for (const auto& f : m.rule_failures) m.rules_refinement_capped += f.refinement_capped;
   // Adjacency: interior–interior neighbours, cut–cut and cut–interior connections.
   for (int i = 0; i < nc[0]; ++i)
     for (int j = 0; j < nc[1]; ++j)
@@ -176,9 +182,11 @@ GridModel rebuild_grid_model(const PartShape& part, const GridModel& old, const 
   for (const auto& f : old.rule_failures)
     for (size_t s = 0; s < r.kept_from.size() && !r.full; ++s)
       if (r.kept_from[s] == f.subvolume)
-        m.rule_failures.push_back({m.elements[first_cut + s].cell, static_cast<int>(s), f.message});
+        m.rule_failures.push_back({m.elements[first_cut + s].cell, static_cast<int>(s), f.message, f.refinement_capped});
   std::sort(m.rule_failures.begin(), m.rule_failures.end(),
             [](const RuleFailure& a, const RuleFailure& b) { return a.subvolume < b.subvolume; });
+  m.rules_refinement_capped = 0;
+  for (const auto& f : m.rule_failures) m.rules_refinement_capped += f.refinement_capped;
   // Safety net: the rules must integrate the new part's volume (OCCT's). A change the dirty
   // regions missed would leave whole cells wrong; then the part is cut again whole.
   double volume = 0;

@@ -29,6 +29,9 @@ struct RuleFailure {
   std::array<int, 3> cell{0, 0, 0};
   int subvolume = -1;  ///< index into cut->subvolumes
   std::string message;
+  /// The flux refinement of some patch stopped at its depth cap (VolumeRuleOptions::max_depth)
+  /// above its tolerance (VolumeRule::flux_capped_leaves > 0).
+  bool refinement_capped = false;
 };
 
 struct GridModel {
@@ -40,6 +43,7 @@ struct GridModel {
   std::vector<xfem::GridElement> elements;  ///< interior cells first, then cut subvolumes
   std::vector<std::array<int, 2>> adjacent; ///< element pairs sharing a grid face
   std::vector<RuleFailure> rule_failures;   ///< ordered by subvolume
+  int rules_refinement_capped = 0;          ///< rule_failures with refinement_capped
   double cut_seconds = 0, rule_seconds = 0;
 };
 

@@ -46,6 +46,7 @@ IntegrationResult integrate_part(const PartShape& part, const IntegrationOptions
     acc.add(vr.rule.points, vr.rule.weights);
     r.rule_points += static_cast<int>(vr.rule.points.size());
     r.rules_not_ok += vr.status != xfem::RuleStatus::Ok;
+    r.rules_refinement_capped += vr.flux_capped_leaves > 0;
     r.max_moment_residual = std::max(r.max_moment_residual, vr.moment_residual);
     r.max_closure_defect = std::max(r.max_closure_defect, vr.closure_defect);
   }

@@ -38,6 +38,7 @@ struct IntegrationResult {
   MassPropertyErrors errors;           ///< rules against OCCT
   int rule_points = 0;
   int rules_not_ok = 0;                ///< rules whose status is not Ok
+  int rules_refinement_capped = 0;     ///< rules whose flux refinement hit its depth cap
   double max_moment_residual = 0;
   double max_closure_defect = 0;
   double cut_seconds = 0, rule_seconds = 0, occt_seconds = 0;

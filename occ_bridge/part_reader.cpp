@@ -12,6 +12,7 @@
 #include <BRepGProp.hxx>
 #include <gp_Ax1.hxx>
 #include <gp_Trsf.hxx>
+#include <gp_Vec.hxx>
 #include <BRepTools.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
@@ -31,13 +32,16 @@
 #include <StepShape_ManifoldSolidBrep.hxx>
 #include <TCollection_HAsciiString.hxx>
 #include <TopExp.hxx>
+#include <TopoDS_Vertex.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
 #include <TransferBRep.hxx>
 #include <Transfer_TransientProcess.hxx>
 #include <XSControl_TransferReader.hxx>
 #include <XSControl_WorkSession.hxx>
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -201,6 +205,30 @@ std::string describe_check_failure(const PartShape& part) {
   return t.empty() ? "BRepCheck_Analyzer: invalid (no status names the sub-shape)" : t + " on the solid";
 }
 
+// For a part whose coordinates are so large that doubles resolve them to more than 1/1000 of
+// its largest vertex tolerance (OCCT's 1e-7 at about 4.5e5): a note naming the distance, since
+// BRepCheck's distance checks then fail on round-off alone (issue 56: a box with a hole cut at
+// 1e8 mm, valid in memory, fails InvalidPointOnCurve after a BREP write and read). "" otherwise.
+std::string far_from_origin(const PartShape& part) {
+  Bnd_Box box;
+  BRepBndLib::Add(part.shape, box, false);
+  if (box.IsVoid()) return "";
+  double x0, y0, z0, x1, y1, z1;
+  box.Get(x0, y0, z0, x1, y1, z1);
+  const double far = std::max({std::abs(x0), std::abs(y0), std::abs(z0), std::abs(x1), std::abs(y1), std::abs(z1)});
+  double tolerance = 0;
+  for (int i = 1; i <= part.vertices.Extent(); ++i)
+    tolerance = std::max(tolerance, BRep_Tool::Tolerance(TopoDS::Vertex(part.vertices(i))));
+  const double resolution = far * std::numeric_limits<double>::epsilon();
+  if (!(resolution > 1e-3 * tolerance)) return "";
+  std::ostringstream os;
+  os.precision(3);
+  os << " (the part lies " << far << " from the origin, where doubles resolve " << resolution
+     << ", against OCCT's tolerance " << tolerance
+     << ": its checks may fail on round-off alone; move the part nearer the origin in the CAD system)";
+  return os.str();
+}
+
 void validate(const PartShape& part) {
   const std::string& src = part.source;
   TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
@@ -216,7 +244,7 @@ void validate(const PartShape& part) {
   if (const std::string open = open_edges(part.shape, part.edges, part.faces); !open.empty())
     PARAFAB_INPUT_ERROR(src << ": " << open);
   if (const std::string bad = describe_check_failure(part); !bad.empty())
-    PARAFAB_INPUT_ERROR(src << ": invalid shape: BRepCheck reports " << bad);
+    PARAFAB_INPUT_ERROR(src << ": invalid shape: BRepCheck reports " << bad << far_from_origin(part));
   GProp_GProps props;
   BRepGProp::VolumeProperties(part.shape, props);
   if (!(props.Mass() > 0))
@@ -484,20 +512,33 @@ PartInfo part_info(const PartShape& part) {
   return info;
 }
 
-std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
-                                              const Eigen::Vector3d& axis, double degrees) {
-  PARAFAB_VERIFY(axis.norm() > 0, "rotation axis must not be zero");
-  gp_Trsf t;
-  t.SetRotation(gp_Ax1(gp_Pnt(center.x(), center.y(), center.z()), gp_Dir(axis.x(), axis.y(), axis.z())),
-                degrees * M_PI / 180.0);
+namespace {
+std::shared_ptr<const PartShape> transformed_part(const PartShape& part, const gp_Trsf& t, const char* what) {
   auto out = std::make_shared<PartShape>(part);
   out->shape = BRepBuilderAPI_Transform(part.shape, t, /*copy=*/true).Shape();
   out->faces.Clear(), out->edges.Clear(), out->vertices.Clear();
   TopExp::MapShapes(out->shape, TopAbs_FACE, out->faces);
   TopExp::MapShapes(out->shape, TopAbs_EDGE, out->edges);
   TopExp::MapShapes(out->shape, TopAbs_VERTEX, out->vertices);
-  PARAFAB_VERIFY(out->faces.Extent() == part.faces.Extent(), "rotation changed the face count");
+  PARAFAB_VERIFY(out->faces.Extent() == part.faces.Extent() && out->edges.Extent() == part.edges.Extent(),
+                 what << " changed the face or edge count");
   return out;
+}
+}  // namespace
+
+std::shared_ptr<const PartShape> translated_part(const PartShape& part, const Eigen::Vector3d& offset) {
+  gp_Trsf t;
+  t.SetTranslation(gp_Vec(offset.x(), offset.y(), offset.z()));
+  return transformed_part(part, t, "translation");
+}
+
+std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
+                                              const Eigen::Vector3d& axis, double degrees) {
+  PARAFAB_VERIFY(axis.norm() > 0, "rotation axis must not be zero");
+  gp_Trsf t;
+  t.SetRotation(gp_Ax1(gp_Pnt(center.x(), center.y(), center.z()), gp_Dir(axis.x(), axis.y(), axis.z())),
+                degrees * M_PI / 180.0);
+  return transformed_part(part, t, "rotation");
 }
 
 }  // namespace parafab::occ

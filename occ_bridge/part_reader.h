@@ -43,6 +43,12 @@ std::shared_ptr<const PartShape> read_part_from_brep_string(const std::string& b
 std::shared_ptr<const PartShape> rotated_part(const PartShape& part, const Eigen::Vector3d& center,
                                               const Eigen::Vector3d& axis, double degrees);
 
+/// The part moved by `offset` (every point X goes to X + offset), geometry copied (not a
+/// TopLoc_Location); faces, edges and vertices keep their indices. Entries compute on a part
+/// far from the origin in a frame near its box (local_frame.h): coordinates of 1e7 leave ~1e-9
+/// absolute resolution, above the quadrature's tolerances.
+std::shared_ptr<const PartShape> translated_part(const PartShape& part, const Eigen::Vector3d& offset);
+
 /// Global facts about a part (units: those of the file, mm for STEP).
 struct PartInfo {
   std::string source, name;

@@ -103,9 +103,9 @@ UvLoop clip_half_plane(const UvLoop& loop, int axis, double c, double side) {
 }
 
 void check_refinement(const RefinementOptions& o) {
-  PARAFAB_VERIFY(o.tolerance >= 0 && o.max_depth >= 0, "RefinementOptions: tolerance "
-                                                           << o.tolerance << " and max_depth "
-                                                           << o.max_depth << " must be ≥ 0");
+  PARAFAB_VERIFY(o.tolerance >= 0 && o.max_depth >= 0 && o.max_regions >= 1,
+                 "RefinementOptions: tolerance " << o.tolerance << " and max_depth " << o.max_depth
+                                                 << " must be ≥ 0, max_regions " << o.max_regions << " ≥ 1");
 }
 
 }  // namespace
@@ -332,6 +332,7 @@ RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRu
   bool root = true, converged = true;
   std::function<void(const std::vector<UvLoop>&, int)> process =
       [&](const std::vector<UvLoop>& region, int depth) {
+        ++r.regions;
         const RegionMoments moments = region_moments(region, higher.degree);
         const AreaRule rp = fit_area_rule(moments, area);
         if (rp.status == RuleStatus::EmptyDomain) return;
@@ -365,7 +366,8 @@ RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRu
             boosted = true;
           }
         }
-        if (!boosted && refinement.tolerance > 0 && estimate > local && depth < refinement.max_depth) {
+        if (!boosted && refinement.tolerance > 0 && estimate > local && depth < refinement.max_depth &&
+            r.regions + 4 <= refinement.max_regions) {
           const Vec2 mid = 0.5 * (rp.box_min + rp.box_max);
           for (int qu = 0; qu < 2; ++qu)
             for (int qv = 0; qv < 2; ++qv) {
@@ -375,7 +377,10 @@ RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRu
             }
           return;
         }
-        if (refinement.tolerance > 0 && estimate > local) converged = false;
+        if (refinement.tolerance > 0 && estimate > local) {
+          converged = false;
+          ++r.capped_leaves;
+        }
         r.rule.points.insert(r.rule.points.end(), leaf->rule.points.begin(), leaf->rule.points.end());
         r.rule.weights.insert(r.rule.weights.end(), leaf->rule.weights.begin(), leaf->rule.weights.end());
         r.integral += *leaf_integral;

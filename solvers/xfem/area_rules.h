@@ -63,6 +63,12 @@ struct RefinementOptions {
   bool relative = false;  ///< tolerance relative to ‖integral‖∞ of the root region
   int max_depth = 6;
   int degree_boost = 0;   ///< 0: split only
+  /// Regions examined at most (a safety cap on the time whatever max_depth is: a job may ask
+  /// for depth 64, and a tolerance round-off cannot meet then splits every region). Once reached,
+  /// every region still to come is a leaf (up to 3 per level of the current branch), counted in
+  /// capped_leaves when above its tolerance. The default, the nodes of a full quadtree of depth 6
+  /// (1 + 4 + … + 4⁶), never binds at the default max_depth.
+  int max_regions = 5461;
 };
 
 /// Vector-valued integral of some integrand over a uv rule, Σ_j w_j f(u_j, v_j); must accept
@@ -77,6 +83,10 @@ struct RefinedAreaRule {
   double moment_residual = 0;  ///< largest leaf moment residual
   int leaves = 0;
   int boosted_leaves = 0;  ///< leaves that carry the degree-boosted rule
+  /// Leaves kept at max_depth with their estimate above the tolerance (the depth cap was hit;
+  /// status NotConverged unless a worse status hides it).
+  int capped_leaves = 0;
+  int regions = 0;  ///< regions examined (leaves and split ones)
   int depth = 0;  ///< deepest leaf
 };
 RefinedAreaRule refined_area_rule(const std::vector<UvLoop>& loops, const AreaRuleOptions& area,

@@ -137,6 +137,7 @@ VolumeRule volume_rule(const Subvolume& sv, const VolumeRuleOptions& o) {
     r.flux_error_estimate += f.error_estimate;
     r.flux_leaves += f.leaves;
     r.flux_depth = std::max(r.flux_depth, f.depth);
+    r.flux_capped_leaves += f.capped_leaves;
     patch_status = worse_status(patch_status, f.status);
   }
   const Eigen::VectorXd b = total.head(m);

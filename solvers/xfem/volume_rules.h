@@ -47,6 +47,8 @@ struct VolumeRule {
   double closure_defect = 0;
   int flux_leaves = 0;  ///< uv rules used for the flux integrals (patches × refinement)
   int flux_depth = 0;   ///< deepest refinement level
+  /// Patch leaves the refinement left at max_depth above flux_tolerance (the depth cap was hit).
+  int flux_capped_leaves = 0;
 };
 
 /// Σ_j w_j g(X_j) ≈ ∫_V g dV; exact (to the moments' accuracy) for polynomials of total

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <BRepAlgoAPI_Cut.hxx>
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <BRepBuilderAPI_MakeVertex.hxx>
@@ -247,6 +248,40 @@ TEST(PartReader, RejectsOpenNonManifoldAndInvalidSolids) {
   faces[2].Reverse();
   expect_error([&] { make_part(solid_of(faces), "flipped.brep"); },
                {"flipped.brep", "invalid shape", "BRepCheck"});
+}
+
+// A part far from the origin (issue 56). translated_part copies the geometry: the box moves by
+// the offset exactly. A box with a hole cut at 1e8 mm is valid in memory but fails BRepCheck
+// after a BREP write and read (FreeCAD's isValid() says the same): OCCT's tolerances (1e-7) are
+// a few ulps of 1e8 (1.5e-8). The refusal names the distance; near the origin it does not.
+TEST(PartReader, FarFromTheOrigin) {
+  const auto part = read_part(sample("l_bracket.step"));
+  const PartBox b0 = part_box(*part);
+  const Eigen::Vector3d d(1e7, -3e5, 2048);
+  const auto moved = translated_part(*part, d);
+  EXPECT_EQ(moved->face_count(), part->face_count());
+  EXPECT_EQ(moved->edge_count(), part->edge_count());
+  const PartBox b1 = part_box(*moved);
+  EXPECT_NEAR((b1.min - b0.min - d).norm(), 0, 1e-8);
+  EXPECT_NEAR((b1.max - b0.max - d).norm(), 0, 1e-8);
+  EXPECT_EQ(check_failure_description(*moved), "");
+
+  const double far = 1e8;
+  const TopoDS_Shape block = BRepPrimAPI_MakeBox(gp_Pnt(far - 5, far - 5, far), 10, 10, 10).Shape();
+  const TopoDS_Shape pin =
+      BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(far + 0.123456789, far + 0.3, far + 1 / 3.0), gp_Dir(0, 0, 1)), 3, 10)
+          .Shape();
+  const TopoDS_Shape holed = BRepAlgoAPI_Cut(block, pin).Shape();
+  expect_error([&] { read_part_from_brep_string(to_brep_string(holed)); },
+               {"invalid shape: BRepCheck reports", "from the origin", "doubles resolve", "move the part nearer"});
+  std::vector<TopoDS_Shape> faces = box_faces();
+  faces[2].Reverse();
+  try {
+    make_part(solid_of(faces), "flipped.brep");
+    ADD_FAILURE() << "no parafab::Error thrown";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).find("from the origin"), std::string::npos) << e.what();
+  }
 }
 
 // FaceLocator (faces named by points in a job) against the scan it replaced: the exact distance

@@ -228,6 +228,9 @@ class RuleFailuresAreReported(unittest.TestCase):
             self.assertEqual(len(f["cell"]), 3)
             self.assertGreaterEqual(f["subvolume"], 0)
             self.assertIn("refinement not converged", f["message"])
+            self.assertIn("at the depth cap 0", f["message"])
+        # Hitting the depth cap is counted (issue 56): here every failure is one.
+        self.assertEqual(r["rules_refinement_capped"], len(r["rule_failures"]))
         # the CLI reports the same
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump(job, f)

@@ -3,6 +3,7 @@
 #include "common/error.h"
 #include "grid_estimate.h"
 #include "json_write.h"
+#include "local_frame.h"
 
 namespace parafab::entry {
 
@@ -10,10 +11,11 @@ using nlohmann::json;
 
 namespace {
 json vec(const Eigen::Vector3d& v) { return json_write::coordinates(v); }
-json properties(const xfem::MassProperties& p) {
+// Inertia about the centre: the same in both frames; the centre shifted back by `origin`.
+json properties(const xfem::MassProperties& p, const Eigen::Vector3d& origin) {
   json I = json::array();
   for (int i = 0; i < 3; ++i) I.push_back(json::array({p.inertia(i, 0), p.inertia(i, 1), p.inertia(i, 2)}));
-  return {{"volume", p.volume}, {"center", vec(p.center)}, {"inertia", I}};
+  return {{"volume", p.volume}, {"center", vec(p.center + origin)}, {"inertia", I}};
 }
 }  // namespace
 
@@ -27,7 +29,14 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
   if (!options.force)
     refuse_if_too_big(estimate, "this grid",
                       "use fewer cells (--cells) or a larger --cell-size, or --force (Python: force=True) to run anyway");
-  const occ::IntegrationResult r = occ::integrate_part(*part, options.integration);
+  // Cut and integrated in the local frame (local_frame.h); the grid anchor moves into it, the
+  // grid box and the centres move back.
+  const Eigen::Vector3d origin = local_frame_origin(info.bbox_min, info.bbox_max);
+  const bool moved = !origin.isZero(0);
+  occ::IntegrationOptions io = options.integration;
+  if (io.grid.anchored) io.grid.origin -= origin;
+  const auto local = moved ? occ::translated_part(*part, -origin) : part;
+  const occ::IntegrationResult r = occ::integrate_part(*local, io);
   if (!r.done) PARAFAB_INPUT_ERROR("cannot cut " << path << " by the grid: " << r.message);
   const occ::GridCut& g = r.cut;
   json out;
@@ -35,7 +44,8 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
   out["estimate"] = to_json(estimate);
   out["grid"] = {{"cells", g.cells},
                  {"cell_size", g.cell_size.x()},
-                 {"box", {vec(g.grid.min), vec(g.grid.max)}},
+                 {"box", {vec(g.grid.min + origin), vec(g.grid.max + origin)}},
+                 {"frame_origin", vec(origin)},
                  {"shifted_planes", g.shifted_planes},
                  {"cut_cells", g.cut_cells.size()},
                  {"subvolumes", g.subvolumes.size()},
@@ -47,9 +57,9 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
                  {"segment_order", options.integration.grid.segment_order},
                  {"method", g.method == occ::CutMethod::FaceCut ? "face" : "splitter"},
                  {"retry_reason", g.retry_reason}, {"grid_shift", vec(g.grid_shift)}};
-  out["rules"] = properties(r.by_rules);
+  out["rules"] = properties(r.by_rules, origin);
   if (options.integration.occt_reference) {
-    out["occt"] = properties(r.by_occt);
+    out["occt"] = properties(r.by_occt, origin);
     out["relative_errors"] = {{"volume", r.errors.volume},
                               {"center", r.errors.center},
                               {"inertia", r.errors.inertia},
@@ -57,6 +67,7 @@ json integrate_part_json(const std::string& path, const IntegrateOptions& option
   }
   out["diagnostics"] = {{"rule_points", r.rule_points},
                         {"rules_not_ok", r.rules_not_ok},
+                        {"rules_refinement_capped", r.rules_refinement_capped},
                         {"max_moment_residual", r.max_moment_residual},
                         {"max_closure_defect", r.max_closure_defect}};
   out["seconds"] = {{"cut", r.cut_seconds},

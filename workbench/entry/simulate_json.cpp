@@ -28,6 +28,7 @@
 #include "face_lookup.h"
 #include "grid_estimate.h"
 #include "grid_model.h"
+#include "local_frame.h"
 #include "part_reader.h"
 #include "surface_mesh.h"
 #include "xfem/mass_properties.h"
@@ -60,14 +61,16 @@ using fields::number;
 using fields::vec3;
 
 // A face named by index or by a point on it.
-int face_of(const occ::PartShape& part, const json& item, const std::string& path, double tol) {
+int face_of(const occ::PartShape& part, const json& item, const std::string& path, double tol,
+            const Vec3& frame_origin) {
   if (item.contains("face")) {
     if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
     const int f = item["face"].get<int>();
     occ::face_area(part, f);  // validates the index
     return f;
   }
-  if (item.contains("point")) return occ::face_at_point(part, vec3(item["point"], path + ".point"), tol);
+  if (item.contains("point"))
+    return occ::face_at_point(part, vec3(item["point"], path + ".point") - frame_origin, tol);
   PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
 }
 
@@ -82,6 +85,12 @@ struct Text {
     s.append(b, std::to_chars(b, b + sizeof b, v, std::chars_format::general, 6).ptr);
     return *this;
   }
+  /// `v` with `digits` significant digits.
+  Text& put(double v, int digits) {
+    char b[40];
+    s.append(b, std::to_chars(b, b + sizeof b, v, std::chars_format::general, digits).ptr);
+    return *this;
+  }
   Text& operator<<(int v) {
     char b[16];
     s.append(b, std::to_chars(b, b + sizeof b, v).ptr);
@@ -92,6 +101,19 @@ struct Text {
     return *this;
   }
 };
+
+// Significant digits that resolve 1e-6 of the part's extent at coordinates as large as those of
+// `points` moved by `origin`: 6 (printf's default, what every file had) for a part near the
+// origin, up to 17 for one far from it (issue 56: at 1e7 mm, 6 digits would be 10 mm).
+int point_digits(const std::vector<Vec3>& points, const Vec3& origin) {
+  if (origin.isZero(0) || points.empty()) return 6;
+  Vec3 lo = points[0], hi = points[0];
+  for (const Vec3& p : points) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double extent = (hi - lo).maxCoeff();
+  const double largest = std::max((lo + origin).cwiseAbs().maxCoeff(), (hi + origin).cwiseAbs().maxCoeff());
+  if (!(extent > 0)) return 17;
+  return std::clamp(6 + static_cast<int>(std::ceil(std::log10(std::max(1.0, largest / extent)))), 6, 17);
+}
 
 // Lines for items [0, n), formatted by line(i, text) in parallel chunks (TBB) and written in
 // order: the same bytes for every thread count.
@@ -106,7 +128,7 @@ void write_lines(std::ostream& f, size_t n, const Line& line) {
 }
 
 void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& elements,
-               const xfem::LinearXfemResult& r, const StressFn& stress) {
+               const xfem::LinearXfemResult& r, const StressFn& stress, const Vec3& origin) {
   // Uncut cells as hexahedra; cut subvolumes as their quadrature points (VTK_VERTEX), each
   // with displacement and von Mises stress.
   std::vector<Vec3> pts;
@@ -152,7 +174,13 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
   f << "</DataArray>\n<DataArray type=\"Float64\" Name=\"von_mises\" format=\"ascii\">\n";
   write_lines(f, vm.size(), [&](size_t i, Text& os) { os << vm[i] << '\n'; });
   f << "</DataArray>\n</PointData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  write_lines(f, pts.size(), [&](size_t i, Text& os) { os << pts[i].x() << ' ' << pts[i].y() << ' ' << pts[i].z() << '\n'; });
+  const int digits = point_digits(pts, origin);
+  write_lines(f, pts.size(), [&](size_t i, Text& os) {
+    const Vec3 X = pts[i] + origin;  // in the part's frame
+    os.put(X.x(), digits) << ' ';
+    os.put(X.y(), digits) << ' ';
+    os.put(X.z(), digits) << '\n';
+  });
   f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
   write_lines(f, hexes.size(), [&](size_t i, Text& os) {
     for (int k : hexes[i]) os << k << ' ';
@@ -176,7 +204,7 @@ void write_vtu(const std::string& path, const std::vector<xfem::GridElement>& el
 // The part's B-rep faces triangulated, each vertex with its displacement and von Mises stress
 // (what FreeCAD shows as the deformed, coloured part; ParaView reads it as well).
 void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, const std::vector<Vec3>& disp,
-                       const std::vector<double>& vm) {
+                       const std::vector<double>& vm, const Vec3& origin) {
   AtomicFile file(path);  // never a half-written result under the final name
   std::ofstream f(file.temporary());
   if (!f) PARAFAB_INPUT_ERROR("cannot write " << path);
@@ -196,8 +224,12 @@ void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, co
   f << "</DataArray>\n</PointData>\n<CellData Scalars=\"face\">\n<DataArray type=\"Int32\" Name=\"face\" format=\"ascii\">\n";
   for (int fi : mesh.triangle_face) f << fi << '\n';
   f << "</DataArray>\n</CellData>\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  const int digits = point_digits(mesh.points, origin);
   write_lines(f, mesh.points.size(), [&](size_t i, Text& os) {
-    os << mesh.points[i].x() << ' ' << mesh.points[i].y() << ' ' << mesh.points[i].z() << '\n';
+    const Vec3 X = mesh.points[i] + origin;  // in the part's frame
+    os.put(X.x(), digits) << ' ';
+    os.put(X.y(), digits) << ' ';
+    os.put(X.z(), digits) << '\n';
   });
   f << "</DataArray></Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
   write_lines(f, mesh.triangles.size(), [&](size_t i, Text& os) {
@@ -302,14 +334,24 @@ void SimulationSession::load_part(const std::string& part_path) {
   occ::ReadOptions ro;
   if (job_.contains("solid")) ro.solid_index = static_cast<int>(number(job_["solid"], "solid"));
   auto part = occ::read_part(part_path, ro);
+  // Into the local frame first (exact), then rotated about the centre moved into it: the same
+  // part as rotating in the part's frame, without rotating coordinates of 1e7.
+  Eigen::Vector3d origin = frame_origin_;
+  if (!frame_set_) {
+    const occ::PartBox box = occ::part_box(*part);
+    origin = local_frame_origin(box.min, box.max);
+  }
+  if (!origin.isZero(0)) part = occ::translated_part(*part, -origin);
   if (job_.contains("rotate")) {  // {"axis": [..], "center": [..], "degrees": a}: the part inside the grid
     const json& rot = job_["rotate"];
-    part = occ::rotated_part(*part, vec3(rot.value("center", json::array({0, 0, 0})), "rotate.center"),
+    part = occ::rotated_part(*part, vec3(rot.value("center", json::array({0, 0, 0})), "rotate.center") - origin,
                              vec3(rot.value("axis", json::array({0, 0, 1})), "rotate.axis"),
                              number(rot.value("degrees", json(0.0)), "rotate.degrees"));
   }
   part_path_ = part_path;
   part_ = std::move(part);
+  frame_origin_ = origin;
+  frame_set_ = true;
 }
 
 std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
@@ -346,7 +388,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
   if (grid_job.contains("origin")) {  // grid planes through this point (default: centred on the part)
     go.grid.anchored = true;
-    go.grid.origin = vec3(grid_job["origin"], "grid.origin");
+    go.grid.origin = vec3(grid_job["origin"], "grid.origin") - frame_origin_;
   }
   // Volume-rule tuning (thesis §6.3.3): flux refinement of curved patches.
   const json quad = job.value("quadrature", json::object());
@@ -374,7 +416,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   for (size_t i = 0; i < supports.size(); ++i) {
     const std::string path = "supports[" + std::to_string(i) + "]";
     xfem::DirichletCondition d;
-    d.face = face_of(*part_, supports[i], path, tol);
+    d.face = face_of(*part_, supports[i], path, tol, frame_origin_);
     if (supports[i].contains("displacement")) d.offset = vec3(supports[i]["displacement"], path + ".displacement");
     S->dirichlet.push_back(d);
   }
@@ -382,7 +424,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   for (size_t i = 0; i < loads.size(); ++i) {
     const std::string path = "loads[" + std::to_string(i) + "]";
     xfem::TractionCondition t;
-    t.face = face_of(*part_, loads[i], path, tol);
+    t.face = face_of(*part_, loads[i], path, tol, frame_origin_);
     if (loads[i].contains("traction")) t.traction = vec3(loads[i]["traction"], path + ".traction");
     else if (loads[i].contains("force")) t.traction = vec3(loads[i]["force"], path + ".force") / occ::face_area(*part_, t.face);
     else PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
@@ -836,12 +878,13 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   json probes = json::array();
   if (job_.contains("probes"))
     for (size_t i = 0; i < job_["probes"].size(); ++i) {
-      const Vec3 X = vec3(job_["probes"][i], "probes[" + std::to_string(i) + "]");
+      const Vec3 P = vec3(job_["probes"][i], "probes[" + std::to_string(i) + "]");  // the part's frame
+      const Vec3 X = P - frame_origin_;
       const int best = locator.find(X);
       if (best < 0) PARAFAB_INPUT_ERROR("probes[" << i << "] lies outside the grid");
       const Vec3 u = r.displacement(grid.elements, best, X);
       const auto s = stress(best, X);
-      probes.push_back({{"point", {X.x(), X.y(), X.z()}}, {"displacement", {u.x(), u.y(), u.z()}},
+      probes.push_back({{"point", {P.x(), P.y(), P.z()}}, {"displacement", {u.x(), u.y(), u.z()}},
                         {"von_mises", xfem::von_mises(s)},
                         {"stress", {s(0), s(1), s(2), s(3), s(4), s(5)}}});
     }
@@ -855,7 +898,8 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"interior_cells", grid.cut->interior_cells.size()},
                      {"method", grid.cut->method == occ::CutMethod::FaceCut ? "face" : "splitter"},
                      {"retry_reason", grid.cut->retry_reason},
-                     {"grid_shift", {grid.cut->grid_shift.x(), grid.cut->grid_shift.y(), grid.cut->grid_shift.z()}}}},
+                     {"grid_shift", {grid.cut->grid_shift.x(), grid.cut->grid_shift.y(), grid.cut->grid_shift.z()}},
+                     {"frame_origin", {frame_origin_.x(), frame_origin_.y(), frame_origin_.z()}}}},
            {"dofs", r.dofs},
            {"element", xfem::element_type_name(S.fo.element)},
            {"nitsche_penalty", S.fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed"},
@@ -872,13 +916,15 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"status", result_status(grid.rule_failures.empty(), r.indefinite && model_name_is_linear(S.model),
                                     r.u.allFinite() && std::isfinite(umax) && std::isfinite(vmmax) && std::isfinite(r.energy))},
            {"rule_failures", rule_failures},
+           {"rules_refinement_capped", grid.rules_refinement_capped},  // flux refinement stopped at quadrature.max_depth
            {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant
            {"material_model", S.model},
            {"aggregated_nodes", r.aggregated_nodes},
            {"newton", newton},
            {"recut", recut},
            {"mass_properties", {{"volume", mp.volume}, {"mass", mp.volume * mat.density},
-                                {"center", {mp.center.x(), mp.center.y(), mp.center.z()}}}},
+                                {"center", {mp.center.x() + frame_origin_.x(), mp.center.y() + frame_origin_.y(),
+                                            mp.center.z() + frame_origin_.z()}}}},
            {"probes", probes},
            {"message", r.message},
            {"seconds", {{"cut", grid.cut_seconds}, {"rules", grid.rule_seconds},
@@ -910,7 +956,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     const auto t_write = std::chrono::steady_clock::now();
     require_writable_folder(out_dir);
     report("write", 0.95);
-    write_vtu(out_dir + "/result.vtu", grid.elements, r, stress);
+    write_vtu(out_dir + "/result.vtu", grid.elements, r, stress, frame_origin_);
     // The exact boundary, triangulated to a tenth of a cell and to edges of at most half a
     // cell, with the fields at its vertices (located through the grid, evaluated in parallel).
     const double cell = grid.cut->cell_size.x();
@@ -932,7 +978,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
         svm[i] = xfem::von_mises(stress(e, mesh.points[i]));
       }
     });
-    write_surface_vtu(out_dir + "/surface.vtu", mesh, sdisp, svm);
+    write_surface_vtu(out_dir + "/surface.vtu", mesh, sdisp, svm, frame_origin_);
     out["files"] = {out_dir + "/result.json", out_dir + "/result.vtu", out_dir + "/surface.vtu"};
     out["surface_vertices"] = mesh.points.size();
     out["points_located_by_nearest_rule_point"] = locator.nearest_rule_point_fallbacks();

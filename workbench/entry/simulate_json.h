@@ -4,6 +4,7 @@
 // ("Simulation (linear XFEM)") and resources/doc/json-reference.md.
 #pragma once
 
+#include <Eigen/Core>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <functional>
@@ -59,6 +60,11 @@ class SimulationSession {
 
   nlohmann::json job_;
   std::string part_path_;
+  /// The local frame's origin in the part's own frame (local_frame.h), fixed by the first part
+  /// (an update keeps the grid, hence the frame): part_ and the model are local; job points
+  /// are moved into it, reported positions (VTU points, centre of mass) back.
+  Eigen::Vector3d frame_origin_ = Eigen::Vector3d::Zero();
+  bool frame_set_ = false;
   std::shared_ptr<const occ::PartShape> part_;
   std::unique_ptr<Setup> setup_;
   std::unique_ptr<occ::GridModel> model_;

@@ -529,6 +529,40 @@ TEST(AreaRule, DegreeBoostResolvesASmoothIntegrandWithFewerLeaves) {
   EXPECT_NEAR(f(rb.rule)(0), exact, 1e-14 * exact + rb.error_estimate);
 }
 
+TEST(AreaRule, RefinementStopsAtItsCapsAndCountsTheLeavesThere) {
+  // Degree 5 (6 × 6 Gauss points on an uncut box) against 6 (8 × 8): degree 4's rule would be the
+  // same 6 × 6 rule, with a zero estimate. A tolerance nothing meets (round-off alone is far
+  // above it): at max_depth 2 every one of
+  // the 16 quadrants is a leaf at the cap; at max_depth 64 (what a job may ask) the region
+  // budget stops the splitting instead of 4^64 leaves.
+  const auto loops = to_uv_loops(std::vector<BoundaryLoop>{polygon_loop({{0, 0}, {1, 0}, {1, 1}, {0, 1}}, 1)});
+  const UvIntegral f = [](const QuadratureRule2& q) {
+    Eigen::VectorXd v = Eigen::VectorXd::Zero(1);
+    for (size_t j = 0; j < q.points.size(); ++j) v(0) += q.weights[j] * std::exp(3 * q.points[j].x() * q.points[j].y());
+    return v;
+  };
+  const RefinedAreaRule shallow = refined_area_rule(loops, AreaRuleOptions{5}, RefinementOptions{1e-300, false, 2, 0}, f);
+  EXPECT_EQ(shallow.status, RuleStatus::NotConverged);
+  EXPECT_EQ(shallow.leaves, 16);
+  // Measured 13: on 3 quadrants the two rules agree to the last bit (an estimate of 0).
+  EXPECT_GE(shallow.capped_leaves, 12);
+  EXPECT_LE(shallow.capped_leaves, 16);
+  EXPECT_EQ(shallow.regions, 21);
+  EXPECT_EQ(shallow.depth, 2);
+  const RefinedAreaRule deep = refined_area_rule(loops, AreaRuleOptions{5}, RefinementOptions{1e-300, false, 64, 0}, f);
+  std::printf("  max_depth 64: %d regions, %d leaves (%d at a cap), depth %d\n", deep.regions, deep.leaves,
+              deep.capped_leaves, deep.depth);
+  EXPECT_EQ(deep.status, RuleStatus::NotConverged);
+  EXPECT_LE(deep.regions, RefinementOptions{}.max_regions + 3 * 64);
+  // Measured 5613 regions, 4210 leaves, 4144 of them above their tolerance, depth 64.
+  EXPECT_GT(deep.capped_leaves, 0.9 * deep.leaves);
+  // The integral stays right: ∫∫ exp(3xy) = Σ_n 3^n / (n! (n+1)^2).
+  double exact = 0, term = 1;
+  for (int n = 0; n < 40; ++n, term *= 3.0 / n) exact += term / ((n + 1.0) * (n + 1.0));
+  EXPECT_NEAR(deep.integral(0), exact, 1e-13 * exact);
+  EXPECT_NEAR(shallow.integral(0), exact, 1e-13 * exact);
+}
+
 // ---------------------------------------------------------------------------------------
 // Surface rules.
 
