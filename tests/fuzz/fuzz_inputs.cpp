@@ -6,7 +6,9 @@
 // entry returns or throws parafab::Error (an input error naming the problem); it fails when it
 // throws anything else (the CLI's "internal error") or the child dies (a crash). Slow cases are
 // counted, not failed. Failing inputs are saved for replay:
-//   fuzz_inputs SAMPLES_DIR OUT_DIR [--seconds S] [--seed N] [--case-seconds T]
+//   fuzz_inputs SAMPLES_DIR OUT_DIR [--seconds S] [--seed N] [--case-seconds T] [--max-cases C]
+// The cases of a seed come in a fixed order, so a run of C cases is the same on every machine
+// (CI uses a fixed count within a time budget; new seeds are for longer runs by hand).
 //   fuzz_inputs --replay FORMAT FILE [PART]
 #include <fcntl.h>
 #include <sys/wait.h>
@@ -254,11 +256,13 @@ int main(int argc, char** argv) {
   const fs::path samples = argv[1], out = argv[2];
   double budget = 60, case_seconds = 10;
   uint64_t seed = 1;
+  long max_cases = -1;
   for (int i = 3; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--seconds") budget = std::stod(argv[i + 1]);
     else if (a == "--seed") seed = std::stoull(argv[i + 1]);
     else if (a == "--case-seconds") case_seconds = std::stod(argv[i + 1]);
+    else if (a == "--max-cases") max_cases = std::stol(argv[i + 1]);
   }
   fs::create_directories(out);
   const std::vector<Seed> all = seeds(samples);
@@ -267,7 +271,7 @@ int main(int argc, char** argv) {
   int failures = 0, cases = 0;
   const auto t0 = std::chrono::steady_clock::now();
   auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-  while (elapsed() < budget) {
+  while (elapsed() < budget && (max_cases < 0 || cases < max_cases)) {
     const Seed& s = all[rng() % all.size()];
     std::string text;
     if (s.format == "step") {
