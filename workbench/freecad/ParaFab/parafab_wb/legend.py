@@ -23,6 +23,12 @@ TEXT_COLOR = (0.05, 0.05, 0.05)
 FONT_SIZE = 14
 
 
+def _add(parent, group, *nodes):
+    """``nodes`` into ``group``, and ``group`` into ``parent``."""
+    for node in nodes:
+        group.addChild(node)
+    parent.addChild(group)
+
 def tick_values(lo, hi, count):
     """``count`` evenly spaced values from ``lo`` to ``hi`` (both included)."""
     if count < 2:
@@ -105,9 +111,7 @@ def build(title, lo, hi, stops):
         index += [2 * i, 2 * i + 1, 2 * i + 3, 2 * i + 2, -1]
     faces.coordIndex.setValues(0, len(index), index)
     faces.materialIndex.setValues(0, len(index), index)
-    for node in (material, binding, coords, faces):
-        bar.addChild(node)
-    overlay.addChild(bar)
+    _add(overlay, bar, material, binding, coords, faces)
 
     frame = coin.SoSeparator()
     frame_color = coin.SoBaseColor()
@@ -118,9 +122,7 @@ def build(title, lo, hi, stops):
     frame_coords.point.setValues(0, len(corners) + len(ticks), corners + ticks)
     lines = coin.SoLineSet()
     lines.numVertices.setValues(0, 1 + n, [len(corners)] + [2] * n)
-    for node in (frame_color, frame_coords, lines):
-        frame.addChild(node)
-    overlay.addChild(frame)
+    _add(overlay, frame, frame_color, frame_coords, lines)
 
     labels = coin.SoSeparator()
     color = coin.SoBaseColor()
