@@ -1203,6 +1203,52 @@ struct LinearXfemSolver::Previous {
   std::shared_ptr<const Eigen::SparseMatrix<double>> factored;  ///< the matrix cholesky_ factorized
 };
 
+namespace {
+
+// LinearXfemOptions::Solver: which solver takes a reduced system of n unknowns.
+bool use_petsc(const LinearXfemOptions::Solver& solver, int n) {
+  using Type = LinearXfemOptions::Solver::Type;
+  if (solver.type == Type::Cholmod) return false;
+  if (solver.type == Type::Petsc) return true;  // PetscSystem says so when the build has none
+  return (n >= solver.petsc_from || launched_ranks() > 1) && petsc_available();
+}
+
+// The reduced system by PETSc's Krylov solver: r.u (reduced), r.solved, r.iterative and the
+// solve's figures in r.solve_info. `reduced`: DOF node → reduced node (−1: floating).
+void solve_by_petsc(const std::vector<GridElement>& elements, LinearXfemResult& r, const std::vector<int>& reduced,
+                    const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& f, const KrylovOptions& krylov) {
+  const auto t0 = std::chrono::steady_clock::now();
+  SolveInfo& info = r.solve_info;
+  info.method = "petsc";
+  info.krylov = krylov.ksp + "+" + krylov.pc;
+  std::vector<Vec3> position(K.rows() / 3, Vec3::Zero());
+  for (size_t e = 0; e < elements.size(); ++e) {
+    const int nn = static_cast<int>(r.node[e].size());
+    for (int k = 0; k < nn; ++k)
+      if (const int j = reduced[r.node[e][k]]; j >= 0) position[j] = node_position(elements[e].box, nn, k);
+  }
+  auto system = std::make_shared<PetscSystem>(K, position, krylov);
+  const KrylovResult res = system->solve(f);
+  info.iterations = res.iterations;
+  info.residual = res.residual;
+  info.ranks = system->ranks();
+  info.petsc_copy_seconds = system->create_seconds;
+  info.petsc_setup_seconds = system->setup_seconds;
+  info.petsc_memory_mb = system->memory_mb;
+  info.petsc_seconds = seconds_since(t0);
+  if (!res.converged) {
+    r.message = "the PETSc solve (" + info.krylov + ") did not converge: " + res.reason + " after " +
+                std::to_string(res.iterations) + " iterations, residual " + std::to_string(res.residual) +
+                " (try \"solver\": {\"type\": \"cholmod\"} or a looser \"rtol\")";
+    return;
+  }
+  r.u = res.x;
+  r.solved = r.u.allFinite();
+  if (r.solved) r.iterative = std::move(system);
+}
+
+}  // namespace
+
 LinearXfemSolver::LinearXfemSolver() : cholesky_(std::make_shared<SparseCholesky>()) {}
 LinearXfemSolver::~LinearXfemSolver() = default;
 
@@ -1390,9 +1436,11 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
   t0 = std::chrono::steady_clock::now();
   const int nr = static_cast<int>(K->rows());
   SolveInfo& info = r.solve_info;
+  const bool iterative = use_petsc(options.solver, nr);
+  if (iterative) solve_by_petsc(elements, r, next->reduced, *K, f, options.solver.krylov);
   // CG preconditioned by the last factorization, DOFs matched through equal elements.
   bool tried = false;
-  if (options.reuse.factorization && previous_ && previous_->factored &&
+  if (!iterative && options.reuse.factorization && previous_ && previous_->factored &&
       cholesky_->status() == SparseCholesky::Status::Factorized) {
     const Previous& p = *previous_;
     std::vector<int> prev_node(count, -1);  // DOF node → DOF node of the previous solve (−2: ambiguous)
@@ -1453,7 +1501,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
     }
     info.pcg_seconds = seconds_since(t0);
   }
-  if (!r.solved) {
+  if (!r.solved && !iterative) {
     const auto tf = std::chrono::steady_clock::now();
     if (tried) info.method = "cholesky after pcg";
     // Another pattern: a new factorization object (results and preconditioners sharing the old
@@ -1505,6 +1553,13 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
 
 Eigen::VectorXd LinearXfemResult::solve_again(const Eigen::VectorXd& f) const {
   PARAFAB_VERIFY(f.size() == dofs, "solve_again: load vector of size " << f.size() << ", expected " << dofs);
+  if (iterative) {
+    const Eigen::VectorXd fr = aggregation.size() == 0 ? f : Eigen::VectorXd(aggregation.transpose() * f);
+    const KrylovResult res = iterative->solve(fr);
+    PARAFAB_VERIFY(res.converged, "solve_again: the PETSc solve did not converge (" << res.reason << ", residual "
+                                                                                 << res.residual << ")");
+    return aggregation.size() == 0 ? res.x : Eigen::VectorXd(aggregation * res.x);
+  }
   if (preconditioned) {
     const Eigen::VectorXd fr = aggregation.size() == 0 ? f : Eigen::VectorXd(aggregation.transpose() * f);
     const PcgResult res = preconditioned->solve(fr, Eigen::VectorXd(), pcg);

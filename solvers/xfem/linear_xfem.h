@@ -3,7 +3,7 @@
 // with copies of its cell's nodal DOFs (the change of basis of Eq. 6.20), shared between
 // subvolumes connected through grid faces;
 // Dirichlet conditions on B-rep faces by symmetric Nitsche (Eq. 6.22), tractions (Eq. 6.23)
-// and gravity; sparse Cholesky (CHOLMOD) solve.
+// and gravity; sparse Cholesky (CHOLMOD) solve, or PETSc CG + AMG at scale.
 #pragma once
 
 #include <Eigen/Core>
@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "xfem/cut_geometry.h"
+#include "xfem/petsc_system.h"
 #include "xfem/quadrature_rule.h"
 #include "xfem/reuse_solve.h"
 #include "xfem/sparse_cholesky.h"
@@ -138,6 +139,16 @@ struct LinearXfemOptions {
   /// Memory the factorization may bring the process to, in MB (SparseCholesky::memory_limit_mb:
   /// checked against the factor's exact size before it is computed). 0: 70% of the memory.
   double memory_limit_mb = 0;
+  /// The solver of the reduced system TᵀKT: CHOLMOD's supernodal Cholesky (exact to round-off,
+  /// memory growing as n^{4/3}), PETSc's Krylov solver with AMG (`krylov`, memory linear in n),
+  /// or Auto: PETSc from `petsc_from` reduced unknowns on and whenever the process runs under
+  /// mpirun with more than one rank, CHOLMOD otherwise (and always in a build without PETSc).
+  struct Solver {
+    enum class Type { Auto, Cholmod, Petsc };
+    Type type = Type::Auto;
+    KrylovOptions krylov;
+    int petsc_from = 400000;
+  } solver;
   /// What a LinearXfemSolver carries from one solve to the next (a re-solve after a re-cut):
   struct Reuse {
     /// Elements equal to one of the previous solve (same cell, box and rule bit for bit, and for
@@ -168,8 +179,9 @@ int patch_rule_degree(const LinearXfemOptions& options, const CutPatch& patch, b
 
 /// How LinearXfemSolver solved the system.
 struct SolveInfo {
-  /// "cholesky" (factorized), "pcg" (CG preconditioned by an earlier factorization), or
-  /// "cholesky after pcg" (CG did not converge: factorized; `fallback` says why).
+  /// "cholesky" (factorized), "pcg" (CG preconditioned by an earlier factorization),
+  /// "cholesky after pcg" (CG did not converge: factorized; `fallback` says why), or "petsc"
+  /// (LinearXfemOptions::solver: `krylov` says which Krylov solver and preconditioner).
   std::string method = "cholesky";
   std::string fallback;      ///< why CG was not used or failed ("" when it was not tried)
   int iterations = 0;        ///< CG iterations
@@ -177,6 +189,11 @@ struct SolveInfo {
   int mapped_dofs = 0, changed_dofs = 0, local_dofs = 0;  ///< see ReusedFactorization
   double pcg_seconds = 0, factorize_seconds = 0;
   double pcg_setup_seconds = 0;  ///< of pcg_seconds: the changed rows and the local factorization
+  /// Method "petsc": its Krylov solver and preconditioner ("cg+gamg"), ranks, the matrix copy and
+  /// the preconditioner's setup (the rest of petsc_seconds is the iterations), PETSc's memory.
+  std::string krylov;
+  int ranks = 1;
+  double petsc_seconds = 0, petsc_copy_seconds = 0, petsc_setup_seconds = 0, petsc_memory_mb = 0;
 };
 
 struct LinearXfemResult {
@@ -215,6 +232,9 @@ struct LinearXfemResult {
   /// solve_again runs CG on it.
   std::shared_ptr<const ReusedFactorization> preconditioned;
   PcgOptions pcg;
+  /// Method "petsc": the reduced system in PETSc with its preconditioner (factorization is then
+  /// null); solve_again runs the same Krylov solver on it.
+  std::shared_ptr<const PetscSystem> iterative;
 
   /// The displacement (every DOF node) under another load vector f (size dofs, e.g. an adjoint
   /// right-hand side) with the kept factorization: T (TᵀKT)⁻¹ Tᵀ f (by CG with the same

@@ -28,6 +28,7 @@
 #include "output_files.h"
 #include "part_preflight.h"
 #include "request_schema.h"
+#include "xfem/petsc_system.h"
 
 namespace {
 
@@ -212,6 +213,16 @@ int main(int argc, char** argv) {
         for (const std::string& i : {in_path, job_path}) parafab::entry::refuse_output_over_input(o, i);
     }
     if (*inspect || *integrate || *simulate || *optimize || *sections) parafab::entry::preflight_part_read(in_path);
+    // Under `mpirun -np N`: every rank runs the job and takes part in the distributed solves
+    // (xfem::PetscSystem); rank 0 alone prints and writes.
+    if (parafab::xfem::launched_ranks() > 1) {
+      parafab::xfem::petsc_initialize();  // collective; an input error in a build without PETSc
+      if (parafab::xfem::petsc_rank() > 0) {
+        out_path.clear(), dxf_path.clear(), svg_path.clear(), out_dir.clear();
+        show_progress = optimize_progress = false;
+        if (!std::freopen("/dev/null", "w", stdout)) return 1;
+      }
+    }
     if (*reference) {
       const std::string md = parafab::entry::schema::reference_markdown();
       if (out_path.empty()) {

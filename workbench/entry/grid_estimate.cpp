@@ -28,7 +28,12 @@ xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType de
   return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
 }
 
-SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element) {
+// The iterative path's memory per unknown (hex8; hex27 rows hold about 2.4× the entries):
+// 81 entries per row of 12 bytes, held by Eigen and by PETSc, plus smoothed-aggregation AMG's
+// hierarchy, its prolongators and CG's vectors. Measured by tests/bench/bench_xfem_scale.py.
+constexpr double kIterativeMbPerDof = 4.0e-3;
+
+SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element, bool iterative) {
   const Eigen::Vector3d ext = part.bbox_max - part.bbox_min;
   const bool quadratic = element == xfem::ElementType::Hex27;
   const double m = quadratic ? 2 : 1;
@@ -40,7 +45,48 @@ SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementT
   e.factor_mb = factor(26), e.factor_mb_min = factor(7);
   const double rest = 50 + (quadratic ? 9e-3 : 5e-3) * e.dofs;
   e.peak_mb = rest + e.factor_mb, e.peak_mb_min = rest + e.factor_mb_min;
+  if (iterative) {
+    e.iterative = true;
+    e.factor_mb = e.factor_mb_min = 0;
+    e.peak_mb = e.peak_mb_min = rest + (quadratic ? 2.4 : 1.0) * kIterativeMbPerDof * e.dofs;
+  }
   return e;
+}
+
+void solver_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options) {
+  if (!job.contains("solver")) return;
+  const nlohmann::json& s = job["solver"];
+  if (!s.is_object()) PARAFAB_INPUT_ERROR("solver must be an object {type, ksp, pc, rtol, max_iterations, petsc_from}, got " << s.dump());
+  using Type = xfem::LinearXfemOptions::Solver::Type;
+  xfem::LinearXfemOptions::Solver& o = options.solver;
+  if (s.contains("type")) {
+    const nlohmann::json& t = s["type"];
+    if (t == "auto") o.type = Type::Auto;
+    else if (t == "cholmod") o.type = Type::Cholmod;
+    else if (t == "petsc") o.type = Type::Petsc;
+    else PARAFAB_INPUT_ERROR("solver.type must be \"auto\", \"cholmod\" or \"petsc\", got " << t.dump());
+  }
+  if (o.type == Type::Petsc && !xfem::petsc_available()) xfem::petsc_initialize();  // throws: says why not
+  auto text = [&](const char* key, std::string& out) {
+    if (!s.contains(key)) return;
+    if (!s[key].is_string() || s[key].get<std::string>().empty())
+      PARAFAB_INPUT_ERROR("solver." << key << " must be a PETSc type name such as \"" << out << "\", got " << s[key].dump());
+    out = s[key].get<std::string>();
+  };
+  text("ksp", o.krylov.ksp);
+  text("pc", o.krylov.pc);
+  if (s.contains("rtol")) {
+    o.krylov.rtol = fields::number(s["rtol"], "solver.rtol");
+    if (!(o.krylov.rtol > 0 && o.krylov.rtol < 1)) PARAFAB_INPUT_ERROR("solver.rtol must be in (0, 1), got " << o.krylov.rtol);
+  }
+  if (s.contains("max_iterations")) o.krylov.max_iterations = fields::integer(s["max_iterations"], "solver.max_iterations", 1, 1000000000);
+  if (s.contains("petsc_from")) o.petsc_from = fields::integer(s["petsc_from"], "solver.petsc_from", 0, 2147483647);
+}
+
+bool iterative_solve(const xfem::LinearXfemOptions& options, double unknowns) {
+  using Type = xfem::LinearXfemOptions::Solver::Type;
+  if (options.solver.type != Type::Auto) return options.solver.type == Type::Petsc;
+  return (unknowns >= options.solver.petsc_from || xfem::launched_ranks() > 1) && xfem::petsc_available();
 }
 
 void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options) {

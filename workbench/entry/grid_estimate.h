@@ -49,6 +49,13 @@ void cut_of_job(const nlohmann::json& grid, occ::GridOptions& options);
 /// hex27's 8, it changes nothing).
 void nitsche_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options, bool linear_model = true);
 
+/// The job's "solver" into `options.solver`: {"type": "auto" | "cholmod" | "petsc", "ksp", "pc",
+/// "rtol", "max_iterations", "petsc_from"} (xfem::LinearXfemOptions::Solver). "petsc" in a build
+/// without PETSc is an input error.
+void solver_of_job(const nlohmann::json& job, xfem::LinearXfemOptions& options);
+/// Whether a solve of about `unknowns` takes the iterative (PETSc) path under `options.solver`.
+bool iterative_solve(const xfem::LinearXfemOptions& options, double unknowns);
+
 /// The default grid.cells for an element: the same node lattice for both (16 hex8 cells or
 /// 8 hex27 cells along the part's longest side, nodes every half cell for hex27).
 int default_cells(xfem::ElementType element);
@@ -58,10 +65,14 @@ int default_cells(xfem::ElementType element);
 /// nodes; CHOLMOD's factor 8·C·n^{4/3} bytes with C = 26 (compact parts, factor_mb) and C = 7
 /// (thin-walled ones, factor_mb_min); the run's peak adds 5 (hex8) or 9 (hex27) kB per unknown
 /// and 50 MB. Calibrated on the sample parts (tests/bench/bench_estimate.py).
+/// With `iterative` (the PETSc path) the solve's memory is linear in the unknowns instead:
+/// the stiffness held twice (Eigen's and PETSc's copy) plus AMG's hierarchy, kIterativeMbPerDof
+/// per unknown (hex8; 2.4× for hex27's denser rows); factor_mb is then 0 and peak_mb = peak_mb_min.
 struct SolveEstimate {
   double dofs = 0, factor_mb = 0, factor_mb_min = 0, peak_mb = 0, peak_mb_min = 0;
+  bool iterative = false;
 };
-SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element);
+SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element, bool iterative = false);
 
 /// Throws parafab::Error with the estimate and `override_hint` unless e.fits.
 void refuse_if_too_big(const GridEstimate& e, const std::string& what, const std::string& override_hint);

@@ -138,6 +138,7 @@ std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& pa
   if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
   if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
   nitsche_of_job(job, s->solver, !s->hyperelastic);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
+  solver_of_job(job, s->solver);
   if (job.contains("incompatible_modes")) {  // hex8 only (hex27 has none)
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     s->solver.incompatible_modes = job["incompatible_modes"].get<bool>();
@@ -362,7 +363,9 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       info.bbox_min = size.min, info.bbox_max = size.max, info.area = size.area, info.volume = size.volume;
       const occ::GridOptions& grid = o.compliance->grid.grid;
       const double h = grid.cell_size > 0 ? grid.cell_size : (size.max - size.min).maxCoeff() / grid.cells_longest;
-      const SolveEstimate e = estimate_solve(info, h, o.compliance->solver.element);
+      const SolveEstimate e0 = estimate_solve(info, h, o.compliance->solver.element);
+      const SolveEstimate e = estimate_solve(info, h, o.compliance->solver.element,
+                                             iterative_solve(o.compliance->solver, e0.dofs));
       const GridEstimate cut = estimate_grid(info, grid);
       const double limit_mb = xfem::SparseCholesky::default_memory_limit_mb();
       size_estimate = {{"unknowns", e.dofs}, {"peak_mb", e.peak_mb}, {"peak_mb_min", e.peak_mb_min},

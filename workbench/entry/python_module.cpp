@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "request_schema.h"
+#include "xfem/petsc_system.h"
 #include "common/error.h"
 #include "install_paths.h"
 #include "occt_version.h"
@@ -260,6 +261,9 @@ PYBIND11_MODULE(parafab, m) {
   const auto error = py::register_exception<parafab::Error>(m, "Error", PyExc_ValueError);
   // Registered after Error, so tried first: a cancelled run is parafab.Cancelled (a parafab.Error).
   py::register_exception<parafab::Cancelled>(m, "Cancelled", error.ptr());
+  parafab::xfem::disallow_petsc_in_process(
+      "solver.type \"petsc\": the PETSc solver runs in the CLI (parafab simulate / optimize, also under "
+      "mpirun -np N), not inside Python; \"auto\" and \"cholmod\" solve here with CHOLMOD");
   m.def(
       "strip_stability",
       [](const py::dict& request) {

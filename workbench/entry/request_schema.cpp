@@ -292,7 +292,16 @@ std::vector<Field> solver_fields() {
           {"nitsche_surface_degree", integer(2, 20), "Rule degree on curved clamped faces (default 8)."},
           {"incompatible_modes", kBool, "hex8 with incompatible modes (linear model)."},
           {"load_steps", integer(1, 100000), "Load steps of the hyperelastic Newton solve (default 5)."},
-          {"threads", integer(0, 4096), "Threads (0: all cores)."}};
+          {"threads", integer(0, 4096), "Threads (0: all cores)."},
+          {"solver",
+           object({{"type", leaf("\"auto\" | \"cholmod\" | \"petsc\""),
+                    "CHOLMOD's Cholesky, PETSc's CG + AMG, or auto (PETSc from petsc_from unknowns and under mpirun)."},
+                   {"ksp", kString, "PETSc Krylov solver (default \"cg\")."},
+                   {"pc", kString, "PETSc preconditioner (default \"gamg\")."},
+                   {"rtol", kNumber, "Relative residual at which PETSc stops (default 1e-9)."},
+                   {"max_iterations", integer(1, 1000000000), "PETSc iterations at most."},
+                   {"petsc_from", integer(0, kIntMax), "Unknowns from which auto takes PETSc (default 400000)."}}),
+           "The linear solver."}};
 }
 
 NodePtr simulation_job() {

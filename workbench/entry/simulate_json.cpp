@@ -433,6 +433,7 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
   refuse_loaded_supports(S->dirichlet, S->tractions);
   if (job.contains("gravity")) S->fo.gravity = vec3(job["gravity"], "gravity");
   nitsche_of_job(job, S->fo, model_name_is_linear(S->model));  // default: local for linear hex27
+  solver_of_job(job, S->fo);
   if (job.contains("incompatible_modes")) {  // linear model only; Newton uses plain hexahedra
     if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
     S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();
@@ -499,7 +500,8 @@ std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
 // the two, CHOLMOD's analysis decides exactly before the factorization (SparseCholesky).
 void SimulationSession::Setup::set_estimate() {
   const double h = go.grid.cell_size > 0 ? go.grid.cell_size : extent.maxCoeff() / go.grid.cells_longest;
-  const SolveEstimate e = estimate_solve(info, h, fo.element);
+  const SolveEstimate e0 = estimate_solve(info, h, fo.element);
+  const SolveEstimate e = estimate_solve(info, h, fo.element, iterative_solve(fo, e0.dofs));
   dofs = e.dofs, factor_mb = e.factor_mb, factor_mb_min = e.factor_mb_min, peak_mb = e.peak_mb, peak_mb_min = e.peak_mb_min;
   cut_estimate = estimate_grid(info, go.grid);
 }
@@ -941,6 +943,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"method", si.method}, {"fallback", si.fallback}, {"iterations", si.iterations},
                      {"residual", si.residual}, {"mapped_dofs", si.mapped_dofs}, {"changed_dofs", si.changed_dofs},
                      {"local_dofs", si.local_dofs},
+                     {"krylov", si.krylov}, {"ranks", si.ranks}, {"petsc_memory_mb", si.petsc_memory_mb},
                      {"factor_mb", linear_solver_->cholesky().factor_mb()},
                      // CHOLMOD's symbolic analyses and numeric factorizations, seconds over the session
                      {"analyze_seconds", linear_solver_->cholesky().analyze_seconds},
@@ -948,7 +951,9 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"factor_flops", linear_solver_->cholesky().factor_flops()}};
     out["seconds"]["assemble_parts"] = {{"number", r.number_seconds}, {"integrate", r.integrate_seconds},
                                         {"scatter", r.scatter_seconds}, {"aggregate", r.aggregate_seconds}};
-    out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"pcg_setup", si.pcg_setup_seconds}, {"factorize", si.factorize_seconds}};
+    out["seconds"]["solve_parts"] = {{"pcg", si.pcg_seconds}, {"pcg_setup", si.pcg_setup_seconds}, {"factorize", si.factorize_seconds},
+                                     {"petsc", si.petsc_seconds}, {"petsc_copy", si.petsc_copy_seconds},
+                                     {"petsc_setup", si.petsc_setup_seconds}};
   }
   // Probes (and below surface vertices) in no element known to hold them (ElementLocator).
   out["points_located_by_nearest_rule_point"] = locator.nearest_rule_point_fallbacks();
