@@ -964,48 +964,94 @@ struct GridPatch {
   std::array<int, 2> patch{-1, -1};  ///< below, above: the owning subvolume's patch index
 };
 
-}  // namespace
+// A piece of a subvolume's patch that may be an intersection curve (face–plane or face–face).
+struct CurveJob {
+  int subvolume;
+  Piece piece;
+  int face;
+  bool level;
+};
 
-bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceRecut* recut) {
-  const int nf = part.face_count();
-  const auto& n = g.cells;
-  auto lin = [&](const std::array<int, 3>& c) { return c[0] + n[0] * (c[1] + n[1] * c[2]); };
-  const int ncells = n[0] * n[1] * n[2];
-  if (recut && (static_cast<int>(recut->dirty.size()) != ncells || static_cast<int>(recut->status.size()) != ncells)) {
-    g.message = "face route re-cut: the cell lists do not match the grid";
-    return false;
+// A patch whose boundary loops are sampled into polynomial segments.
+struct LoopJob {
+  int subvolume, patch;
+  const Region* region;
+};
+
+// What the phases of cut_by_faces share: the grid's cells, the faces' patches, the cells'
+// states and the grid patches on the cut cells' squares.
+struct FaceRoute {
+  const PartShape& part;
+  const GridOptions& o;
+  GridCut& g;
+  FaceRecut* recut;
+  const std::array<int, 3>& n;
+  int nf = 0, ncells = 0;
+  std::vector<std::vector<FacePatch>> patches{};
+  std::vector<Handle(Geom_Surface)> surfaces{};
+  std::map<std::array<int, 3>, std::vector<PatchRef>> in_cell{};  ///< cut cells and the face patches in each
+  std::vector<int> status{};  ///< per cell: −1 unknown, 0 outside, 1 inside, 2 cut
+  std::map<std::array<int, 3>, int> interior_index{};
+  std::vector<GridPatch> grid_patches{};
+  std::map<std::array<int, 3>, std::vector<int>> grid_in_cell[2]{};  ///< [0]: cell below, [1]: above
+  std::vector<CurveJob> curve_jobs{};
+  std::vector<LoopJob> loop_jobs{};
+  std::vector<int> pending{};  ///< re-cut: grid patches whose other side is a kept cut cell
+  int open_edges = 0, first_open = -1;
+  double verify_seconds = 0;
+
+  int lin(const std::array<int, 3>& c) const { return c[0] + n[0] * (c[1] + n[1] * c[2]); }
+  bool dirty(const std::array<int, 3>& c) const { return !recut || recut->dirty[lin(c)]; }
+};
+
+// Point tests against the solid, at 1e-9 of the largest cell side.
+struct PointTest {
+  BRepClass3d_SolidClassifier classifier;
+  double h;
+  TopAbs_State at(const Vec3& p) {
+    classifier.Perform(gp_Pnt(p.x(), p.y(), p.z()), 1e-9 * h);
+    return classifier.State();
   }
-  auto dirty = [&](const std::array<int, 3>& c) { return !recut || recut->dirty[lin(c)]; };
-  // Re-cut: only faces whose box meets a dirty cell are cut again.
-  std::vector<char> cut_this(nf, 1);
-  if (recut) {
-    const double tol = 1e-7 * g.cell_size.maxCoeff();
-    for (int f = 0; f < nf; ++f) {
-      const Box3 fb = tight_box(part.face(f));
-      std::array<int, 3> lo{}, hi{};
-      for (int a = 0; a < 3; ++a) {
-        const auto& pl = g.planes[a];
-        lo[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), fb.min[a] - tol) - pl.begin());
-        hi[a] = std::min(n[a] - 1, static_cast<int>(std::upper_bound(pl.begin(), pl.end(), fb.max[a] + tol) - pl.begin()));
-      }
-      bool meets = false;
-      for (int i = lo[0]; i <= hi[0] && !meets; ++i)
-        for (int j = lo[1]; j <= hi[1] && !meets; ++j)
-          for (int k = lo[2]; k <= hi[2] && !meets; ++k) meets = recut->dirty[lin({i, j, k})];
-      cut_this[f] = meets;
-      recut->faces_cut += meets;
+};
+
+// Re-cut: only faces whose box meets a dirty cell are cut again.
+std::vector<char> faces_to_cut(FaceRoute& r) {
+  const GridCut& g = r.g;
+  const auto& n = r.n;
+  std::vector<char> cut_this(r.nf, 1);
+  if (!r.recut) return cut_this;
+  const double tol = 1e-7 * g.cell_size.maxCoeff();
+  for (int f = 0; f < r.nf; ++f) {
+    const Box3 fb = tight_box(r.part.face(f));
+    std::array<int, 3> lo{}, hi{};
+    for (int a = 0; a < 3; ++a) {
+      const auto& pl = g.planes[a];
+      lo[a] = static_cast<int>(std::upper_bound(pl.begin(), pl.end(), fb.min[a] - tol) - pl.begin());
+      hi[a] = std::min(n[a] - 1, static_cast<int>(std::upper_bound(pl.begin(), pl.end(), fb.max[a] + tol) - pl.begin()));
     }
+    bool meets = false;
+    for (int i = lo[0]; i <= hi[0] && !meets; ++i)
+      for (int j = lo[1]; j <= hi[1] && !meets; ++j)
+        for (int k = lo[2]; k <= hi[2] && !meets; ++k) meets = r.recut->dirty[r.lin({i, j, k})];
+    cut_this[f] = meets;
+    r.recut->faces_cut += meets;
   }
-  std::vector<std::vector<FacePatch>> patches(nf);
+  return cut_this;
+}
+
+// Each face cut into its patches per cell (FaceCutter), in parallel with o.face_parallel.
+bool cut_faces(FaceRoute& r, const std::vector<char>& cut_this) {
+  const int nf = r.nf;
+  r.patches.assign(nf, {});
+  r.surfaces.assign(nf, Handle(Geom_Surface)());
   std::vector<std::string> failures(nf);
   std::vector<int> failed_axis(nf, -1);
-  std::vector<Handle(Geom_Surface)> surfaces(nf);
   auto cut_face = [&](int f) {
     if (!cut_this[f]) return;
     try {
-      FaceCutter fc(part, g, f);
-      surfaces[f] = fc.surface();
-      patches[f] = fc.cut();
+      FaceCutter fc(r.part, r.g, f);
+      r.surfaces[f] = fc.surface();
+      r.patches[f] = fc.cut();
     } catch (const FaceFailure& e) {
       failures[f] = e.why;
       failed_axis[f] = e.axis;
@@ -1013,45 +1059,45 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
       failures[f] = "face " + std::to_string(f) + ": OCCT: " + e.GetMessageString();
     }
   };
-  if (o.face_parallel) tbb::parallel_for(0, nf, cut_face);
+  if (r.o.face_parallel) tbb::parallel_for(0, nf, cut_face);
   else
     for (int f = 0; f < nf; ++f) cut_face(f);
   for (int f = 0; f < nf; ++f)
     if (!failures[f].empty()) {
-      g.message = "face route: " + failures[f];
-      g.failed_axis = failed_axis[f];
+      r.g.message = "face route: " + failures[f];
+      r.g.failed_axis = failed_axis[f];
       return false;
     }
+  return true;
+}
 
-  // Cut cells and the face patches in each.
-  std::map<std::array<int, 3>, std::vector<PatchRef>> in_cell;
-  for (int f = 0; f < nf; ++f)
-    for (size_t p = 0; p < patches[f].size(); ++p) in_cell[patches[f][p].cell].push_back({f, static_cast<int>(p), 1});
-
-  // Uncut cells: connected runs, one point test each (re-cut: kept cells keep their state).
-  std::vector<int> status(ncells, -1);  // −1 unknown, 0 outside, 1 inside, 2 cut
+// Cut cells and the face patches in each; uncut cells in connected runs, one point test each
+// (re-cut: kept cells keep their state); the interior cells.
+bool classify_cells(FaceRoute& r, PointTest& test) {
+  GridCut& g = r.g;
+  const auto& n = r.n;
+  const int ncells = r.ncells;
+  FaceRecut* recut = r.recut;
+  std::vector<int>& status = r.status;
+  for (int f = 0; f < r.nf; ++f)
+    for (size_t p = 0; p < r.patches[f].size(); ++p) r.in_cell[r.patches[f][p].cell].push_back({f, static_cast<int>(p), 1});
+  status.assign(ncells, -1);
   if (recut)
     for (int i = 0; i < ncells; ++i)
       if (!recut->dirty[i]) status[i] = recut->status[i];
-  for (const auto& [c, list] : in_cell) {
-    if (recut && !recut->dirty[lin(c)] && status[lin(c)] != 2) {
+  for (const auto& [c, list] : r.in_cell) {
+    if (recut && !recut->dirty[r.lin(c)] && status[r.lin(c)] != 2) {
       g.message = "face route re-cut: a face meets a kept cell the old cut did not cut";
       return false;
     }
-    status[lin(c)] = 2;
+    status[r.lin(c)] = 2;
   }
   if (recut)
     for (int i = 0; i < ncells; ++i) recut->cells_cut += recut->dirty[i] && status[i] == 2;
-  BRepClass3d_SolidClassifier classifier(part.shape);
-  const double h = g.cell_size.maxCoeff();
-  auto inside_at = [&](const Vec3& p) {
-    classifier.Perform(gp_Pnt(p.x(), p.y(), p.z()), 1e-9 * h);
-    return classifier.State();
-  };
   // A cell's state from a point inside it, off-centre (aligned parts have faces through centres).
   auto cell_inside = [&](const Box3& b) {
     for (const Vec3& f : {Vec3(0.5123, 0.4871, 0.5377), Vec3(0.3137, 0.6911, 0.2719), Vec3(0.7211, 0.2293, 0.6631)}) {
-      const TopAbs_State s = inside_at(b.min + f.cwiseProduct(b.size()));
+      const TopAbs_State s = test.at(b.min + f.cwiseProduct(b.size()));
       if (s == TopAbs_IN || s == TopAbs_OUT) return s == TopAbs_IN;
     }
     throw FaceFailure{"the point tests of an uncut cell landed on the boundary"};
@@ -1073,7 +1119,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
             auto m = c;
             m[a] += dlt;
             if (m[a] < 0 || m[a] >= n[a]) continue;
-            const int j = lin(m);
+            const int j = r.lin(m);
             if (status[j] == -1) status[j] = s, stack.push_back(j);
           }
       }
@@ -1082,20 +1128,185 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
     g.message = "face route: " + e.why;
     return false;
   }
-  std::map<std::array<int, 3>, int> interior_index;
   for (int i = 0; i < ncells; ++i)
     if (status[i] == 1) {
       const std::array<int, 3> c{i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])};
-      interior_index[c] = static_cast<int>(g.interior_cells.size());
+      r.interior_index[c] = static_cast<int>(g.interior_cells.size());
       g.interior_cells.push_back(c);
     }
+  return true;
+}
 
-  // Grid patches on the squares of cut cells: the level pieces of the faces below the plane,
-  // reversed against the face's outward boundary, closed along the square's sides.
-  std::vector<GridPatch> grid_patches;
+// One square of the grid (axis a, plane k, cells j1 = sq[2], j2 = sq[3] along a+1, a+2) in its
+// plane's (u, v): its corners, their nodes and the perimeter parameter τ ∈ [0, 4).
+struct Square {
+  int a, k, b1, b2;
+  std::array<int, 4> sq;
+  const std::array<int, 3>& n;
+  Vec2 lo, hi;
+  Vec2 corners[4];
+
+  NodeId corner_id(int which) const {  // 0: (lo,lo) 1: (hi,lo) 2: (hi,hi) 3: (lo,hi)
+    std::array<int, 3> v{};
+    v[a] = k, v[b1] = sq[2] + (which == 1 || which == 2), v[b2] = sq[3] + (which >= 2);
+    return kCornerNode + v[0] + (n[0] + 1) * (v[1] + (n[1] + 1) * static_cast<NodeId>(v[2]));
+  }
+  double tau(const Vec2& p) const {
+    const double w1 = hi.x() - lo.x(), w2 = hi.y() - lo.y();
+    const double d[4] = {std::abs(p.y() - lo.y()) / w2, std::abs(p.x() - hi.x()) / w1, std::abs(p.y() - hi.y()) / w2,
+                         std::abs(p.x() - lo.x()) / w1};
+    const int side = static_cast<int>(std::min_element(d, d + 4) - d);
+    if (d[side] > 1e-7) throw FaceFailure{"a cut curve ends inside a cell face"};
+    // A curve ending at a corner (a face lying in a grid plane or on the grid's box, e.g. an
+    // aligned part whose side equals the grid's): the corner's exact τ, so the closing side
+    // pieces neither repeat the corner nor take a zero-length piece to it.
+    for (int c = 0; c < 4; ++c)
+      if (std::abs(p.x() - corners[c].x()) <= 1e-9 * w1 && std::abs(p.y() - corners[c].y()) <= 1e-9 * w2) return double(c);
+    switch (side) {
+      case 0: return std::clamp((p.x() - lo.x()) / w1, 0.0, 1.0);
+      case 1: return 1 + std::clamp((p.y() - lo.y()) / w2, 0.0, 1.0);
+      case 2: return 2 + std::clamp((hi.x() - p.x()) / w1, 0.0, 1.0);
+      default: return 3 + std::clamp((hi.y() - p.y()) / w2, 0.0, 1.0);
+    }
+  }
+  // Close an open chain from τ0 to τ1 along the square's sides, counter-clockwise.
+  void side_pieces(double t0, const Vec2& p0, NodeId n0, double t1, const Vec2& p1, NodeId n1, Loop& out) const {
+    if (t1 <= t0) t1 += 4;
+    Vec2 from = p0;
+    NodeId from_id = n0;
+    for (int c = static_cast<int>(std::floor(t0)) + 1; c < t1; ++c) {
+      const Vec2 to = corners[c % 4];
+      out.push_back({std::make_shared<Segment>(from, to), 0, 1, from_id, corner_id(c % 4)});
+      from = to, from_id = corner_id(c % 4);
+    }
+    out.push_back({std::make_shared<Segment>(from, p1), 0, 1, from_id, n1});
+  }
+};
+
+// The level pieces on a square of the faces' patches in the cell below it, reversed against the
+// face's outward boundary.
+std::vector<Piece> square_chain(const FaceRoute& r, const Square& s, const std::array<int, 3>& below) {
+  std::vector<Piece> chain;
+  auto it = r.in_cell.find(below);
+  if (it != r.in_cell.end())
+    for (const PatchRef& ref : it->second) {
+      const bool forward = r.part.face(ref.face).Orientation() != TopAbs_REVERSED;
+      for (const Loop& loop : r.patches[ref.face][ref.index].loops)
+        for (const Piece& p : loop) {
+          auto lc = std::dynamic_pointer_cast<const LevelCurve>(p.curve);
+          if (!lc || lc->axis != s.a || lc->plane != s.k) continue;
+          auto pc = std::make_shared<ProjectedCurve>(lc, r.surfaces[ref.face]);
+          chain.push_back(forward ? Piece{pc, p.t1, p.t0, p.n1, p.n0} : Piece{pc, p.t0, p.t1, p.n0, p.n1});
+        }
+    }
+  return chain;
+}
+
+// The chains linked at shared nodes into the square's loops: closed chains as they are, open
+// ones closed along the square's sides; with no curve reaching the sides, the whole square or
+// nothing by the state of its sides. Throws FaceFailure.
+Region square_loops(const FaceRoute& r, PointTest& test, const Square& sq, const std::vector<Piece>& chain,
+                    const std::array<int, 3>& below, const std::array<int, 3>& above) {
+  const int a = sq.a, k = sq.k, b1 = sq.b1, b2 = sq.b2;
+  const Vec2* corners = sq.corners;
+  std::map<NodeId, int> starting;
+  std::set<NodeId> ending;
+  for (size_t i = 0; i < chain.size(); ++i) {
+    if (!starting.emplace(chain[i].n0, static_cast<int>(i)).second)
+      throw FaceFailure{"two cut curves leave one point on a cell face"};
+    ending.insert(chain[i].n1);
+  }
+  std::vector<bool> used(chain.size(), false);
+  Region loops;
+  struct Open {
+    Loop pieces;
+    double t_start, t_end;
+  };
+  std::vector<Open> open;
+  for (size_t i = 0; i < chain.size(); ++i) {  // open chains start where no piece ends
+    if (used[i] || ending.count(chain[i].n0)) continue;
+    Open oc;
+    int j = static_cast<int>(i);
+    while (j >= 0 && !used[j]) {
+      used[j] = true;
+      oc.pieces.push_back(chain[j]);
+      auto s = starting.find(chain[j].n1);
+      j = s == starting.end() ? -1 : s->second;
+    }
+    oc.t_start = sq.tau(oc.pieces.front().a());
+    oc.t_end = sq.tau(oc.pieces.back().b());
+    open.push_back(std::move(oc));
+  }
+  for (size_t i = 0; i < chain.size(); ++i) {  // closed chains
+    if (used[i]) continue;
+    Loop l;
+    int j = static_cast<int>(i);
+    while (!used[j]) {
+      used[j] = true;
+      l.push_back(chain[j]);
+      auto s = starting.find(chain[j].n1);
+      if (s == starting.end()) throw FaceFailure{"a cut curve on a cell face does not close"};
+      j = s->second;
+    }
+    if (j != static_cast<int>(i)) throw FaceFailure{"cut curves on a cell face do not close"};
+    loops.push_back(std::move(l));
+  }
+  // Close the open chains along the square's sides, counter-clockwise.
+  if (!open.empty()) {
+    std::vector<bool> done(open.size(), false);
+    for (size_t i0 = 0; i0 < open.size(); ++i0) {
+      if (done[i0]) continue;
+      Loop l;
+      size_t i = i0;
+      while (!done[i]) {
+        done[i] = true;
+        l.insert(l.end(), open[i].pieces.begin(), open[i].pieces.end());
+        // next start counter-clockwise after this end
+        size_t best = open.size();
+        double best_d = 1e300;
+        for (size_t j = 0; j < open.size(); ++j) {
+          double d = open[j].t_start - open[i].t_end;
+          if (d <= 0) d += 4;
+          if (d < best_d) best_d = d, best = j;
+        }
+        sq.side_pieces(open[i].t_end, open[i].pieces.back().b(), open[i].pieces.back().n1, open[best].t_start,
+                       open[best].pieces.front().a(), open[best].pieces.front().n0, l);
+        i = best;
+      }
+      if (i != i0) throw FaceFailure{"cut curves on a cell face close in the wrong order"};
+      loops.push_back(std::move(l));
+    }
+  } else {
+    // No curve reaches the square's sides: its sides lie wholly inside or outside.
+    int st = -1;
+    if (r.status[r.lin(below)] != 2) st = r.status[r.lin(below)];
+    else if (r.status[r.lin(above)] != 2) st = r.status[r.lin(above)];
+    else {  // the square's corners share the state of its sides (no curve reaches them)
+      for (int c = 0; c < 4 && st < 0; ++c) {
+        Vec3 p;
+        p[a] = r.g.planes[a][k - 1], p[b1] = corners[c].x(), p[b2] = corners[c].y();
+        const TopAbs_State s = test.at(p);
+        if (s == TopAbs_IN || s == TopAbs_OUT) st = s == TopAbs_IN ? 1 : 0;
+      }
+      if (st < 0) throw FaceFailure{"the point tests of a cell face landed on the boundary"};
+    }
+    if (st == 1) {
+      Loop l;
+      for (int c = 0; c < 4; ++c)
+        l.push_back({std::make_shared<Segment>(corners[c], corners[(c + 1) % 4]), 0, 1, sq.corner_id(c), sq.corner_id((c + 1) % 4)});
+      loops.push_back(std::move(l));
+    }
+  }
+  return loops;
+}
+
+// Grid patches on the squares of cut cells: the level pieces of the faces below the plane,
+// reversed against the face's outward boundary, closed along the square's sides.
+bool make_grid_patches(FaceRoute& r, PointTest& test) {
+  const auto& n = r.n;
   std::set<std::array<int, 4>> squares;  // axis, plane, j1, j2
-  for (const auto& [c, list] : in_cell)
-    for (int a = 0; a < 3 && dirty(c); ++a) {
+  for (const auto& [c, list] : r.in_cell)
+    for (int a = 0; a < 3 && r.dirty(c); ++a) {
       const int j1 = c[(a + 1) % 3], j2 = c[(a + 2) % 3];
       if (c[a] > 0) squares.insert({a, c[a], j1, j2});
       if (c[a] + 1 < n[a]) squares.insert({a, c[a] + 1, j1, j2});
@@ -1105,221 +1316,82 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
       const int a = sq[0], k = sq[1], b1 = (a + 1) % 3, b2 = (a + 2) % 3;
       std::array<int, 3> below{}, above{};
       below[a] = k - 1, above[a] = k, below[b1] = above[b1] = sq[2], below[b2] = above[b2] = sq[3];
-      const Box3 cb = g.cell_box(below);
+      const Box3 cb = r.g.cell_box(below);
       const Vec2 lo(cb.min[b1], cb.min[b2]), hi(cb.max[b1], cb.max[b2]);
-      // Chain pieces.
-      std::vector<Piece> chain;
-      auto it = in_cell.find(below);
-      if (it != in_cell.end())
-        for (const PatchRef& r : it->second) {
-          const bool forward = part.face(r.face).Orientation() != TopAbs_REVERSED;
-          for (const Loop& loop : patches[r.face][r.index].loops)
-            for (const Piece& p : loop) {
-              auto lc = std::dynamic_pointer_cast<const LevelCurve>(p.curve);
-              if (!lc || lc->axis != a || lc->plane != k) continue;
-              auto pc = std::make_shared<ProjectedCurve>(lc, surfaces[r.face]);
-              chain.push_back(forward ? Piece{pc, p.t1, p.t0, p.n1, p.n0} : Piece{pc, p.t0, p.t1, p.n0, p.n1});
-            }
-        }
-      // Corner nodes and the perimeter parameter τ ∈ [0, 4).
-      auto corner_id = [&](int which) {  // 0: (lo,lo) 1: (hi,lo) 2: (hi,hi) 3: (lo,hi)
-        std::array<int, 3> v{};
-        v[a] = k, v[b1] = sq[2] + (which == 1 || which == 2), v[b2] = sq[3] + (which >= 2);
-        return kCornerNode + v[0] + (n[0] + 1) * (v[1] + (n[1] + 1) * static_cast<NodeId>(v[2]));
-      };
-      const Vec2 corners[4] = {lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())};
-      auto tau = [&](const Vec2& p) {
-        const double w1 = hi.x() - lo.x(), w2 = hi.y() - lo.y();
-        const double d[4] = {std::abs(p.y() - lo.y()) / w2, std::abs(p.x() - hi.x()) / w1, std::abs(p.y() - hi.y()) / w2,
-                             std::abs(p.x() - lo.x()) / w1};
-        const int side = static_cast<int>(std::min_element(d, d + 4) - d);
-        if (d[side] > 1e-7) throw FaceFailure{"a cut curve ends inside a cell face"};
-        // A curve ending at a corner (a face lying in a grid plane or on the grid's box, e.g. an
-        // aligned part whose side equals the grid's): the corner's exact τ, so the closing side
-        // pieces neither repeat the corner nor take a zero-length piece to it.
-        for (int c = 0; c < 4; ++c)
-          if (std::abs(p.x() - corners[c].x()) <= 1e-9 * w1 && std::abs(p.y() - corners[c].y()) <= 1e-9 * w2) return double(c);
-        switch (side) {
-          case 0: return std::clamp((p.x() - lo.x()) / w1, 0.0, 1.0);
-          case 1: return 1 + std::clamp((p.y() - lo.y()) / w2, 0.0, 1.0);
-          case 2: return 2 + std::clamp((hi.x() - p.x()) / w1, 0.0, 1.0);
-          default: return 3 + std::clamp((hi.y() - p.y()) / w2, 0.0, 1.0);
-        }
-      };
-      // Chains: link pieces at shared nodes.
-      std::map<NodeId, int> starting;
-      std::set<NodeId> ending;
-      for (size_t i = 0; i < chain.size(); ++i) {
-        if (!starting.emplace(chain[i].n0, static_cast<int>(i)).second)
-          throw FaceFailure{"two cut curves leave one point on a cell face"};
-        ending.insert(chain[i].n1);
-      }
-      std::vector<bool> used(chain.size(), false);
-      Region loops;
-      struct Open {
-        Loop pieces;
-        double t_start, t_end;
-      };
-      std::vector<Open> open;
-      for (size_t i = 0; i < chain.size(); ++i) {  // open chains start where no piece ends
-        if (used[i] || ending.count(chain[i].n0)) continue;
-        Open oc;
-        int j = static_cast<int>(i);
-        while (j >= 0 && !used[j]) {
-          used[j] = true;
-          oc.pieces.push_back(chain[j]);
-          auto s = starting.find(chain[j].n1);
-          j = s == starting.end() ? -1 : s->second;
-        }
-        oc.t_start = tau(oc.pieces.front().a());
-        oc.t_end = tau(oc.pieces.back().b());
-        open.push_back(std::move(oc));
-      }
-      for (size_t i = 0; i < chain.size(); ++i) {  // closed chains
-        if (used[i]) continue;
-        Loop l;
-        int j = static_cast<int>(i);
-        while (!used[j]) {
-          used[j] = true;
-          l.push_back(chain[j]);
-          auto s = starting.find(chain[j].n1);
-          if (s == starting.end()) throw FaceFailure{"a cut curve on a cell face does not close"};
-          j = s->second;
-        }
-        if (j != static_cast<int>(i)) throw FaceFailure{"cut curves on a cell face do not close"};
-        loops.push_back(std::move(l));
-      }
-      // Close the open chains along the square's sides, counter-clockwise.
-      auto side_pieces = [&](double t0, const Vec2& p0, NodeId n0, double t1, const Vec2& p1, NodeId n1, Loop& out) {
-        if (t1 <= t0) t1 += 4;
-        Vec2 from = p0;
-        NodeId from_id = n0;
-        for (int c = static_cast<int>(std::floor(t0)) + 1; c < t1; ++c) {
-          const Vec2 to = corners[c % 4];
-          out.push_back({std::make_shared<Segment>(from, to), 0, 1, from_id, corner_id(c % 4)});
-          from = to, from_id = corner_id(c % 4);
-        }
-        out.push_back({std::make_shared<Segment>(from, p1), 0, 1, from_id, n1});
-      };
-      if (!open.empty()) {
-        std::vector<bool> done(open.size(), false);
-        for (size_t i0 = 0; i0 < open.size(); ++i0) {
-          if (done[i0]) continue;
-          Loop l;
-          size_t i = i0;
-          while (!done[i]) {
-            done[i] = true;
-            l.insert(l.end(), open[i].pieces.begin(), open[i].pieces.end());
-            // next start counter-clockwise after this end
-            size_t best = open.size();
-            double best_d = 1e300;
-            for (size_t j = 0; j < open.size(); ++j) {
-              double d = open[j].t_start - open[i].t_end;
-              if (d <= 0) d += 4;
-              if (d < best_d) best_d = d, best = j;
-            }
-            side_pieces(open[i].t_end, open[i].pieces.back().b(), open[i].pieces.back().n1, open[best].t_start,
-                        open[best].pieces.front().a(), open[best].pieces.front().n0, l);
-            i = best;
-          }
-          if (i != i0) throw FaceFailure{"cut curves on a cell face close in the wrong order"};
-          loops.push_back(std::move(l));
-        }
-      } else {
-        // No curve reaches the square's sides: its sides lie wholly inside or outside.
-        int st = -1;
-        if (status[lin(below)] != 2) st = status[lin(below)];
-        else if (status[lin(above)] != 2) st = status[lin(above)];
-        else {  // the square's corners share the state of its sides (no curve reaches them)
-          for (int c = 0; c < 4 && st < 0; ++c) {
-            Vec3 p;
-            p[a] = g.planes[a][k - 1], p[b1] = corners[c].x(), p[b2] = corners[c].y();
-            const TopAbs_State s = inside_at(p);
-            if (s == TopAbs_IN || s == TopAbs_OUT) st = s == TopAbs_IN ? 1 : 0;
-          }
-          if (st < 0) throw FaceFailure{"the point tests of a cell face landed on the boundary"};
-        }
-        if (st == 1) {
-          Loop l;
-          for (int c = 0; c < 4; ++c)
-            l.push_back({std::make_shared<Segment>(corners[c], corners[(c + 1) % 4]), 0, 1, corner_id(c), corner_id((c + 1) % 4)});
-          loops.push_back(std::move(l));
-        }
-      }
-      for (Region& r : group_loops(std::move(loops), "a cell face"))
-        grid_patches.push_back({a, k, {sq[2], sq[3]}, std::move(r), {INT32_MIN, INT32_MIN}});
+      const Square square{a, k, b1, b2, sq, n, lo, hi, {lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())}};
+      const std::vector<Piece> chain = square_chain(r, square, below);
+      for (Region& reg : group_loops(square_loops(r, test, square, chain, below, above), "a cell face"))
+        r.grid_patches.push_back({a, k, {sq[2], sq[3]}, std::move(reg), {INT32_MIN, INT32_MIN}});
     }
   } catch (const FaceFailure& e) {
-    g.message = "face route: " + e.why;
+    r.g.message = "face route: " + e.why;
     return false;
   }
+  return true;
+}
 
-  // Grid patches of each cell.
-  std::map<std::array<int, 3>, std::vector<int>> grid_in_cell[2];  // [0]: cell below, [1]: above
-  for (size_t i = 0; i < grid_patches.size(); ++i) {
-    const GridPatch& gp = grid_patches[i];
+// Grid patches of each cell: listed for the cut cells on either side, owned by the interior ones.
+bool assign_grid_patches(FaceRoute& r) {
+  for (size_t i = 0; i < r.grid_patches.size(); ++i) {
+    const GridPatch& gp = r.grid_patches[i];
     std::array<int, 3> below{}, above{};
     below[gp.axis] = gp.plane - 1, above[gp.axis] = gp.plane;
     below[(gp.axis + 1) % 3] = above[(gp.axis + 1) % 3] = gp.cells2[0];
     below[(gp.axis + 2) % 3] = above[(gp.axis + 2) % 3] = gp.cells2[1];
     for (int sd = 0; sd < 2; ++sd) {
       const auto& c = sd == 0 ? below : above;
-      const int st = status[lin(c)];
-      if (st == 2 && !dirty(c)) continue;  // a kept cut cell: matched by the caller (block faces)
-      if (st == 2) grid_in_cell[sd][c].push_back(static_cast<int>(i));
-      else if (st == 1) grid_patches[i].owner[sd] = -1 - interior_index.at(c);
+      const int st = r.status[r.lin(c)];
+      if (st == 2 && !r.dirty(c)) continue;  // a kept cut cell: matched by the caller (block faces)
+      if (st == 2) r.grid_in_cell[sd][c].push_back(static_cast<int>(i));
+      else if (st == 1) r.grid_patches[i].owner[sd] = -1 - r.interior_index.at(c);
       else {
-        g.message = "face route: a cell face's cross-section borders a cell outside the part";
+        r.g.message = "face route: a cell face's cross-section borders a cell outside the part";
         return false;
       }
     }
   }
+  return true;
+}
 
-  // Subvolumes: connected components of each cut cell's patches (shared points).
-  auto sample_loops = [&](const Region& r, int& segments) {
-    std::vector<xfem::BoundaryLoop> out;
-    Vec2 lo = Vec2::Constant(1e300), hi = Vec2::Constant(-1e300);
-    for (const Loop& l : r)
-      for (const Vec2& p : polyline(l, 4)) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    const double tol = o.segment_tolerance * (hi - lo).maxCoeff();
-    for (const Loop& l : r) {
-      xfem::BoundaryLoop bl;
-      bl.order = o.segment_order;
-      bl.points.push_back(l.front().a());
-      for (const Piece& p : l)
-        segments += append_curve<Vec2>([&](double t) { return p.curve->at(t); }, p.t0, p.t1, p.curve->straight(), o, tol, bl.points);
-      bl.points.back() = bl.points.front();
-      out.push_back(std::move(bl));
-    }
-    return out;
-  };
-  std::vector<std::shared_ptr<const xfem::SurfaceMap>> maps(nf);
-  for (int f = 0; f < nf; ++f)
-    if (!surfaces[f].IsNull()) maps[f] = std::make_shared<OcctSurfaceMap>(surfaces[f]);
-  struct CurveJob {
-    int subvolume;
-    Piece piece;
-    int face;
-    bool level;
-  };
-  std::vector<CurveJob> curve_jobs;
-  struct LoopJob {
-    int subvolume, patch;
-    const Region* region;
-  };
-  std::vector<LoopJob> loop_jobs;
-  int open_edges = 0, first_open = -1;
-  double verify_seconds = 0;
-  for (const auto& [cell, list] : in_cell) {
-    if (!dirty(cell)) continue;
+// A region's loops sampled into polynomial boundary segments (o.segment_order, tolerance
+// relative to the region's size); `segments` counts them.
+std::vector<xfem::BoundaryLoop> sample_loops(const Region& r, const GridOptions& o, int& segments) {
+  std::vector<xfem::BoundaryLoop> out;
+  Vec2 lo = Vec2::Constant(1e300), hi = Vec2::Constant(-1e300);
+  for (const Loop& l : r)
+    for (const Vec2& p : polyline(l, 4)) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double tol = o.segment_tolerance * (hi - lo).maxCoeff();
+  for (const Loop& l : r) {
+    xfem::BoundaryLoop bl;
+    bl.order = o.segment_order;
+    bl.points.push_back(l.front().a());
+    for (const Piece& p : l)
+      segments += append_curve<Vec2>([&](double t) { return p.curve->at(t); }, p.t0, p.t1, p.curve->straight(), o, tol, bl.points);
+    bl.points.back() = bl.points.front();
+    out.push_back(std::move(bl));
+  }
+  return out;
+}
+
+// Subvolumes: connected components of each dirty cut cell's patches (shared points), their
+// patches (loops sampled later: r.loop_jobs) and the pieces that may be intersection curves
+// (r.curve_jobs). With o.verify, every subvolume's boundary is checked to close.
+void build_subvolumes(FaceRoute& r) {
+  const PartShape& part = r.part;
+  GridCut& g = r.g;
+  std::vector<std::shared_ptr<const xfem::SurfaceMap>> maps(r.nf);
+  for (int f = 0; f < r.nf; ++f)
+    if (!r.surfaces[f].IsNull()) maps[f] = std::make_shared<OcctSurfaceMap>(r.surfaces[f]);
+  for (const auto& [cell, list] : r.in_cell) {
+    if (!r.dirty(cell)) continue;
     std::vector<PatchRef> refs = list;
     for (int sd = 0; sd < 2; ++sd) {
-      auto it = grid_in_cell[sd].find(cell);
-      if (it != grid_in_cell[sd].end())
+      auto it = r.grid_in_cell[sd].find(cell);
+      if (it != r.grid_in_cell[sd].end())
         for (int i : it->second) refs.push_back({-1, i, sd == 0 ? 1 : -1});
     }
-    auto region_of = [&](const PatchRef& r) -> const Region& {
-      return r.face >= 0 ? patches[r.face][r.index].loops : grid_patches[r.index].loops;
+    auto region_of = [&](const PatchRef& ref) -> const Region& {
+      return ref.face >= 0 ? r.patches[ref.face][ref.index].loops : r.grid_patches[ref.index].loops;
     };
     Components comp(static_cast<int>(refs.size()));
     std::map<NodeId, int> first_with;
@@ -1332,14 +1404,14 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
           }
     // Check: every subvolume's boundary closes (each curve between two points is run through
     // once in each direction by its patches, oriented outward).
-    if (o.verify) {
+    if (r.o.verify) {
       const auto tv = std::chrono::steady_clock::now();
       std::map<int, std::map<std::pair<NodeId, NodeId>, int>> directed;  // component root → counts
       for (size_t i = 0; i < refs.size(); ++i) {
-        const PatchRef& r = refs[i];
-        const int sign = r.face >= 0 ? (part.face(r.face).Orientation() == TopAbs_REVERSED ? -1 : 1) : r.sign;
+        const PatchRef& ref = refs[i];
+        const int sign = ref.face >= 0 ? (part.face(ref.face).Orientation() == TopAbs_REVERSED ? -1 : 1) : ref.sign;
         auto& d = directed[comp.find(static_cast<int>(i))];
-        for (const Loop& l : region_of(r))
+        for (const Loop& l : region_of(ref))
           for (const Piece& p : l)
             if (p.n0 != p.n1) ++d[sign > 0 ? std::make_pair(p.n0, p.n1) : std::make_pair(p.n1, p.n0)];
       }
@@ -1347,10 +1419,10 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
         for (const auto& [e, count] : d) {
           auto it = d.find({e.second, e.first});
           if (it == d.end() || it->second != count) {
-            if (open_edges++ == 0) first_open = static_cast<int>(g.subvolumes.size());
+            if (r.open_edges++ == 0) r.first_open = static_cast<int>(g.subvolumes.size());
           }
         }
-      verify_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tv).count();
+      r.verify_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tv).count();
     }
     std::map<int, int> sv_of_root;
     CutCell cc{cell, {}};
@@ -1364,37 +1436,42 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
         g.subvolumes.push_back(std::move(sv));
       }
       const int s = it->second;
-      const PatchRef& r = refs[i];
+      const PatchRef& ref = refs[i];
       xfem::CutPatch patch;
-      loop_jobs.push_back({s, static_cast<int>(g.subvolumes[s].patches.size()), &region_of(r)});
-      if (r.face >= 0) {
-        patch.surface = maps[r.face];
-        patch.orientation = part.face(r.face).Orientation() == TopAbs_REVERSED ? -1 : 1;
-        patch.source_face = r.face;
-        for (const Loop& l : region_of(r))
+      r.loop_jobs.push_back({s, static_cast<int>(g.subvolumes[s].patches.size()), &region_of(ref)});
+      if (ref.face >= 0) {
+        patch.surface = maps[ref.face];
+        patch.orientation = part.face(ref.face).Orientation() == TopAbs_REVERSED ? -1 : 1;
+        patch.source_face = ref.face;
+        for (const Loop& l : region_of(ref))
           for (const Piece& p : l) {
             const bool level = dynamic_cast<const LevelCurve*>(p.curve.get()) != nullptr;
-            curve_jobs.push_back({s, p, r.face, level});
+            r.curve_jobs.push_back({s, p, ref.face, level});
           }
       } else {
-        GridPatch& gp = grid_patches[r.index];
+        GridPatch& gp = r.grid_patches[ref.index];
         patch.surface = std::make_shared<GridPlaneMap>(gp.axis, g.planes[gp.axis][gp.plane - 1]);
-        patch.orientation = r.sign;
+        patch.orientation = ref.sign;
         patch.grid_axis = gp.axis;
-        gp.owner[r.sign > 0 ? 0 : 1] = s;
-        gp.patch[r.sign > 0 ? 0 : 1] = static_cast<int>(g.subvolumes[s].patches.size());
+        gp.owner[ref.sign > 0 ? 0 : 1] = s;
+        gp.patch[ref.sign > 0 ? 0 : 1] = static_cast<int>(g.subvolumes[s].patches.size());
       }
       g.subvolumes[s].patches.push_back(std::move(patch));
       ++g.patches;
     }
     g.cut_cells.push_back(std::move(cc));
   }
-  std::vector<int> pending;  // re-cut: grid patches whose other side is a kept cut cell
-  for (size_t i = 0; i < grid_patches.size(); ++i) {
-    const GridPatch& gp = grid_patches[i];
+}
+
+// The grid patches' two sides: subvolume–subvolume and subvolume–interior connections; on a
+// re-cut, those facing a kept cut cell are left for block faces (r.pending).
+bool connect_grid_patches(FaceRoute& r) {
+  GridCut& g = r.g;
+  for (size_t i = 0; i < r.grid_patches.size(); ++i) {
+    const GridPatch& gp = r.grid_patches[i];
     const int a = gp.owner[0], b = gp.owner[1];
-    if (recut && (a == INT32_MIN) != (b == INT32_MIN)) {
-      pending.push_back(static_cast<int>(i));
+    if (r.recut && (a == INT32_MIN) != (b == INT32_MIN)) {
+      r.pending.push_back(static_cast<int>(i));
       continue;
     }
     if (a == INT32_MIN || b == INT32_MIN) {
@@ -1404,20 +1481,28 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
     if (a >= 0 && b >= 0) g.connections.push_back({std::min(a, b), std::max(a, b)});
     else if (a >= 0 || b >= 0) g.interior_connections.push_back({std::max(a, b), -1 - std::min(a, b)});
   }
+  return true;
+}
 
-  {  // the patches' boundary loops as polynomial segments, in parallel
-    std::vector<int> segs(loop_jobs.size(), 0);
-    auto run = [&](int i) {
-      const LoopJob& j = loop_jobs[i];
-      g.subvolumes[j.subvolume].patches[j.patch].loops = sample_loops(*j.region, segs[i]);
-    };
-    if (o.face_parallel) tbb::parallel_for(0, static_cast<int>(loop_jobs.size()), run);
-    else
-      for (int i = 0; i < static_cast<int>(loop_jobs.size()); ++i) run(i);
-    for (int n : segs) g.segments += n;
-  }
-  for (int i : pending) {  // block faces of the re-cut side, after its loops are sampled
-    const GridPatch& gp = grid_patches[i];
+// The patches' boundary loops as polynomial segments, in parallel.
+void sample_patch_loops(FaceRoute& r) {
+  GridCut& g = r.g;
+  std::vector<int> segs(r.loop_jobs.size(), 0);
+  auto run = [&](int i) {
+    const LoopJob& j = r.loop_jobs[i];
+    g.subvolumes[j.subvolume].patches[j.patch].loops = sample_loops(*j.region, r.o, segs[i]);
+  };
+  if (r.o.face_parallel) tbb::parallel_for(0, static_cast<int>(r.loop_jobs.size()), run);
+  else
+    for (int i = 0; i < static_cast<int>(r.loop_jobs.size()); ++i) run(i);
+  for (int n : segs) g.segments += n;
+}
+
+// Block faces of the re-cut side, after its loops are sampled.
+bool pending_block_faces(FaceRoute& r) {
+  GridCut& g = r.g;
+  for (int i : r.pending) {
+    const GridPatch& gp = r.grid_patches[i];
     const int side = gp.owner[0] == INT32_MIN ? 1 : 0;  // the re-cut side
     const int owner = gp.owner[side];
     BlockFace bf;
@@ -1433,7 +1518,101 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
     }
     g.block_faces.push_back(bf);
   }
-  // Intersection curves with their samples.
+  return true;
+}
+
+// A face–plane intersection curve (a level piece) with its samples.
+void level_curve(const FaceRoute& r, const CurveJob& job, CutCurve& curve, int& segments) {
+  const PartShape& part = r.part;
+  const GridOptions& o = r.o;
+  const GridCut& g = r.g;
+  const double h = g.cell_size.maxCoeff();
+  const Piece& p = job.piece;
+  const Handle(Geom_Surface)& S = r.surfaces[job.face];
+  std::vector<double> ts{p.t0};
+  const auto& L = static_cast<const LevelCurve&>(*p.curve);
+  curve.kind = CutCurve::FacePlane;
+  curve.sources = {job.face, -1 - L.axis};
+  auto at3 = [&](double t) { const Vec2 uv = L.at(t); return to_vec(S->Value(uv.x(), uv.y())); };
+  curve.points.push_back(at3(p.t0));
+  segments += append_curve<Vec3>(at3, p.t0, p.t1, false, o, o.segment_tolerance * h, curve.points, &ts);
+  for (size_t i = 0; i < ts.size(); ++i) {
+    CutSample smp;
+    const Vec2 uv = L.at(ts[i]);
+    const Vec3& X = curve.points[i];
+    smp.on.push_back({job.face, uv});
+    smp.on.push_back({-1 - L.axis, Vec2(X[(L.axis + 1) % 3], X[(L.axis + 2) % 3])});
+    const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
+    if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
+      smp.kind = CutSample::EdgePlane;
+      const NodeId code = node - kEdgePlaneNode;  // edge << 28 | axis << 26 | plane << 13 | root
+      smp.edge = static_cast<int>(code >> 28);
+      const int axis = static_cast<int>((code >> 26) & 3), plane = static_cast<int>((code >> 13) & 8191);
+      const std::vector<double> rr = edge_plane_roots(part.edge(smp.edge), axis, g.planes[axis][plane - 1]);
+      const size_t root = static_cast<size_t>(code & 8191);
+      if (root < rr.size()) smp.edge_param = rr[root];
+    } else if (node >= 0 && (node & (3LL << 60)) == kFaceNode) {
+      smp.kind = CutSample::FacePlanePlane;
+      for (int b = 0; b < 3; ++b) {
+        if (b == L.axis) continue;
+        const auto& pl = g.planes[b];
+        for (double x : pl)
+          if (std::abs(X[b] - x) < 1e-9 * h) smp.on.push_back({-1 - b, Vec2(X[(b + 1) % 3], X[(b + 2) % 3])});
+      }
+      // A face node on no second plane: where a closed level curve (an island) was opened.
+      if (smp.on.size() == 2) smp.kind = CutSample::FacePlane;
+    }
+    curve.samples.push_back(std::move(smp));
+  }
+}
+
+// A face–face intersection curve (a piece of an edge between two faces) with its samples.
+void edge_curve(const FaceRoute& r, const CurveJob& job, const std::array<int, 2>& ff, CutCurve& curve, int& segments) {
+  const PartShape& part = r.part;
+  const GridOptions& o = r.o;
+  const double h = r.g.cell_size.maxCoeff();
+  const Piece& p = job.piece;
+  std::vector<double> ts{p.t0};
+  const auto* pc = static_cast<const PCurve*>(p.curve.get());
+  const int e = pc->edge();
+  const TopoDS_Edge& edge = part.edge(e);
+  BRepAdaptor_Curve c3(edge);
+  curve.kind = CutCurve::FaceFace;
+  curve.sources = ff;
+  auto at3 = [&](double t) { return to_vec(c3.Value(t)); };
+  curve.points.push_back(at3(p.t0));
+  segments += append_curve<Vec3>(at3, p.t0, p.t1, c3.GetType() == GeomAbs_Line, o, o.segment_tolerance * h,
+                                 curve.points, &ts);
+  std::array<Handle(Geom2d_Curve), 2> pcs;
+  for (int j = 0; j < 2; ++j) {
+    double f, l;
+    pcs[j] = BRep_Tool::CurveOnSurface(edge, part.face(ff[j]), f, l);
+  }
+  for (size_t i = 0; i < ts.size(); ++i) {
+    CutSample smp;
+    smp.kind = CutSample::OnEdge;
+    smp.edge = e;
+    smp.edge_param = ts[i];
+    for (int j = 0; j < 2; ++j)  // pcurve (u, v) refined onto the 3D point (pcurves approximate)
+      if (!pcs[j].IsNull())
+        smp.on.push_back({ff[j], refine_uv(r.surfaces[ff[j]], eval2(pcs[j], ts[i]), c3.Value(ts[i]), 1e-6 * (1 + eval2(pcs[j], ts[i]).norm()))});
+    const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
+    if (node >= 0 && (node & (3LL << 60)) == kVertexNode) smp.kind = CutSample::Vertex, smp.edge = static_cast<int>(node);
+    else if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
+      smp.kind = CutSample::EdgePlane;
+      const int axis = static_cast<int>(((node - kEdgePlaneNode) >> 26) & 3);
+      const Vec3& X = curve.points[i];
+      smp.on.push_back({-1 - axis, Vec2(X[(axis + 1) % 3], X[(axis + 2) % 3])});
+    }
+    curve.samples.push_back(std::move(smp));
+  }
+}
+
+// Intersection curves with their samples: level pieces, and edge pieces (once, not seams), in
+// parallel; appended to g.curves on a re-cut.
+void intersection_curves(FaceRoute& r) {
+  const PartShape& part = r.part;
+  GridCut& g = r.g;
   std::map<int, std::array<int, 2>> edge_faces;
   for (int e = 0; e < part.edge_count(); ++e) edge_faces[e] = {-1, -1};
   {
@@ -1449,7 +1628,7 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
   // Which pieces are intersection curves: level pieces, and edge pieces (once, not seams).
   std::set<std::tuple<int, NodeId, NodeId>> edge_done;
   std::vector<CurveJob> jobs;
-  for (const CurveJob& job : curve_jobs) {
+  for (const CurveJob& job : r.curve_jobs) {
     if (!job.level) {
       const auto* pc = dynamic_cast<const PCurve*>(job.piece.curve.get());
       if (!pc) continue;
@@ -1464,101 +1643,50 @@ bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceR
   std::vector<int> curve_segments(jobs.size(), 0);
   auto make_curve = [&](int job_index) {
     const CurveJob& job = jobs[job_index];
-    const Piece& p = job.piece;
     CutCurve& curve = curves[job_index];
-    int& segments = curve_segments[job_index];
     curve.subvolume = job.subvolume;
-    curve.order = o.segment_order;
-    const Handle(Geom_Surface)& S = surfaces[job.face];
-    std::vector<double> ts{p.t0};
-    if (job.level) {
-      const auto& L = static_cast<const LevelCurve&>(*p.curve);
-      curve.kind = CutCurve::FacePlane;
-      curve.sources = {job.face, -1 - L.axis};
-      auto at3 = [&](double t) { const Vec2 uv = L.at(t); return to_vec(S->Value(uv.x(), uv.y())); };
-      curve.points.push_back(at3(p.t0));
-      segments += append_curve<Vec3>(at3, p.t0, p.t1, false, o, o.segment_tolerance * h, curve.points, &ts);
-      for (size_t i = 0; i < ts.size(); ++i) {
-        CutSample smp;
-        const Vec2 uv = L.at(ts[i]);
-        const Vec3& X = curve.points[i];
-        smp.on.push_back({job.face, uv});
-        smp.on.push_back({-1 - L.axis, Vec2(X[(L.axis + 1) % 3], X[(L.axis + 2) % 3])});
-        const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
-        if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
-          smp.kind = CutSample::EdgePlane;
-          const NodeId code = node - kEdgePlaneNode;  // edge << 28 | axis << 26 | plane << 13 | root
-          smp.edge = static_cast<int>(code >> 28);
-          const int axis = static_cast<int>((code >> 26) & 3), plane = static_cast<int>((code >> 13) & 8191);
-          const std::vector<double> r = edge_plane_roots(part.edge(smp.edge), axis, g.planes[axis][plane - 1]);
-          const size_t root = static_cast<size_t>(code & 8191);
-          if (root < r.size()) smp.edge_param = r[root];
-        } else if (node >= 0 && (node & (3LL << 60)) == kFaceNode) {
-          smp.kind = CutSample::FacePlanePlane;
-          for (int b = 0; b < 3; ++b) {
-            if (b == L.axis) continue;
-            const auto& pl = g.planes[b];
-            for (double x : pl)
-              if (std::abs(X[b] - x) < 1e-9 * h) smp.on.push_back({-1 - b, Vec2(X[(b + 1) % 3], X[(b + 2) % 3])});
-          }
-          // A face node on no second plane: where a closed level curve (an island) was opened.
-          if (smp.on.size() == 2) smp.kind = CutSample::FacePlane;
-        }
-        curve.samples.push_back(std::move(smp));
-      }
-    } else {
-      const auto* pc = static_cast<const PCurve*>(p.curve.get());
-      const int e = pc->edge();
-      const auto ff = edge_faces.at(e);
-      const TopoDS_Edge& edge = part.edge(e);
-      BRepAdaptor_Curve c3(edge);
-      curve.kind = CutCurve::FaceFace;
-      curve.sources = ff;
-      auto at3 = [&](double t) { return to_vec(c3.Value(t)); };
-      curve.points.push_back(at3(p.t0));
-      segments += append_curve<Vec3>(at3, p.t0, p.t1, c3.GetType() == GeomAbs_Line, o, o.segment_tolerance * h,
-                                       curve.points, &ts);
-      std::array<Handle(Geom2d_Curve), 2> pcs;
-      for (int j = 0; j < 2; ++j) {
-        double f, l;
-        pcs[j] = BRep_Tool::CurveOnSurface(edge, part.face(ff[j]), f, l);
-      }
-      for (size_t i = 0; i < ts.size(); ++i) {
-        CutSample smp;
-        smp.kind = CutSample::OnEdge;
-        smp.edge = e;
-        smp.edge_param = ts[i];
-        for (int j = 0; j < 2; ++j)  // pcurve (u, v) refined onto the 3D point (pcurves approximate)
-          if (!pcs[j].IsNull())
-            smp.on.push_back({ff[j], refine_uv(surfaces[ff[j]], eval2(pcs[j], ts[i]), c3.Value(ts[i]), 1e-6 * (1 + eval2(pcs[j], ts[i]).norm()))});
-        const NodeId node = i == 0 ? p.n0 : (i + 1 == ts.size() ? p.n1 : -1);
-        if (node >= 0 && (node & (3LL << 60)) == kVertexNode) smp.kind = CutSample::Vertex, smp.edge = static_cast<int>(node);
-        else if (node >= 0 && (node & (3LL << 60)) == kEdgePlaneNode) {
-          smp.kind = CutSample::EdgePlane;
-          const int axis = static_cast<int>(((node - kEdgePlaneNode) >> 26) & 3);
-          const Vec3& X = curve.points[i];
-          smp.on.push_back({-1 - axis, Vec2(X[(axis + 1) % 3], X[(axis + 2) % 3])});
-        }
-        curve.samples.push_back(std::move(smp));
-      }
-    }
+    curve.order = r.o.segment_order;
+    if (job.level) level_curve(r, job, curve, curve_segments[job_index]);
+    else
+      edge_curve(r, job, edge_faces.at(static_cast<const PCurve*>(job.piece.curve.get())->edge()), curve,
+                 curve_segments[job_index]);
   };
-  if (o.face_parallel) tbb::parallel_for(0, static_cast<int>(jobs.size()), make_curve);
+  if (r.o.face_parallel) tbb::parallel_for(0, static_cast<int>(jobs.size()), make_curve);
   else
     for (int i = 0; i < static_cast<int>(jobs.size()); ++i) make_curve(i);
   for (int n : curve_segments) g.segments += n;
-  if (recut) g.curves.insert(g.curves.end(), std::make_move_iterator(curves.begin()), std::make_move_iterator(curves.end()));
+  if (r.recut) g.curves.insert(g.curves.end(), std::make_move_iterator(curves.begin()), std::make_move_iterator(curves.end()));
   else g.curves = std::move(curves);
+}
+
+}  // namespace
+
+bool cut_by_faces(const PartShape& part, const GridOptions& o, GridCut& g, FaceRecut* recut) {
+  FaceRoute r{part, o, g, recut, g.cells};
+  r.nf = part.face_count();
+  r.ncells = r.n[0] * r.n[1] * r.n[2];
+  if (recut && (static_cast<int>(recut->dirty.size()) != r.ncells || static_cast<int>(recut->status.size()) != r.ncells)) {
+    g.message = "face route re-cut: the cell lists do not match the grid";
+    return false;
+  }
+  if (!cut_faces(r, faces_to_cut(r))) return false;
+  PointTest test{BRepClass3d_SolidClassifier(part.shape), g.cell_size.maxCoeff()};
+  if (!classify_cells(r, test) || !make_grid_patches(r, test) || !assign_grid_patches(r)) return false;
+  build_subvolumes(r);
+  if (!connect_grid_patches(r)) return false;
+  sample_patch_loops(r);
+  if (!pending_block_faces(r)) return false;
+  intersection_curves(r);
   if (g.cut_cells.empty() && g.interior_cells.empty()) {
     g.message = "face route: no cell meets the part";
     return false;
   }
 
-  g.verify_seconds = verify_seconds;
-  if (open_edges > 0) {
-    g.verify_open_edges = open_edges;
-    g.message = "face route check failed: " + std::to_string(open_edges) + " boundary curve(s) of subvolume " +
-                std::to_string(first_open) + " are not matched by an opposite curve (its boundary does not close)";
+  g.verify_seconds = r.verify_seconds;
+  if (r.open_edges > 0) {
+    g.verify_open_edges = r.open_edges;
+    g.message = "face route check failed: " + std::to_string(r.open_edges) + " boundary curve(s) of subvolume " +
+                std::to_string(r.first_open) + " are not matched by an opposite curve (its boundary does not close)";
     return false;
   }
   return true;

@@ -42,9 +42,6 @@ class PlaneCurve {
   CurvePoint at_arc_length(double s) const;
   double curvature_at(double u) const;
 
-  /// Parameters of the arc-length table (span boundaries and their subdivisions).
-  const std::vector<double>& table_parameters() const { return table_u_; }
-
  private:
   double speed(double u) const;
   double integrate_speed(double u0, double u1) const;

@@ -15,13 +15,6 @@ const char* to_string(PrimitiveKind kind) {
   return names[static_cast<int>(kind)];
 }
 
-PrimitiveKind primitive_kind(const std::string& name) {
-  for (PrimitiveKind k : {PrimitiveKind::plane, PrimitiveKind::cylinder, PrimitiveKind::cone,
-                          PrimitiveKind::sphere, PrimitiveKind::torus})
-    if (name == to_string(k)) return k;
-  PARAFAB_INPUT_ERROR("unknown primitive '" << name << "' (plane, cylinder, cone, sphere, torus)");
-}
-
 int block_size(PrimitiveKind kind) {
   static const int sizes[] = {4, 7, 8, 4, 8};
   return sizes[static_cast<int>(kind)];

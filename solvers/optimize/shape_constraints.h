@@ -23,8 +23,6 @@ namespace parafab::optimize {
 enum class PrimitiveKind { plane, cylinder, cone, sphere, torus };
 
 const char* to_string(PrimitiveKind kind);
-/// Throws parafab::Error for an unknown name.
-PrimitiveKind primitive_kind(const std::string& name);
 int block_size(PrimitiveKind kind);
 /// Parameter names inside a block: "normal x", "offset", "axis point x", "axis x", "radius", ...
 const std::vector<std::string>& block_parameter_names(PrimitiveKind kind);
