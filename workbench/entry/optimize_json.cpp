@@ -21,7 +21,7 @@
 #include "part_reader.h"
 #include "shape_modify.h"
 #include "shape_optimization.h"
-#include "xfem/sparse_cholesky.h"
+#include "simulation_job.h"
 
 namespace parafab::entry {
 
@@ -30,35 +30,6 @@ using fields::number;
 using fields::vec3;
 
 namespace {
-
-// The part whose faces a job names, by index or by a point on them: the locator and the
-// point tolerance (1e-6 of the part's diagonal) are built once per job, not per named face.
-struct NamedPart {
-  const occ::PartShape& part;
-  occ::FaceLocator locator;
-  double tolerance;
-  explicit NamedPart(const occ::PartShape& p) : part(p), locator(p) {
-    tolerance = 1e-6 * occ::part_box(p).diagonal() + 1e-9;  // the tight box, without part_info's integrals
-  }
-};
-
-int face_index(const NamedPart& named, const json& item, const std::string& path) {
-  if (item.contains("face")) {
-    if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
-    const int f = item["face"].get<int>();
-    occ::face_area(named.part, f);  // validates the index
-    return f;
-  }
-  if (item.contains("point")) {
-    const Eigen::Vector3d X = vec3(item["point"], path + ".point");
-    try {
-      return named.locator.face_at(X, named.tolerance);
-    } catch (const Error& e) {
-      PARAFAB_INPUT_ERROR(path << ": " << e.what());  // which entry named the point
-    }
-  }
-  PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
-}
 
 occ::ParameterRef parameter_ref(const NamedPart& part, const json& item, const std::string& path) {
   occ::ParameterRef r;
@@ -69,104 +40,53 @@ occ::ParameterRef parameter_ref(const NamedPart& part, const json& item, const s
   return r;
 }
 
-// The elasticity job of the compliance objective, in the fields of the simulation job
-// (resources/doc/simulation.md, "Simulation (linear XFEM)"): material {E, nu, density}, grid {cells, cell_size, block_cells,
-// method}, supports, loads (a traction per area stays fixed; a total force stays fixed and is
-// spread over the load face of every model, as `parafab simulate` does), gravity, the Nitsche
-// penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. material.model: linear,
-// or a hyperelastic law (as `parafab simulate`; load_steps, default 5) for `hyperelastic_ok`
-// objectives (the target shape alone or with moment terms).
+// Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (resources/doc/optimization.md, "Pieces that join").
+occ::MergePenaltyOptions merge_penalty_of_job(const json& job, bool merge_ok, bool hyperelastic) {
+  occ::MergePenaltyOptions merge;
+  if (!job.contains("merge_penalty")) return merge;
+  const json& mp = job["merge_penalty"];
+  if (!(mp.is_boolean() || mp.is_object()))
+    PARAFAB_INPUT_ERROR("merge_penalty must be true, false or {\"critical_fraction\", \"law\", \"cap\"}, got " << mp.dump());
+  merge.enabled = mp.is_object() || mp.get<bool>();
+  if (mp.is_object()) {
+    fields::only(mp, "merge_penalty", {"critical_fraction", "law", "cap"});
+    merge.critical_fraction = number(mp.value("critical_fraction", json(merge.critical_fraction)), "merge_penalty.critical_fraction");
+    if (!(merge.critical_fraction > 0 && merge.critical_fraction <= 0.5))
+      PARAFAB_INPUT_ERROR("merge_penalty.critical_fraction must be in (0, 0.5] (of a cell), got " << merge.critical_fraction);
+    const std::string law = mp.value("law", std::string("inverse_square"));
+    if (law == "inverse_square") merge.law = occ::MergePenaltyOptions::Law::InverseSquare;
+    else if (law == "log2") merge.law = occ::MergePenaltyOptions::Law::Log2;
+    else PARAFAB_INPUT_ERROR("merge_penalty.law must be \"inverse_square\" or \"log2\" (thesis Eq. 6.24), got \"" << law << "\"");
+    merge.cap = number(mp.value("cap", json(0.0)), "merge_penalty.cap");
+    if (!(merge.cap >= 0)) PARAFAB_INPUT_ERROR("merge_penalty.cap must be >= 0 (0: the law's default), got " << merge.cap);
+  }
+  if (merge.enabled) {
+    if (!merge_ok)
+      PARAFAB_INPUT_ERROR("merge_penalty: only with the compliance objective alone (the other objectives' "
+                          "gradients have no term for the ties)");
+    if (hyperelastic) PARAFAB_INPUT_ERROR("merge_penalty: the hyperelastic solve has no ties; use material.model \"linear\"");
+  }
+  return merge;
+}
+
+// The elasticity job of the compliance, failure and target objectives: the simulation job's
+// fields (simulation_job.h, as `parafab simulate` reads them, with the optimizer's defaults: hex8;
+// a total force stays fixed and is spread over the load face of every model), a hyperelastic
+// material.model for `hyperelastic_ok` objectives (the target shape alone or with moment terms),
+// and the merge penalty.
 std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& part, const json& job,
                                                              bool hyperelastic_ok, bool merge_ok) {
+  SimulationJob sim = parse_simulation_job(part, job, SimulationJobOptions::optimize(hyperelastic_ok));
   auto s = std::make_shared<occ::ComplianceSetup>();
-  const json& m = fields::require(job, "material", "job (objective compliance)");
-  s->material.youngs_modulus = number(fields::require(m, "E", "material"), "material.E");
-  s->material.poisson_ratio = number(m.value("nu", json(0.3)), "material.nu");
-  s->material.density = number(m.value("density", json(0.0)), "material.density");
-  if (!(s->material.youngs_modulus > 0)) PARAFAB_INPUT_ERROR("material.E must be positive, got " << s->material.youngs_modulus);
-  if (!(s->material.poisson_ratio > -1 && s->material.poisson_ratio < 0.5))
-    PARAFAB_INPUT_ERROR("material.nu must be in (-1, 0.5), got " << s->material.poisson_ratio);
-  const std::string model = m.value("model", std::string("linear"));
-  if (model != "linear") {
-    if (!hyperelastic_ok)
-      PARAFAB_INPUT_ERROR("material.model \"" << model << "\": compliance and failure run on a linear solve (a "
-                                                 "hyperelastic law serves the target objective only); use \"linear\"");
-    s->hyperelastic = xfem::make_material(model, s->material.youngs_modulus, s->material.poisson_ratio);
-    s->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
-    if (s->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1, got " << s->load_steps);
-  }
-  // hex8 by default (unlike `parafab simulate`): the optimizer's gradient checks and figures were
-  // measured with it, and a solve costs less (resources/doc/simulation.md, "Element"); a job may name hex27.
-  s->solver.element = element_of_job(job, xfem::ElementType::Hex8);
-  const json grid = job.value("grid", json::object());
-  if (grid.contains("target")) PARAFAB_INPUT_ERROR("objective compliance: grid.target is not supported (the grid stays fixed)");
-  s->grid.grid.cells_longest = static_cast<int>(number(grid.value("cells", json(default_cells(s->solver.element))), "grid.cells"));
-  s->grid.grid.cell_size = number(grid.value("cell_size", json(0.0)), "grid.cell_size");
-  if (s->grid.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
-  // The face route: perturbed models are re-cut by cell on the run's fixed grid.
-  cut_of_job(grid, s->grid.grid);
-  s->grid = occ::rules_for_element(s->solver.element, s->grid);
-  const json supports = job.value("supports", json::array());
-  if (!supports.is_array() || supports.empty())
-    PARAFAB_INPUT_ERROR("objective compliance needs supports (a list of {\"face\": i} or {\"point\": [x,y,z]})");
-  for (size_t i = 0; i < supports.size(); ++i) {
-    const std::string path = "supports[" + std::to_string(i) + "]";
-    xfem::DirichletCondition d;
-    d.face = face_index(part, supports[i], path);
-    if (supports[i].contains("displacement")) d.offset = vec3(supports[i]["displacement"], path + ".displacement");
-    s->dirichlet.push_back(d);
-  }
-  const json loads = job.value("loads", json::array());
-  for (size_t i = 0; i < loads.size(); ++i) {
-    const std::string path = "loads[" + std::to_string(i) + "]";
-    xfem::TractionCondition t;
-    t.face = face_index(part, loads[i], path);
-    if (loads[i].contains("traction")) t.traction = vec3(loads[i]["traction"], path + ".traction");
-    xfem::Vec3 force = xfem::Vec3::Zero();
-    if (loads[i].contains("traction")) {
-      t.traction = vec3(loads[i]["traction"], path + ".traction");
-    } else if (loads[i].contains("force")) {  // the total force stays: spread over the face of every model
-      force = vec3(loads[i]["force"], path + ".force");
-      t.traction = force / occ::face_area(part.part, t.face);
-    } else {
-      PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
-    }
-    s->tractions.push_back(t);
-    s->forces.push_back(force);
-  }
-  refuse_loaded_supports(s->dirichlet, s->tractions);
-  if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
-  if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
-  nitsche_of_job(job, s->solver, !s->hyperelastic);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
-  if (job.contains("incompatible_modes")) {  // hex8 only (hex27 has none)
-    if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
-    s->solver.incompatible_modes = job["incompatible_modes"].get<bool>();
-  }
-  // Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (resources/doc/optimization.md, "Pieces that join").
-  if (job.contains("merge_penalty")) {
-    const json& mp = job["merge_penalty"];
-    if (!(mp.is_boolean() || mp.is_object()))
-      PARAFAB_INPUT_ERROR("merge_penalty must be true, false or {\"critical_fraction\", \"law\", \"cap\"}, got " << mp.dump());
-    s->merge.enabled = mp.is_object() || mp.get<bool>();
-    if (mp.is_object()) {
-      fields::only(mp, "merge_penalty", {"critical_fraction", "law", "cap"});
-      s->merge.critical_fraction = number(mp.value("critical_fraction", json(s->merge.critical_fraction)), "merge_penalty.critical_fraction");
-      if (!(s->merge.critical_fraction > 0 && s->merge.critical_fraction <= 0.5))
-        PARAFAB_INPUT_ERROR("merge_penalty.critical_fraction must be in (0, 0.5] (of a cell), got " << s->merge.critical_fraction);
-      const std::string law = mp.value("law", std::string("inverse_square"));
-      if (law == "inverse_square") s->merge.law = occ::MergePenaltyOptions::Law::InverseSquare;
-      else if (law == "log2") s->merge.law = occ::MergePenaltyOptions::Law::Log2;
-      else PARAFAB_INPUT_ERROR("merge_penalty.law must be \"inverse_square\" or \"log2\" (thesis Eq. 6.24), got \"" << law << "\"");
-      s->merge.cap = number(mp.value("cap", json(0.0)), "merge_penalty.cap");
-      if (!(s->merge.cap >= 0)) PARAFAB_INPUT_ERROR("merge_penalty.cap must be >= 0 (0: the law's default), got " << s->merge.cap);
-    }
-    if (s->merge.enabled) {
-      if (!merge_ok)
-        PARAFAB_INPUT_ERROR("merge_penalty: only with the compliance objective alone (the other objectives' "
-                            "gradients have no term for the ties)");
-      if (s->hyperelastic) PARAFAB_INPUT_ERROR("merge_penalty: the hyperelastic solve has no ties; use material.model \"linear\"");
-    }
-  }
+  s->material = sim.material.elastic;
+  s->hyperelastic = sim.material.law;
+  if (s->hyperelastic) s->load_steps = sim.material.load_steps;
+  s->solver = sim.solver;
+  s->grid = sim.grid.options;
+  s->dirichlet = std::move(sim.conditions.supports);
+  s->tractions = std::move(sim.conditions.loads);
+  s->forces = std::move(sim.conditions.forces);
+  s->merge = merge_penalty_of_job(job, merge_ok, s->hyperelastic != nullptr);
   return s;
 }
 
@@ -357,21 +277,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
                                  std::none_of(o.objective.terms.begin(), o.objective.terms.end(), elastic_term);
     o.compliance = compliance_setup(named, job, hyperelastic_ok, o.objective.type == "compliance" && o.objective.terms.empty());
     {
-      const occ::PartBoxArea size = occ::part_box_and_area(*part);
-      occ::PartInfo info;
-      info.bbox_min = size.min, info.bbox_max = size.max, info.area = size.area, info.volume = size.volume;
-      const occ::GridOptions& grid = o.compliance->grid.grid;
-      const double h = grid.cell_size > 0 ? grid.cell_size : (size.max - size.min).maxCoeff() / grid.cells_longest;
-      const SolveEstimate e = estimate_solve(info, h, o.compliance->solver.element);
-      const GridEstimate cut = estimate_grid(info, grid);
-      const double limit_mb = xfem::SparseCholesky::default_memory_limit_mb();
-      size_estimate = {{"unknowns", e.dofs}, {"peak_mb", e.peak_mb}, {"peak_mb_min", e.peak_mb_min},
-                       {"limit_mb", limit_mb}, {"cut", to_json(cut)}};
-      if (e.peak_mb_min > limit_mb)
-        PARAFAB_INPUT_ERROR("this grid needs at least about " << amount(e.peak_mb_min) << " MB per evaluation ("
-                            << amount(e.dofs) << " unknowns), more than the " << amount(limit_mb)
-                            << " MB allowed (70% of the memory): use fewer cells (grid.cells) or a larger grid.cell_size");
-      refuse_if_too_big(cut, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
+      const JobSize size = estimate_job_size(size_info(occ::part_box_and_area(*part)), o.compliance->grid.grid,
+                                             o.compliance->solver);
+      size_estimate = {{"unknowns", size.solve.dofs}, {"peak_mb", size.solve.peak_mb}, {"peak_mb_min", size.solve.peak_mb_min},
+                       {"limit_mb", size.limit_mb}, {"cut", to_json(size.cut)}};
+      refuse_if_too_big(size, JobCommand::Optimize);
     }
     if (obj.contains("step")) o.compliance_step = number(obj["step"], "objective.step");
     if (!(o.compliance_step > 0)) PARAFAB_INPUT_ERROR("objective.step must be positive, got " << o.compliance_step);
