@@ -213,33 +213,10 @@ std::string write_beside(const occ::PartShape& part, const std::string& out_dir,
   return step;
 }
 
-}  // namespace
-
-json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
-                        const OptimizeProgressFn& progress, const InterruptFn& interrupted) {
-  schema::check(job, schema::Format::Optimization);
-  std::optional<FolderLock> lock;  // one run at a time in a folder
-  if (!out_dir.empty()) {  // before the work, not after it
-    require_writable_folder(out_dir);
-    lock.emplace(out_dir);
-    for (const char* name : {"optimized.step", "history.json", "history.png", "nearest_valid.step"})
-      refuse_output_over_input(out_dir + "/" + name, part_path);
-  }
-  // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
-  if (job.contains("chart") && !job["chart"].is_boolean())
-    PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
-  const bool chart = job.value("chart", true);
-  // "threads": worker threads of the whole run (0 or absent: all cores), as in `parafab simulate`.
-  if (job.contains("threads") && (!job["threads"].is_number_integer() || job["threads"].get<int>() < 0))
-    PARAFAB_INPUT_ERROR("threads must be an integer >= 1 (or 0: all cores), got " << job["threads"].dump());
-  const int threads = job.value("threads", 0);
-  std::optional<tbb::global_control> thread_limit;
-  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
-  const auto part = occ::read_part(part_path);
-  const NamedPart named(*part);
-  occ::ShapeOptimizationOptions o;
-
-  // Objective: one type, or "sum" of weighted terms of the other types.
+// Objective: one type, or "sum" of weighted terms of the other types; for the objectives that
+// simulate, the simulation job (compliance_setup) and the compliance gradient's options. Returns
+// the size estimate of their solve (null without one).
+json read_objective(const NamedPart& named, const occ::PartShape& part, const json& job, occ::ShapeOptimizationOptions& o) {
   const json& obj = fields::require(job, "objective", "job");
   bool needs_compliance = false;
   o.objective = objective_spec(named, obj, "objective", needs_compliance);
@@ -277,7 +254,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
                                  std::none_of(o.objective.terms.begin(), o.objective.terms.end(), elastic_term);
     o.compliance = compliance_setup(named, job, hyperelastic_ok, o.objective.type == "compliance" && o.objective.terms.empty());
     {
-      const JobSize size = estimate_job_size(size_info(occ::part_box_and_area(*part)), o.compliance->grid.grid,
+      const JobSize size = estimate_job_size(size_info(occ::part_box_and_area(part)), o.compliance->grid.grid,
                                              o.compliance->solver);
       size_estimate = {{"unknowns", size.solve.dofs}, {"peak_mb", size.solve.peak_mb}, {"peak_mb_min", size.solve.peak_mb_min},
                        {"limit_mb", size.limit_mb}, {"cut", to_json(size.cut)}};
@@ -300,7 +277,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     occ::Moments m = occ::Moments::Ones();
     occ::objective_from_moments(o.objective, m, &g);
   }
+  return size_estimate;
+}
 
+// Parameterization: the faces that stay fixed, ties and symmetries (mirrors, rotations, draft).
+void read_parameterization(const NamedPart& named, const json& job, occ::ShapeOptimizationOptions& o) {
   // Fixed faces: supports and loads of the simulation job, and "fixed_faces". A support or load
   // whose face the "parameters" list names moves with its face (a bolt hole's radius under its
   // bolt load); "auto" keeps them fixed.
@@ -389,9 +370,12 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     d.axis = vec3(fields::require(orthogonal[i], "axis", path), path + ".axis");
     o.parameterization.orthogonal.push_back(d);
   }
+}
 
+// The designed parameters ("auto" or a list), each with its optional absolute bounds.
+void read_design(const NamedPart& named, const occ::PartShape& part, const json& job, occ::ShapeOptimizationOptions& o) {
   // Parameters: the face model decides the indices (built again inside optimize_shape; cheap).
-  const occ::FaceModel model = occ::build_face_model(*part);
+  const occ::FaceModel model = occ::build_face_model(part);
   const occ::ShapeParameters sp = occ::build_shape_parameters(model, o.parameterization);
   const json& params = job.contains("parameters") ? job["parameters"] : json("auto");
   if (params.is_string()) {
@@ -419,7 +403,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   } else {
     PARAFAB_INPUT_ERROR("parameters must be \"auto\" or a list of {\"face\", \"parameter\"}");
   }
+}
 
+// Bounds: "constraints" on the volume (ratios) and the mass; returns the density of a mass
+// constraint (0: none).
+double read_bounds(const occ::PartShape& part, const json& job, occ::ShapeOptimizationOptions& o) {
   const json constraints = job.value("constraints", json::array());
   double mass_density = 0;  // of a mass constraint (0: none)
   for (size_t i = 0; i < constraints.size(); ++i) {
@@ -465,7 +453,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   // ~1e-12), so OCCT's volume of the part decides here.
   const bool has_min = o.volume_min_ratio > 0 || o.volume_min > 0, has_max = o.volume_max_ratio > 0 || o.volume_max > 0;
   if (has_min && has_max) {
-    const double V = occ::part_info(*part).volume;
+    const double V = occ::part_info(part).volume;
     const double lo = std::max(o.volume_min_ratio, o.volume_min / V);
     const double hi = std::min(o.volume_max_ratio > 0 ? o.volume_max_ratio : INFINITY,
                                o.volume_max > 0 ? o.volume_max / V : INFINITY);
@@ -473,6 +461,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_INPUT_ERROR("constraints: the lower volume bound (" << lo << " of the part's volume " << V
                                                                    << ") is above the upper one (" << hi << ")");
   }
+  return mass_density;
+}
+
+// The optimizer's options: iterations, steps, the augmented Lagrangian, the start.
+void read_optimizer_options(const json& job, occ::ShapeOptimizationOptions& o) {
   if (job.contains("max_iterations")) {
     if (!job["max_iterations"].is_number_integer() || job["max_iterations"].get<int>() < 0)
       PARAFAB_INPUT_ERROR("max_iterations must be a non-negative integer");
@@ -506,40 +499,34 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     o.design_start.resize(st.size());
     for (size_t k = 0; k < st.size(); ++k) o.design_start[k] = number(st[k], "start[" + std::to_string(k) + "]");
   }
+}
 
-  o.interrupted = interrupted;
-  occ::ShapeProgress report;
-  if (progress)
-    report = [&](const occ::ShapeIterate& it) {
-      return progress(json{{"iteration", it.iteration},
-                           {"objective", it.objective},
-                           {"constraint_violation", it.constraint_violation},
-                           {"seconds", it.seconds}});
-    };
-  const occ::ShapeOptimizationResult r = occ::optimize_shape(*part, o, report);
-  if (!r.part) PARAFAB_INPUT_ERROR("optimization of " << part_path << " could not start: " << r.message);
-  if (r.status == "infeasible_constraints") {
-    // Contradictory constraints: the nearest valid model is written beside the original (never
-    // as optimized.step) with a history naming what stays violated, and the run is an input error.
-    std::string written;
-    if (!out_dir.empty()) {
-      const std::string step = write_beside(*r.part, out_dir, "nearest_valid.step", part_path);
-      // An optimized.step of an earlier run in this folder would now be mistaken for this run's.
-      const std::string stale = out_dir + "/optimized.step";
-      if (std::filesystem::weakly_canonical(stale) != std::filesystem::weakly_canonical(part_path))
-        std::filesystem::remove(stale);
-      json h{{"status", r.status}, {"message", r.message}, {"nearest_valid_step", step},
-             {"tangency_residual_max", r.tangency_residual_max}, {"violated_constraints", json::array()},
-             {"parameters", json::array()}, {"iterations", json::array()}, {"notes", r.notes}};
-      for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
-      for (size_t k = 0; k < r.design_names.size(); ++k)
-        h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
-      write_text_atomically(out_dir + "/history.json", h.dump(2) + "\n");
-      written = "; the nearest valid model is written to " + step + " (not optimized; history.json lists the violations)";
-    }
-    PARAFAB_INPUT_ERROR("the constraints of " << part_path << " cannot all hold: " << r.message << written);
+// Contradictory constraints: the nearest valid model is written beside the original (never
+// as optimized.step) with a history naming what stays violated, and the run is an input error.
+[[noreturn]] void refuse_infeasible(const occ::ShapeOptimizationResult& r, const std::string& out_dir,
+                                    const std::string& part_path) {
+  std::string written;
+  if (!out_dir.empty()) {
+    const std::string step = write_beside(*r.part, out_dir, "nearest_valid.step", part_path);
+    // An optimized.step of an earlier run in this folder would now be mistaken for this run's.
+    const std::string stale = out_dir + "/optimized.step";
+    if (std::filesystem::weakly_canonical(stale) != std::filesystem::weakly_canonical(part_path))
+      std::filesystem::remove(stale);
+    json h{{"status", r.status}, {"message", r.message}, {"nearest_valid_step", step},
+           {"tangency_residual_max", r.tangency_residual_max}, {"violated_constraints", json::array()},
+           {"parameters", json::array()}, {"iterations", json::array()}, {"notes", r.notes}};
+    for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
+    for (size_t k = 0; k < r.design_names.size(); ++k)
+      h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
+    write_text_atomically(out_dir + "/history.json", h.dump(2) + "\n");
+    written = "; the nearest valid model is written to " + step + " (not optimized; history.json lists the violations)";
   }
+  PARAFAB_INPUT_ERROR("the constraints of " << part_path << " cannot all hold: " << r.message << written);
+}
 
+// The history JSON of a run (history.json without the output files).
+json history_of(const occ::ShapeOptimizationResult& r, const occ::ShapeOptimizationOptions& o, double mass_density,
+                const json& size_estimate) {
   json h;
   h["status"] = r.status;
   h["message"] = r.message;
@@ -638,20 +625,72 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     entry["gradient_initial"] = k < static_cast<size_t>(r.initial_gradient.size()) ? json(r.initial_gradient[k]) : json();
     h["parameters"].push_back(entry);
   }
-  if (!out_dir.empty()) {
-    h["optimized_step"] = write_beside(*r.part, out_dir, "optimized.step", part_path);
-    const std::string history = out_dir + "/history.json";
-    write_text_atomically(history, h.dump(2) + "\n");
-    // The chart: a small matplotlib script (optional: the history is complete without it).
-    const std::string script = scripts_dir() + "/plot_optimization.py";
-    const std::string png = out_dir + "/history.png";
-    if (chart && std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
-      const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";
-      if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
-    }
-    if (!h.contains("chart")) h["chart"] = nullptr;
-    write_text_atomically(history, h.dump(2) + "\n");
+  return h;
+}
+
+// Output: optimized.step, history.json and the chart (history.png, or "chart": null).
+void write_outputs(json& h, const occ::ShapeOptimizationResult& r, const std::string& out_dir,
+                   const std::string& part_path, bool chart) {
+  h["optimized_step"] = write_beside(*r.part, out_dir, "optimized.step", part_path);
+  const std::string history = out_dir + "/history.json";
+  write_text_atomically(history, h.dump(2) + "\n");
+  // The chart: a small matplotlib script (optional: the history is complete without it).
+  const std::string script = scripts_dir() + "/plot_optimization.py";
+  const std::string png = out_dir + "/history.png";
+  if (chart && std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
+    const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";
+    if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
   }
+  if (!h.contains("chart")) h["chart"] = nullptr;
+  write_text_atomically(history, h.dump(2) + "\n");
+}
+
+}  // namespace
+
+json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
+                        const OptimizeProgressFn& progress, const InterruptFn& interrupted) {
+  schema::check(job, schema::Format::Optimization);
+  std::optional<FolderLock> lock;  // one run at a time in a folder
+  if (!out_dir.empty()) {  // before the work, not after it
+    require_writable_folder(out_dir);
+    lock.emplace(out_dir);
+    for (const char* name : {"optimized.step", "history.json", "history.png", "nearest_valid.step"})
+      refuse_output_over_input(out_dir + "/" + name, part_path);
+  }
+  // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
+  if (job.contains("chart") && !job["chart"].is_boolean())
+    PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
+  const bool chart = job.value("chart", true);
+  // "threads": worker threads of the whole run (0 or absent: all cores), as in `parafab simulate`.
+  if (job.contains("threads") && (!job["threads"].is_number_integer() || job["threads"].get<int>() < 0))
+    PARAFAB_INPUT_ERROR("threads must be an integer >= 1 (or 0: all cores), got " << job["threads"].dump());
+  const int threads = job.value("threads", 0);
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  const auto part = occ::read_part(part_path);
+  const NamedPart named(*part);
+  occ::ShapeOptimizationOptions o;
+
+  const json size_estimate = read_objective(named, *part, job, o);
+  read_parameterization(named, job, o);
+  read_design(named, *part, job, o);
+  const double mass_density = read_bounds(*part, job, o);
+  read_optimizer_options(job, o);
+
+  o.interrupted = interrupted;
+  occ::ShapeProgress report;
+  if (progress)
+    report = [&](const occ::ShapeIterate& it) {
+      return progress(json{{"iteration", it.iteration},
+                           {"objective", it.objective},
+                           {"constraint_violation", it.constraint_violation},
+                           {"seconds", it.seconds}});
+    };
+  const occ::ShapeOptimizationResult r = occ::optimize_shape(*part, o, report);
+  if (!r.part) PARAFAB_INPUT_ERROR("optimization of " << part_path << " could not start: " << r.message);
+  if (r.status == "infeasible_constraints") refuse_infeasible(r, out_dir, part_path);
+  json h = history_of(r, o, mass_density, size_estimate);
+  if (!out_dir.empty()) write_outputs(h, r, out_dir, part_path, chart);
   return h;
 }
 
