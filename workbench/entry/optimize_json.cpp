@@ -1,13 +1,20 @@
 // JSON layer of the shape optimization (thesis §6.5): job parsing, history output, chart.
 #include "optimize_json.h"
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <set>
+#include <string>
+#include <vector>
 
 #include <tbb/global_control.h>
 
@@ -628,6 +635,27 @@ json history_of(const occ::ShapeOptimizationResult& r, const occ::ShapeOptimizat
   return h;
 }
 
+// Runs argv[0] (an absolute path) with the arguments argv[1..] as they are, without a shell (a
+// quote or a space in a path is just a character of it), its stdout and stderr to /dev/null, and
+// waits for it; true when it exited with status 0.
+bool run_quietly(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  posix_spawn_file_actions_t files;
+  if (posix_spawn_file_actions_init(&files) != 0) return false;
+  const bool redirected = posix_spawn_file_actions_addopen(&files, STDOUT_FILENO, "/dev/null", O_WRONLY, 0) == 0 &&
+                          posix_spawn_file_actions_addopen(&files, STDERR_FILENO, "/dev/null", O_WRONLY, 0) == 0;
+  pid_t pid = -1;
+  const bool spawned = redirected && posix_spawn(&pid, args[0], &files, nullptr, args.data(), environ) == 0;
+  posix_spawn_file_actions_destroy(&files);
+  if (!spawned) return false;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) return false;
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
 // Output: optimized.step, history.json and the chart (history.png, or "chart": null).
 void write_outputs(json& h, const occ::ShapeOptimizationResult& r, const std::string& out_dir,
                    const std::string& part_path, bool chart) {
@@ -635,11 +663,10 @@ void write_outputs(json& h, const occ::ShapeOptimizationResult& r, const std::st
   const std::string history = out_dir + "/history.json";
   write_text_atomically(history, h.dump(2) + "\n");
   // The chart: a small matplotlib script (optional: the history is complete without it).
-  const std::string script = scripts_dir() + "/plot_optimization.py";
+  const std::string python = "/usr/bin/python3", script = scripts_dir() + "/plot_optimization.py";
   const std::string png = out_dir + "/history.png";
-  if (chart && std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
-    const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";
-    if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
+  if (chart && std::filesystem::exists(script) && std::filesystem::exists(python)) {
+    if (run_quietly({python, script, history, png}) && std::filesystem::exists(png)) h["chart"] = png;
   }
   if (!h.contains("chart")) h["chart"] = nullptr;
   write_text_atomically(history, h.dump(2) + "\n");
