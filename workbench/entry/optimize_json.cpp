@@ -1,13 +1,20 @@
 // JSON layer of the shape optimization (thesis §6.5): job parsing, history output, chart.
 #include "optimize_json.h"
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <set>
+#include <string>
+#include <vector>
 
 #include <tbb/global_control.h>
 
@@ -21,7 +28,7 @@
 #include "part_reader.h"
 #include "shape_modify.h"
 #include "shape_optimization.h"
-#include "xfem/sparse_cholesky.h"
+#include "simulation_job.h"
 
 namespace parafab::entry {
 
@@ -30,35 +37,6 @@ using fields::number;
 using fields::vec3;
 
 namespace {
-
-// The part whose faces a job names, by index or by a point on them: the locator and the
-// point tolerance (1e-6 of the part's diagonal) are built once per job, not per named face.
-struct NamedPart {
-  const occ::PartShape& part;
-  occ::FaceLocator locator;
-  double tolerance;
-  explicit NamedPart(const occ::PartShape& p) : part(p), locator(p) {
-    tolerance = 1e-6 * occ::part_box(p).diagonal() + 1e-9;  // the tight box, without part_info's integrals
-  }
-};
-
-int face_index(const NamedPart& named, const json& item, const std::string& path) {
-  if (item.contains("face")) {
-    if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
-    const int f = item["face"].get<int>();
-    occ::face_area(named.part, f);  // validates the index
-    return f;
-  }
-  if (item.contains("point")) {
-    const Eigen::Vector3d X = vec3(item["point"], path + ".point");
-    try {
-      return named.locator.face_at(X, named.tolerance);
-    } catch (const Error& e) {
-      PARAFAB_INPUT_ERROR(path << ": " << e.what());  // which entry named the point
-    }
-  }
-  PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
-}
 
 occ::ParameterRef parameter_ref(const NamedPart& part, const json& item, const std::string& path) {
   occ::ParameterRef r;
@@ -69,105 +47,53 @@ occ::ParameterRef parameter_ref(const NamedPart& part, const json& item, const s
   return r;
 }
 
-// The elasticity job of the compliance objective, in the fields of the simulation job
-// (resources/doc/simulation.md, "Simulation (linear XFEM)"): material {E, nu, density}, grid {cells, cell_size, block_cells,
-// method}, supports, loads (a traction per area stays fixed; a total force stays fixed and is
-// spread over the load face of every model, as `parafab simulate` does), gravity, the Nitsche
-// penalty (nitsche_penalty, nitsche_beta, nitsche_local_factor), element. material.model: linear,
-// or a hyperelastic law (as `parafab simulate`; load_steps, default 5) for `hyperelastic_ok`
-// objectives (the target shape alone or with moment terms).
+// Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (resources/doc/optimization.md, "Pieces that join").
+occ::MergePenaltyOptions merge_penalty_of_job(const json& job, bool merge_ok, bool hyperelastic) {
+  occ::MergePenaltyOptions merge;
+  if (!job.contains("merge_penalty")) return merge;
+  const json& mp = job["merge_penalty"];
+  if (!(mp.is_boolean() || mp.is_object()))
+    PARAFAB_INPUT_ERROR("merge_penalty must be true, false or {\"critical_fraction\", \"law\", \"cap\"}, got " << mp.dump());
+  merge.enabled = mp.is_object() || mp.get<bool>();
+  if (mp.is_object()) {
+    fields::only(mp, "merge_penalty", {"critical_fraction", "law", "cap"});
+    merge.critical_fraction = number(mp.value("critical_fraction", json(merge.critical_fraction)), "merge_penalty.critical_fraction");
+    if (!(merge.critical_fraction > 0 && merge.critical_fraction <= 0.5))
+      PARAFAB_INPUT_ERROR("merge_penalty.critical_fraction must be in (0, 0.5] (of a cell), got " << merge.critical_fraction);
+    const std::string law = mp.value("law", std::string("inverse_square"));
+    if (law == "inverse_square") merge.law = occ::MergePenaltyOptions::Law::InverseSquare;
+    else if (law == "log2") merge.law = occ::MergePenaltyOptions::Law::Log2;
+    else PARAFAB_INPUT_ERROR("merge_penalty.law must be \"inverse_square\" or \"log2\" (thesis Eq. 6.24), got \"" << law << "\"");
+    merge.cap = number(mp.value("cap", json(0.0)), "merge_penalty.cap");
+    if (!(merge.cap >= 0)) PARAFAB_INPUT_ERROR("merge_penalty.cap must be >= 0 (0: the law's default), got " << merge.cap);
+  }
+  if (merge.enabled) {
+    if (!merge_ok)
+      PARAFAB_INPUT_ERROR("merge_penalty: only with the compliance objective alone (the other objectives' "
+                          "gradients have no term for the ties)");
+    if (hyperelastic) PARAFAB_INPUT_ERROR("merge_penalty: the hyperelastic solve has no ties; use material.model \"linear\"");
+  }
+  return merge;
+}
+
+// The elasticity job of the compliance, failure and target objectives: the simulation job's
+// fields (simulation_job.h, as `parafab simulate` reads them, with the optimizer's defaults: hex8;
+// a total force stays fixed and is spread over the load face of every model), a hyperelastic
+// material.model for `hyperelastic_ok` objectives (the target shape alone or with moment terms),
+// and the merge penalty.
 std::shared_ptr<const occ::ComplianceSetup> compliance_setup(const NamedPart& part, const json& job,
                                                              bool hyperelastic_ok, bool merge_ok) {
+  SimulationJob sim = parse_simulation_job(part, job, SimulationJobOptions::optimize(hyperelastic_ok));
   auto s = std::make_shared<occ::ComplianceSetup>();
-  const json& m = fields::require(job, "material", "job (objective compliance)");
-  s->material.youngs_modulus = number(fields::require(m, "E", "material"), "material.E");
-  s->material.poisson_ratio = number(m.value("nu", json(0.3)), "material.nu");
-  s->material.density = number(m.value("density", json(0.0)), "material.density");
-  if (!(s->material.youngs_modulus > 0)) PARAFAB_INPUT_ERROR("material.E must be positive, got " << s->material.youngs_modulus);
-  if (!(s->material.poisson_ratio > -1 && s->material.poisson_ratio < 0.5))
-    PARAFAB_INPUT_ERROR("material.nu must be in (-1, 0.5), got " << s->material.poisson_ratio);
-  const std::string model = m.value("model", std::string("linear"));
-  if (model != "linear") {
-    if (!hyperelastic_ok)
-      PARAFAB_INPUT_ERROR("material.model \"" << model << "\": compliance and failure run on a linear solve (a "
-                                                 "hyperelastic law serves the target objective only); use \"linear\"");
-    s->hyperelastic = xfem::make_material(model, s->material.youngs_modulus, s->material.poisson_ratio);
-    s->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
-    if (s->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1, got " << s->load_steps);
-  }
-  // hex8 by default (unlike `parafab simulate`): the optimizer's gradient checks and figures were
-  // measured with it, and a solve costs less (resources/doc/simulation.md, "Element"); a job may name hex27.
-  s->solver.element = element_of_job(job, xfem::ElementType::Hex8);
-  const json grid = job.value("grid", json::object());
-  if (grid.contains("target")) PARAFAB_INPUT_ERROR("objective compliance: grid.target is not supported (the grid stays fixed)");
-  s->grid.grid.cells_longest = static_cast<int>(number(grid.value("cells", json(default_cells(s->solver.element))), "grid.cells"));
-  s->grid.grid.cell_size = number(grid.value("cell_size", json(0.0)), "grid.cell_size");
-  if (s->grid.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
-  // The face route: perturbed models are re-cut by cell on the run's fixed grid.
-  cut_of_job(grid, s->grid.grid);
-  s->grid = occ::rules_for_element(s->solver.element, s->grid);
-  const json supports = job.value("supports", json::array());
-  if (!supports.is_array() || supports.empty())
-    PARAFAB_INPUT_ERROR("objective compliance needs supports (a list of {\"face\": i} or {\"point\": [x,y,z]})");
-  for (size_t i = 0; i < supports.size(); ++i) {
-    const std::string path = "supports[" + std::to_string(i) + "]";
-    xfem::DirichletCondition d;
-    d.face = face_index(part, supports[i], path);
-    if (supports[i].contains("displacement")) d.offset = vec3(supports[i]["displacement"], path + ".displacement");
-    s->dirichlet.push_back(d);
-  }
-  const json loads = job.value("loads", json::array());
-  for (size_t i = 0; i < loads.size(); ++i) {
-    const std::string path = "loads[" + std::to_string(i) + "]";
-    xfem::TractionCondition t;
-    t.face = face_index(part, loads[i], path);
-    if (loads[i].contains("traction")) t.traction = vec3(loads[i]["traction"], path + ".traction");
-    xfem::Vec3 force = xfem::Vec3::Zero();
-    if (loads[i].contains("traction")) {
-      t.traction = vec3(loads[i]["traction"], path + ".traction");
-    } else if (loads[i].contains("force")) {  // the total force stays: spread over the face of every model
-      force = vec3(loads[i]["force"], path + ".force");
-      t.traction = force / occ::face_area(part.part, t.face);
-    } else {
-      PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
-    }
-    s->tractions.push_back(t);
-    s->forces.push_back(force);
-  }
-  refuse_loaded_supports(s->dirichlet, s->tractions);
-  if (job.contains("gravity")) s->solver.gravity = vec3(job["gravity"], "gravity");
-  if (loads.empty() && !job.contains("gravity")) PARAFAB_INPUT_ERROR("objective compliance needs loads or gravity");
-  nitsche_of_job(job, s->solver, !s->hyperelastic);  // fixed β·E/h or the local penalty (its faces then semi-analytic)
-  solver_of_job(job, s->solver);
-  if (job.contains("incompatible_modes")) {  // hex8 only (hex27 has none)
-    if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
-    s->solver.incompatible_modes = job["incompatible_modes"].get<bool>();
-  }
-  // Thesis §6.4.4 (Eq. 6.24): pieces about to join tied (resources/doc/optimization.md, "Pieces that join").
-  if (job.contains("merge_penalty")) {
-    const json& mp = job["merge_penalty"];
-    if (!(mp.is_boolean() || mp.is_object()))
-      PARAFAB_INPUT_ERROR("merge_penalty must be true, false or {\"critical_fraction\", \"law\", \"cap\"}, got " << mp.dump());
-    s->merge.enabled = mp.is_object() || mp.get<bool>();
-    if (mp.is_object()) {
-      fields::only(mp, "merge_penalty", {"critical_fraction", "law", "cap"});
-      s->merge.critical_fraction = number(mp.value("critical_fraction", json(s->merge.critical_fraction)), "merge_penalty.critical_fraction");
-      if (!(s->merge.critical_fraction > 0 && s->merge.critical_fraction <= 0.5))
-        PARAFAB_INPUT_ERROR("merge_penalty.critical_fraction must be in (0, 0.5] (of a cell), got " << s->merge.critical_fraction);
-      const std::string law = mp.value("law", std::string("inverse_square"));
-      if (law == "inverse_square") s->merge.law = occ::MergePenaltyOptions::Law::InverseSquare;
-      else if (law == "log2") s->merge.law = occ::MergePenaltyOptions::Law::Log2;
-      else PARAFAB_INPUT_ERROR("merge_penalty.law must be \"inverse_square\" or \"log2\" (thesis Eq. 6.24), got \"" << law << "\"");
-      s->merge.cap = number(mp.value("cap", json(0.0)), "merge_penalty.cap");
-      if (!(s->merge.cap >= 0)) PARAFAB_INPUT_ERROR("merge_penalty.cap must be >= 0 (0: the law's default), got " << s->merge.cap);
-    }
-    if (s->merge.enabled) {
-      if (!merge_ok)
-        PARAFAB_INPUT_ERROR("merge_penalty: only with the compliance objective alone (the other objectives' "
-                            "gradients have no term for the ties)");
-      if (s->hyperelastic) PARAFAB_INPUT_ERROR("merge_penalty: the hyperelastic solve has no ties; use material.model \"linear\"");
-    }
-  }
+  s->material = sim.material.elastic;
+  s->hyperelastic = sim.material.law;
+  if (s->hyperelastic) s->load_steps = sim.material.load_steps;
+  s->solver = sim.solver;
+  s->grid = sim.grid.options;
+  s->dirichlet = std::move(sim.conditions.supports);
+  s->tractions = std::move(sim.conditions.loads);
+  s->forces = std::move(sim.conditions.forces);
+  s->merge = merge_penalty_of_job(job, merge_ok, s->hyperelastic != nullptr);
   return s;
 }
 
@@ -294,33 +220,10 @@ std::string write_beside(const occ::PartShape& part, const std::string& out_dir,
   return step;
 }
 
-}  // namespace
-
-json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
-                        const OptimizeProgressFn& progress, const InterruptFn& interrupted) {
-  schema::check(job, schema::Format::Optimization);
-  std::optional<FolderLock> lock;  // one run at a time in a folder
-  if (!out_dir.empty()) {  // before the work, not after it
-    require_writable_folder(out_dir);
-    lock.emplace(out_dir);
-    for (const char* name : {"optimized.step", "history.json", "history.png", "nearest_valid.step"})
-      refuse_output_over_input(out_dir + "/" + name, part_path);
-  }
-  // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
-  if (job.contains("chart") && !job["chart"].is_boolean())
-    PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
-  const bool chart = job.value("chart", true);
-  // "threads": worker threads of the whole run (0 or absent: all cores), as in `parafab simulate`.
-  if (job.contains("threads") && (!job["threads"].is_number_integer() || job["threads"].get<int>() < 0))
-    PARAFAB_INPUT_ERROR("threads must be an integer >= 1 (or 0: all cores), got " << job["threads"].dump());
-  const int threads = job.value("threads", 0);
-  std::optional<tbb::global_control> thread_limit;
-  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
-  const auto part = occ::read_part(part_path);
-  const NamedPart named(*part);
-  occ::ShapeOptimizationOptions o;
-
-  // Objective: one type, or "sum" of weighted terms of the other types.
+// Objective: one type, or "sum" of weighted terms of the other types; for the objectives that
+// simulate, the simulation job (compliance_setup) and the compliance gradient's options. Returns
+// the size estimate of their solve (null without one).
+json read_objective(const NamedPart& named, const occ::PartShape& part, const json& job, occ::ShapeOptimizationOptions& o) {
   const json& obj = fields::require(job, "objective", "job");
   bool needs_compliance = false;
   o.objective = objective_spec(named, obj, "objective", needs_compliance);
@@ -358,23 +261,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
                                  std::none_of(o.objective.terms.begin(), o.objective.terms.end(), elastic_term);
     o.compliance = compliance_setup(named, job, hyperelastic_ok, o.objective.type == "compliance" && o.objective.terms.empty());
     {
-      const occ::PartBoxArea size = occ::part_box_and_area(*part);
-      occ::PartInfo info;
-      info.bbox_min = size.min, info.bbox_max = size.max, info.area = size.area, info.volume = size.volume;
-      const occ::GridOptions& grid = o.compliance->grid.grid;
-      const double h = grid.cell_size > 0 ? grid.cell_size : (size.max - size.min).maxCoeff() / grid.cells_longest;
-      const SolveEstimate e0 = estimate_solve(info, h, o.compliance->solver.element);
-      const SolveEstimate e = estimate_solve(info, h, o.compliance->solver.element,
-                                             iterative_solve(o.compliance->solver, e0.dofs));
-      const GridEstimate cut = estimate_grid(info, grid);
-      const double limit_mb = xfem::SparseCholesky::default_memory_limit_mb();
-      size_estimate = {{"unknowns", e.dofs}, {"peak_mb", e.peak_mb}, {"peak_mb_min", e.peak_mb_min},
-                       {"limit_mb", limit_mb}, {"cut", to_json(cut)}};
-      if (e.peak_mb_min > limit_mb)
-        PARAFAB_INPUT_ERROR("this grid needs at least about " << amount(e.peak_mb_min) << " MB per evaluation ("
-                            << amount(e.dofs) << " unknowns), more than the " << amount(limit_mb)
-                            << " MB allowed (70% of the memory): use fewer cells (grid.cells) or a larger grid.cell_size");
-      refuse_if_too_big(cut, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
+      const JobSize size = estimate_job_size(size_info(occ::part_box_and_area(part)), o.compliance->grid.grid,
+                                             o.compliance->solver);
+      size_estimate = {{"unknowns", size.solve.dofs}, {"peak_mb", size.solve.peak_mb}, {"peak_mb_min", size.solve.peak_mb_min},
+                       {"limit_mb", size.limit_mb}, {"cut", to_json(size.cut)}};
+      refuse_if_too_big(size, JobCommand::Optimize);
     }
     if (obj.contains("step")) o.compliance_step = number(obj["step"], "objective.step");
     if (!(o.compliance_step > 0)) PARAFAB_INPUT_ERROR("objective.step must be positive, got " << o.compliance_step);
@@ -393,7 +284,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     occ::Moments m = occ::Moments::Ones();
     occ::objective_from_moments(o.objective, m, &g);
   }
+  return size_estimate;
+}
 
+// Parameterization: the faces that stay fixed, ties and symmetries (mirrors, rotations, draft).
+void read_parameterization(const NamedPart& named, const json& job, occ::ShapeOptimizationOptions& o) {
   // Fixed faces: supports and loads of the simulation job, and "fixed_faces". A support or load
   // whose face the "parameters" list names moves with its face (a bolt hole's radius under its
   // bolt load); "auto" keeps them fixed.
@@ -482,9 +377,12 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     d.axis = vec3(fields::require(orthogonal[i], "axis", path), path + ".axis");
     o.parameterization.orthogonal.push_back(d);
   }
+}
 
+// The designed parameters ("auto" or a list), each with its optional absolute bounds.
+void read_design(const NamedPart& named, const occ::PartShape& part, const json& job, occ::ShapeOptimizationOptions& o) {
   // Parameters: the face model decides the indices (built again inside optimize_shape; cheap).
-  const occ::FaceModel model = occ::build_face_model(*part);
+  const occ::FaceModel model = occ::build_face_model(part);
   const occ::ShapeParameters sp = occ::build_shape_parameters(model, o.parameterization);
   const json& params = job.contains("parameters") ? job["parameters"] : json("auto");
   if (params.is_string()) {
@@ -512,7 +410,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   } else {
     PARAFAB_INPUT_ERROR("parameters must be \"auto\" or a list of {\"face\", \"parameter\"}");
   }
+}
 
+// Bounds: "constraints" on the volume (ratios) and the mass; returns the density of a mass
+// constraint (0: none).
+double read_bounds(const occ::PartShape& part, const json& job, occ::ShapeOptimizationOptions& o) {
   const json constraints = job.value("constraints", json::array());
   double mass_density = 0;  // of a mass constraint (0: none)
   for (size_t i = 0; i < constraints.size(); ++i) {
@@ -558,7 +460,7 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
   // ~1e-12), so OCCT's volume of the part decides here.
   const bool has_min = o.volume_min_ratio > 0 || o.volume_min > 0, has_max = o.volume_max_ratio > 0 || o.volume_max > 0;
   if (has_min && has_max) {
-    const double V = occ::part_info(*part).volume;
+    const double V = occ::part_info(part).volume;
     const double lo = std::max(o.volume_min_ratio, o.volume_min / V);
     const double hi = std::min(o.volume_max_ratio > 0 ? o.volume_max_ratio : INFINITY,
                                o.volume_max > 0 ? o.volume_max / V : INFINITY);
@@ -566,6 +468,11 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
       PARAFAB_INPUT_ERROR("constraints: the lower volume bound (" << lo << " of the part's volume " << V
                                                                    << ") is above the upper one (" << hi << ")");
   }
+  return mass_density;
+}
+
+// The optimizer's options: iterations, steps, the augmented Lagrangian, the start.
+void read_optimizer_options(const json& job, occ::ShapeOptimizationOptions& o) {
   if (job.contains("max_iterations")) {
     if (!job["max_iterations"].is_number_integer() || job["max_iterations"].get<int>() < 0)
       PARAFAB_INPUT_ERROR("max_iterations must be a non-negative integer");
@@ -599,40 +506,34 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     o.design_start.resize(st.size());
     for (size_t k = 0; k < st.size(); ++k) o.design_start[k] = number(st[k], "start[" + std::to_string(k) + "]");
   }
+}
 
-  o.interrupted = interrupted;
-  occ::ShapeProgress report;
-  if (progress)
-    report = [&](const occ::ShapeIterate& it) {
-      return progress(json{{"iteration", it.iteration},
-                           {"objective", it.objective},
-                           {"constraint_violation", it.constraint_violation},
-                           {"seconds", it.seconds}});
-    };
-  const occ::ShapeOptimizationResult r = occ::optimize_shape(*part, o, report);
-  if (!r.part) PARAFAB_INPUT_ERROR("optimization of " << part_path << " could not start: " << r.message);
-  if (r.status == "infeasible_constraints") {
-    // Contradictory constraints: the nearest valid model is written beside the original (never
-    // as optimized.step) with a history naming what stays violated, and the run is an input error.
-    std::string written;
-    if (!out_dir.empty()) {
-      const std::string step = write_beside(*r.part, out_dir, "nearest_valid.step", part_path);
-      // An optimized.step of an earlier run in this folder would now be mistaken for this run's.
-      const std::string stale = out_dir + "/optimized.step";
-      if (std::filesystem::weakly_canonical(stale) != std::filesystem::weakly_canonical(part_path))
-        std::filesystem::remove(stale);
-      json h{{"status", r.status}, {"message", r.message}, {"nearest_valid_step", step},
-             {"tangency_residual_max", r.tangency_residual_max}, {"violated_constraints", json::array()},
-             {"parameters", json::array()}, {"iterations", json::array()}, {"notes", r.notes}};
-      for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
-      for (size_t k = 0; k < r.design_names.size(); ++k)
-        h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
-      write_text_atomically(out_dir + "/history.json", h.dump(2) + "\n");
-      written = "; the nearest valid model is written to " + step + " (not optimized; history.json lists the violations)";
-    }
-    PARAFAB_INPUT_ERROR("the constraints of " << part_path << " cannot all hold: " << r.message << written);
+// Contradictory constraints: the nearest valid model is written beside the original (never
+// as optimized.step) with a history naming what stays violated, and the run is an input error.
+[[noreturn]] void refuse_infeasible(const occ::ShapeOptimizationResult& r, const std::string& out_dir,
+                                    const std::string& part_path) {
+  std::string written;
+  if (!out_dir.empty()) {
+    const std::string step = write_beside(*r.part, out_dir, "nearest_valid.step", part_path);
+    // An optimized.step of an earlier run in this folder would now be mistaken for this run's.
+    const std::string stale = out_dir + "/optimized.step";
+    if (std::filesystem::weakly_canonical(stale) != std::filesystem::weakly_canonical(part_path))
+      std::filesystem::remove(stale);
+    json h{{"status", r.status}, {"message", r.message}, {"nearest_valid_step", step},
+           {"tangency_residual_max", r.tangency_residual_max}, {"violated_constraints", json::array()},
+           {"parameters", json::array()}, {"iterations", json::array()}, {"notes", r.notes}};
+    for (const auto& v : r.violated_constraints) h["violated_constraints"].push_back({{"name", v.name}, {"value", v.value}});
+    for (size_t k = 0; k < r.design_names.size(); ++k)
+      h["parameters"].push_back({{"name", r.design_names[k]}, {"initial", r.design_initial[k]}, {"final", r.design_final[k]}});
+    write_text_atomically(out_dir + "/history.json", h.dump(2) + "\n");
+    written = "; the nearest valid model is written to " + step + " (not optimized; history.json lists the violations)";
   }
+  PARAFAB_INPUT_ERROR("the constraints of " << part_path << " cannot all hold: " << r.message << written);
+}
 
+// The history JSON of a run (history.json without the output files).
+json history_of(const occ::ShapeOptimizationResult& r, const occ::ShapeOptimizationOptions& o, double mass_density,
+                const json& size_estimate) {
   json h;
   h["status"] = r.status;
   h["message"] = r.message;
@@ -731,20 +632,92 @@ json optimize_part_json(const std::string& part_path, const json& job, const std
     entry["gradient_initial"] = k < static_cast<size_t>(r.initial_gradient.size()) ? json(r.initial_gradient[k]) : json();
     h["parameters"].push_back(entry);
   }
-  if (!out_dir.empty()) {
-    h["optimized_step"] = write_beside(*r.part, out_dir, "optimized.step", part_path);
-    const std::string history = out_dir + "/history.json";
-    write_text_atomically(history, h.dump(2) + "\n");
-    // The chart: a small matplotlib script (optional: the history is complete without it).
-    const std::string script = scripts_dir() + "/plot_optimization.py";
-    const std::string png = out_dir + "/history.png";
-    if (chart && std::filesystem::exists(script) && std::filesystem::exists("/usr/bin/python3")) {
-      const std::string cmd = "/usr/bin/python3 '" + script + "' '" + history + "' '" + png + "' >/dev/null 2>&1";
-      if (std::system(cmd.c_str()) == 0 && std::filesystem::exists(png)) h["chart"] = png;
-    }
-    if (!h.contains("chart")) h["chart"] = nullptr;
-    write_text_atomically(history, h.dump(2) + "\n");
+  return h;
+}
+
+// Runs argv[0] (an absolute path) with the arguments argv[1..] as they are, without a shell (a
+// quote or a space in a path is just a character of it), its stdout and stderr to /dev/null, and
+// waits for it; true when it exited with status 0.
+bool run_quietly(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  posix_spawn_file_actions_t files;
+  if (posix_spawn_file_actions_init(&files) != 0) return false;
+  const bool redirected = posix_spawn_file_actions_addopen(&files, STDOUT_FILENO, "/dev/null", O_WRONLY, 0) == 0 &&
+                          posix_spawn_file_actions_addopen(&files, STDERR_FILENO, "/dev/null", O_WRONLY, 0) == 0;
+  pid_t pid = -1;
+  const bool spawned = redirected && posix_spawn(&pid, args[0], &files, nullptr, args.data(), environ) == 0;
+  posix_spawn_file_actions_destroy(&files);
+  if (!spawned) return false;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) return false;
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+// Output: optimized.step, history.json and the chart (history.png, or "chart": null).
+void write_outputs(json& h, const occ::ShapeOptimizationResult& r, const std::string& out_dir,
+                   const std::string& part_path, bool chart) {
+  h["optimized_step"] = write_beside(*r.part, out_dir, "optimized.step", part_path);
+  const std::string history = out_dir + "/history.json";
+  write_text_atomically(history, h.dump(2) + "\n");
+  // The chart: a small matplotlib script (optional: the history is complete without it).
+  const std::string python = "/usr/bin/python3", script = scripts_dir() + "/plot_optimization.py";
+  const std::string png = out_dir + "/history.png";
+  if (chart && std::filesystem::exists(script) && std::filesystem::exists(python)) {
+    if (run_quietly({python, script, history, png}) && std::filesystem::exists(png)) h["chart"] = png;
   }
+  if (!h.contains("chart")) h["chart"] = nullptr;
+  write_text_atomically(history, h.dump(2) + "\n");
+}
+
+}  // namespace
+
+json optimize_part_json(const std::string& part_path, const json& job, const std::string& out_dir,
+                        const OptimizeProgressFn& progress, const InterruptFn& interrupted) {
+  schema::check(job, schema::Format::Optimization);
+  std::optional<FolderLock> lock;  // one run at a time in a folder
+  if (!out_dir.empty()) {  // before the work, not after it
+    require_writable_folder(out_dir);
+    lock.emplace(out_dir);
+    for (const char* name : {"optimized.step", "history.json", "history.png", "nearest_valid.step"})
+      refuse_output_over_input(out_dir + "/" + name, part_path);
+  }
+  // "chart": false skips OUTDIR/history.png (matplotlib, ~1 s): scripted and repeated runs.
+  if (job.contains("chart") && !job["chart"].is_boolean())
+    PARAFAB_INPUT_ERROR("chart must be true or false, got " << job["chart"].dump());
+  const bool chart = job.value("chart", true);
+  // "threads": worker threads of the whole run (0 or absent: all cores), as in `parafab simulate`.
+  if (job.contains("threads") && (!job["threads"].is_number_integer() || job["threads"].get<int>() < 0))
+    PARAFAB_INPUT_ERROR("threads must be an integer >= 1 (or 0: all cores), got " << job["threads"].dump());
+  const int threads = job.value("threads", 0);
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  const auto part = occ::read_part(part_path);
+  const NamedPart named(*part);
+  occ::ShapeOptimizationOptions o;
+
+  const json size_estimate = read_objective(named, *part, job, o);
+  read_parameterization(named, job, o);
+  read_design(named, *part, job, o);
+  const double mass_density = read_bounds(*part, job, o);
+  read_optimizer_options(job, o);
+
+  o.interrupted = interrupted;
+  occ::ShapeProgress report;
+  if (progress)
+    report = [&](const occ::ShapeIterate& it) {
+      return progress(json{{"iteration", it.iteration},
+                           {"objective", it.objective},
+                           {"constraint_violation", it.constraint_violation},
+                           {"seconds", it.seconds}});
+    };
+  const occ::ShapeOptimizationResult r = occ::optimize_shape(*part, o, report);
+  if (!r.part) PARAFAB_INPUT_ERROR("optimization of " << part_path << " could not start: " << r.message);
+  if (r.status == "infeasible_constraints") refuse_infeasible(r, out_dir, part_path);
+  json h = history_of(r, o, mass_density, size_estimate);
+  if (!out_dir.empty()) write_outputs(h, r, out_dir, part_path, chart);
   return h;
 }
 

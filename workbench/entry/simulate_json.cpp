@@ -4,7 +4,6 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
-#include <unistd.h>
 
 #include <Eigen/Dense>
 #include <filesystem>
@@ -23,6 +22,7 @@
 #include "common/error.h"
 #include "output_files.h"
 #include "request_schema.h"
+#include "simulation_job.h"
 #include "json_fields.h"
 #include "cut_cell_classifier.h"
 #include "face_lookup.h"
@@ -42,8 +42,6 @@ using xfem::Vec3;
 
 namespace {
 
-bool model_name_is_linear(const std::string& model) { return model == "linear"; }
-
 // "ok" only for a result to trust: "not_finite" (a displacement or stress that is not a number),
 // "indefinite" (the linear stiffness was not positive definite: solved by LU, see message),
 // "rule_failures" (some cut-cell rules failed: rule_failures lists them).
@@ -60,19 +58,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 using fields::number;
 using fields::vec3;
 
-// A face named by index or by a point on it.
-int face_of(const occ::PartShape& part, const json& item, const std::string& path, double tol,
-            const Vec3& frame_origin) {
-  if (item.contains("face")) {
-    if (!item["face"].is_number_integer()) PARAFAB_INPUT_ERROR(path << ".face must be a face index");
-    const int f = item["face"].get<int>();
-    occ::face_area(part, f);  // validates the index
-    return f;
-  }
-  if (item.contains("point"))
-    return occ::face_at_point(part, vec3(item["point"], path + ".point") - frame_origin, tol);
-  PARAFAB_INPUT_ERROR(path << " needs \"face\" (index from parafab inspect) or \"point\" (on the face)");
-}
 
 using StressFn = std::function<Eigen::Matrix<double, 6, 1>(int, const Vec3&)>;
 
@@ -248,27 +233,13 @@ void write_surface_vtu(const std::string& path, const occ::SurfaceMesh& mesh, co
 }  // namespace
 
 // Everything of the job that depends on the part (faces named by point are looked up again
-// when the part changes).
+// when the part changes), and the run's size estimated from it.
 struct SimulationSession::Setup {
-  xfem::ElasticMaterial mat;
-  std::string model;
-  std::unique_ptr<xfem::Material> law;
-  occ::GridModelOptions go;
-  std::vector<xfem::DirichletCondition> dirichlet;
-  std::vector<xfem::TractionCondition> tractions;
-  xfem::LinearXfemOptions fo;
-  int load_steps = 5;
-  double dofs = 0, physical_mb = 0;
-  /// Factor memory for compact parts (an upper figure) and for thin-walled ones (a lower one),
-  /// the whole run's peak with each, and what the run may use (memory_limit_mb).
-  double factor_mb = 0, factor_mb_min = 0, peak_mb = 0, peak_mb_min = 0, limit_mb = 0;
-  double target = 0;   ///< relative accuracy target (grid.target); 0: the given grid
-  int max_cells = 64;  ///< refinement stops here (grid.max_cells)
-  int threads = 0;     ///< "threads": 0 = all cores
+  SimulationJob job;
   Vec3 extent{0, 0, 0};
   occ::PartInfo info;  ///< box and area (occ::part_box_and_area), what estimate_grid reads
-  GridEstimate cut_estimate;  ///< cutting and rules (grid_estimate.h)
-  void set_estimate();
+  JobSize size;        ///< of the current grid (set_estimate)
+  void set_estimate() { size = estimate_job_size(info, job.grid.options.grid, job.solver); }
 };
 
 // The in/out verdicts of the candidate points of cut elements (8 cell corners, then the rule
@@ -355,181 +326,36 @@ void SimulationSession::load_part(const std::string& part_path) {
 }
 
 std::unique_ptr<SimulationSession::Setup> SimulationSession::parse_job() const {
-  const json& job = job_;
   auto S = std::make_unique<Setup>();
   // The box and area only (the estimate's inputs); part_info's adaptive volume and area integrals
   // would cost ~10 ms of every run and update.
   const occ::PartBoxArea size = occ::part_box_and_area(*part_);
   const double diag = (size.max - size.min).norm();
-  const double tol = 1e-3 * diag;
-
-  if (!job.contains("material")) PARAFAB_INPUT_ERROR("missing material {E, nu[, density]}");
-  const json& m = job["material"];
-  xfem::ElasticMaterial& mat = S->mat;
-  mat.youngs_modulus = number(m.value("E", json()), "material.E");
-  mat.poisson_ratio = number(m.value("nu", json(0.3)), "material.nu");
-  mat.density = number(m.value("density", json(0.0)), "material.density");
-  if (!(mat.youngs_modulus > 0)) PARAFAB_INPUT_ERROR("material.E must be positive, got " << mat.youngs_modulus);
-  if (!(mat.poisson_ratio > -1 && mat.poisson_ratio < 0.5))
-    PARAFAB_INPUT_ERROR("material.nu must be in (-1, 0.5), got " << mat.poisson_ratio);
-  // "linear" (small strain, one linear solve) or a hyperelastic law solved by Newton.
-  S->model = m.value("model", std::string("linear"));
-  S->law = xfem::make_material(S->model, mat.youngs_modulus, mat.poisson_ratio);
-  // The basis on the grid: "hex27" (triquadratic Lagrange, the default: on the turned cantilever,
-  // the L-bracket and the tube it reaches every error level of the benchmark sooner than hex8,
-  // tests/bench/README.md, "XFEM against Gmsh + CalculiX") or "hex8" (trilinear with
-  // incompatible modes); the rules of uncut and cut cells are raised to match.
-  S->fo.element = element_of_job(job, xfem::ElementType::Hex27);
-
-  occ::GridModelOptions& go = S->go;
-  const json grid_job = job.value("grid", json::object());
-  go.grid.cells_longest = static_cast<int>(number(grid_job.value("cells", json(default_cells(S->fo.element))), "grid.cells"));
-  go.grid.cell_size = number(grid_job.value("cell_size", json(0.0)), "grid.cell_size");
-  if (go.grid.cells_longest < 1) PARAFAB_INPUT_ERROR("grid.cells must be >= 1");
-  if (grid_job.contains("origin")) {  // grid planes through this point (default: centred on the part)
-    go.grid.anchored = true;
-    go.grid.origin = vec3(grid_job["origin"], "grid.origin") - frame_origin_;
-  }
-  // Volume-rule tuning (thesis §6.3.3): flux refinement of curved patches.
-  const json quad = job.value("quadrature", json::object());
-  go.rule.max_depth = static_cast<int>(number(quad.value("max_depth", json(go.rule.max_depth)), "quadrature.max_depth"));
-  go.rule.flux_tolerance = number(quad.value("flux_tolerance", json(go.rule.flux_tolerance)), "quadrature.flux_tolerance");
-  go.rule.flux_degree_boost =
-      static_cast<int>(number(quad.value("degree_boost", json(go.rule.flux_degree_boost)), "quadrature.degree_boost"));
-  for (const auto& kv : quad.items())
-    if (kv.key() != "max_depth" && kv.key() != "flux_tolerance" && kv.key() != "degree_boost")
-      PARAFAB_INPUT_ERROR("quadrature." << kv.key() << " is not a field of quadrature (max_depth, flux_tolerance, degree_boost)");
-  if (go.rule.max_depth < 0) PARAFAB_INPUT_ERROR("quadrature.max_depth must be >= 0, got " << go.rule.max_depth);
-  if (go.rule.flux_degree_boost < 0 || go.rule.flux_degree_boost > 12)
-    PARAFAB_INPUT_ERROR("quadrature.degree_boost must be in 0..12, got " << go.rule.flux_degree_boost);
-  if (!(go.rule.flux_tolerance >= 0))
-    PARAFAB_INPUT_ERROR("quadrature.flux_tolerance must be >= 0, got " << go.rule.flux_tolerance);
-  // Cut by face (issue 11 §1); a grid the face route cannot cut is shifted and cut again
-  // (GridOptions::shift_retries), the reason in the result's grid.retry_reason.
-  cut_of_job(grid_job, go.grid);
-  go = occ::rules_for_element(S->fo.element, go);
-
-  const json supports = job.value("supports", json::array());
-  if (!supports.is_array() || supports.empty())
-    PARAFAB_INPUT_ERROR("supports must list at least one face ({\"face\": i} or {\"point\": [x,y,z]}), "
-                        "or the part floats freely");
-  for (size_t i = 0; i < supports.size(); ++i) {
-    const std::string path = "supports[" + std::to_string(i) + "]";
-    xfem::DirichletCondition d;
-    d.face = face_of(*part_, supports[i], path, tol, frame_origin_);
-    if (supports[i].contains("displacement")) d.offset = vec3(supports[i]["displacement"], path + ".displacement");
-    S->dirichlet.push_back(d);
-  }
-  const json loads = job.value("loads", json::array());
-  for (size_t i = 0; i < loads.size(); ++i) {
-    const std::string path = "loads[" + std::to_string(i) + "]";
-    xfem::TractionCondition t;
-    t.face = face_of(*part_, loads[i], path, tol, frame_origin_);
-    if (loads[i].contains("traction")) t.traction = vec3(loads[i]["traction"], path + ".traction");
-    else if (loads[i].contains("force")) t.traction = vec3(loads[i]["force"], path + ".force") / occ::face_area(*part_, t.face);
-    else PARAFAB_INPUT_ERROR(path << " needs \"traction\" (per area) or \"force\" (total, spread evenly)");
-    S->tractions.push_back(t);
-  }
-  refuse_loaded_supports(S->dirichlet, S->tractions);
-  if (job.contains("gravity")) S->fo.gravity = vec3(job["gravity"], "gravity");
-  nitsche_of_job(job, S->fo, model_name_is_linear(S->model));  // default: local for linear hex27
-  solver_of_job(job, S->fo);
-  if (job.contains("incompatible_modes")) {  // linear model only; Newton uses plain hexahedra
-    if (!job["incompatible_modes"].is_boolean()) PARAFAB_INPUT_ERROR("incompatible_modes must be true or false");
-    S->fo.incompatible_modes = job["incompatible_modes"].get<bool>();
-  }
-  // What an update (a re-solve after a re-cut) reuses of the previous solve: element matrices
-  // of unchanged elements, and the factorization as CG preconditioner (xfem::LinearXfemOptions::Reuse).
-  if (job.contains("reuse")) {
-    const json& ru = job["reuse"];
-    if (!ru.is_object()) PARAFAB_INPUT_ERROR("reuse must be an object {elements, factorization, tolerance, max_iterations}, got " << ru.dump());
-    for (const auto& kv : ru.items())
-      if (kv.key() != "elements" && kv.key() != "factorization" && kv.key() != "tolerance" && kv.key() != "max_iterations")
-        PARAFAB_INPUT_ERROR("reuse." << kv.key() << " is not a field of reuse (elements, factorization, tolerance, max_iterations)");
-    auto flag = [&](const char* key, bool& out) {
-      if (!ru.contains(key)) return;
-      if (!ru[key].is_boolean()) PARAFAB_INPUT_ERROR("reuse." << key << " must be true or false, got " << ru[key].dump());
-      out = ru[key].get<bool>();
-    };
-    flag("elements", S->fo.reuse.elements);
-    flag("factorization", S->fo.reuse.factorization);
-    S->fo.reuse.pcg.tolerance = number(ru.value("tolerance", json(S->fo.reuse.pcg.tolerance)), "reuse.tolerance");
-    if (!(S->fo.reuse.pcg.tolerance > 0 && S->fo.reuse.pcg.tolerance < 1))
-      PARAFAB_INPUT_ERROR("reuse.tolerance must be in (0, 1) (a relative residual), got " << S->fo.reuse.pcg.tolerance);
-    const double it = number(ru.value("max_iterations", json(S->fo.reuse.pcg.max_iterations)), "reuse.max_iterations");
-    if (!(it >= 0) || it != std::floor(it)) PARAFAB_INPUT_ERROR("reuse.max_iterations must be an integer >= 0, got " << it);
-    S->fo.reuse.pcg.max_iterations = static_cast<int>(it);
-  }
-  S->threads = static_cast<int>(number(job.value("threads", json(0)), "threads"));
-  if (S->threads < 0) PARAFAB_INPUT_ERROR("threads must be >= 1 (or 0: all cores), got " << S->threads);
-  S->load_steps = static_cast<int>(number(job.value("load_steps", json(5)), "load_steps"));
-  if (S->load_steps < 1) PARAFAB_INPUT_ERROR("load_steps must be >= 1");
-
-  // An accuracy target instead of a fixed grid: grids refined by 1.5 from grid.cells (default half
-  // the default grid: 8 hex8 or 4 hex27 cells) until the estimated relative error of the results
-  // is below the target (see run()).
-  S->target = number(grid_job.value("target", json(0.0)), "grid.target");
-  S->max_cells = static_cast<int>(number(grid_job.value("max_cells", json(64)), "grid.max_cells"));
-  if (S->target < 0 || S->target >= 1) PARAFAB_INPUT_ERROR("grid.target must be in (0, 1) (a relative error), got " << S->target);
-  if (S->target > 0 && go.grid.cell_size > 0) PARAFAB_INPUT_ERROR("grid.target chooses the cells: drop grid.cell_size");
-  if (S->target > 0 && !grid_job.contains("cells")) go.grid.cells_longest = default_cells(S->fo.element) / 2;
+  // Points on faces within 1e-3 of the diagonal, in the part's frame (moved into the local one).
+  const NamedPart named(*part_, 1e-3 * diag, frame_origin_, /*entry_in_errors=*/false);
+  S->job = parse_simulation_job(named, job_, SimulationJobOptions::simulate());
   S->extent = size.max - size.min;
-  S->info.bbox_min = size.min, S->info.bbox_max = size.max, S->info.area = size.area, S->info.volume = size.volume;
-  S->physical_mb = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE) / 1e6;
-  S->limit_mb = xfem::SparseCholesky::default_memory_limit_mb();  // 70% of physical_mb
-  if (job.contains("memory_limit_mb")) {
-    S->limit_mb = number(job["memory_limit_mb"], "memory_limit_mb");
-    if (!(S->limit_mb > 0)) PARAFAB_INPUT_ERROR("memory_limit_mb must be positive (MB), got " << job["memory_limit_mb"].dump());
-  }
-  S->fo.memory_limit_mb = S->limit_mb;  // the exact check before the factorization
+  S->info = size_info(size);
   S->set_estimate();
   return S;
 }
 
-// Estimate before running, from the part's box, volume V and area A only. Calibrated on the
-// eight sample parts, hex8 on 16–48 and hex27 on 8–24 cells (2026-11-28, resources/doc/simulation.md,
-// "Estimate first, then the exact factor size"):
-// - DOF nodes m³V/h³ inside plus b·m²A/h² along the surface (the cut cells' outer nodes and the
-//   enriched copies), m = 1 (hex8) or 2 (hex27): b was 0.5 (the aligned box) to 1.4 for hex8
-//   and 1.2 to 2.0 for hex27 (2.9 once, the wrench on 8 cells: 1,152 unknowns). b = 1.5 / 2.0.
-// - The factor: 8 bytes · C · n^{4/3} (nested-dissection fill), C = 5.1–15 on the thin-walled
-//   parts (the wrench's coarse grids lowest) and 17.6–25.8 on the compact ones. The box and the area do not tell which: factor_mb takes
-//   C = 26, factor_mb_min C = 7.
-// - The rest of the run: 5 (hex8) or 9 (hex27) kB per unknown above about 50 MB.
-// A single run is refused here only when even the thin-walled figure exceeds the limit; between
-// the two, CHOLMOD's analysis decides exactly before the factorization (SparseCholesky).
-void SimulationSession::Setup::set_estimate() {
-  const double h = go.grid.cell_size > 0 ? go.grid.cell_size : extent.maxCoeff() / go.grid.cells_longest;
-  const SolveEstimate e0 = estimate_solve(info, h, fo.element);
-  const SolveEstimate e = estimate_solve(info, h, fo.element, iterative_solve(fo, e0.dofs));
-  dofs = e.dofs, factor_mb = e.factor_mb, factor_mb_min = e.factor_mb_min, peak_mb = e.peak_mb, peak_mb_min = e.peak_mb_min;
-  cut_estimate = estimate_grid(info, go.grid);
-}
-
 json SimulationSession::estimate() const {
-  const Setup& S = *setup_;
-  return {{"unknowns", S.dofs},
-          {"factor_mb", S.factor_mb},
-          {"factor_mb_min", S.factor_mb_min},
-          {"peak_mb", S.peak_mb},
-          {"peak_mb_min", S.peak_mb_min},
-          {"limit_mb", S.limit_mb},
-          {"memory_mb", S.physical_mb},
-          {"fits", S.peak_mb <= S.limit_mb && S.cut_estimate.fits},
-          {"may_fit", S.peak_mb_min <= S.limit_mb && S.cut_estimate.fits},
-          {"cut", to_json(S.cut_estimate)}};
+  const JobSize& s = setup_->size;
+  const SolveEstimate& e = s.solve;
+  return {{"unknowns", e.dofs},
+          {"factor_mb", e.factor_mb},
+          {"factor_mb_min", e.factor_mb_min},
+          {"peak_mb", e.peak_mb},
+          {"peak_mb_min", e.peak_mb_min},
+          {"limit_mb", s.limit_mb},
+          {"memory_mb", s.physical_mb},
+          {"fits", e.peak_mb <= s.limit_mb && s.cut.fits},
+          {"may_fit", e.peak_mb_min <= s.limit_mb && s.cut.fits},
+          {"cut", to_json(s.cut)}};
 }
 
-void SimulationSession::refuse_if_too_big() const {
-  const Setup& S = *setup_;
-  if (S.peak_mb_min > S.limit_mb)
-    PARAFAB_INPUT_ERROR("this grid needs at least about " << amount(S.peak_mb_min) << " MB (" << amount(S.dofs)
-                        << " unknowns; " << amount(S.peak_mb) << " MB for a compact part), more than the "
-                        << amount(S.limit_mb) << " MB allowed (memory_limit_mb; default 70% of the "
-                        << amount(S.physical_mb) << " MB of memory): use fewer cells");
-  entry::refuse_if_too_big(S.cut_estimate, "this grid", "use fewer cells (grid.cells) or a larger grid.cell_size");
-}
-
+void SimulationSession::refuse_if_too_big() const { entry::refuse_if_too_big(setup_->size, JobCommand::Simulate); }
 json SimulationSession::run(const std::string& out_dir, const ProgressFn& progress) {
   auto report = [&](const char* phase, double fraction) {
     if (progress && !progress(phase, fraction))
@@ -539,10 +365,10 @@ json SimulationSession::run(const std::string& out_dir, const ProgressFn& progre
   if (!out_dir.empty()) require_writable_folder(out_dir), lock.emplace(out_dir);  // before the work
   refuse_if_too_big();
   std::optional<tbb::global_control> threads;  // for the whole run
-  if (setup_->threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->threads);
-  if (setup_->target > 0) return run_to_target(out_dir, report);
+  if (setup_->job.run.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->job.run.threads);
+  if (setup_->job.run.target > 0) return run_to_target(out_dir, report);
   report("cut", 0.05);
-  auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, setup_->go));
+  auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, setup_->job.grid.options));
   if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << part_path_ << " by the grid: " << model->message);
   model_ = std::move(model);
   return solve(out_dir, report, json(nullptr));
@@ -567,19 +393,19 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
   double analyzed_before = 0;  // the session solver's analysis seconds before this level
   bool met = false;
   std::string stop;
-  for (int cells = S.go.grid.cells_longest;; cells = static_cast<int>(std::lround(cells * ratio))) {
-    if (cells > S.max_cells) {
-      stop = "grid.max_cells (" + std::to_string(S.max_cells) + ") reached";
+  for (int cells = S.job.grid.options.grid.cells_longest;; cells = static_cast<int>(std::lround(cells * ratio))) {
+    if (cells > S.job.run.max_cells) {
+      stop = "grid.max_cells (" + std::to_string(S.job.run.max_cells) + ") reached";
       break;
     }
-    S.go.grid.cells_longest = cells;
+    S.job.grid.options.grid.cells_longest = cells;
     S.set_estimate();
-    if (S.peak_mb > S.limit_mb || !S.cut_estimate.fits) {  // the safe figure: a refusal would lose the levels
+    if (S.size.solve.peak_mb > S.size.limit_mb || !S.size.cut.fits) {  // the safe figure: a refusal would lose the levels
       stop = "the next grid (" + std::to_string(cells) + " cells) would not fit in memory";
       break;
     }
     report("cut", 0.05);
-    auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, S.go));
+    auto model = std::make_unique<occ::GridModel>(occ::build_grid_model(*part_, S.job.grid.options));
     if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << part_path_ << " by the grid: " << model->message);
     model_ = std::move(model);
     out = solve(out_dir, report, json(nullptr));
@@ -611,13 +437,13 @@ json SimulationSession::run_to_target(const std::string& out_dir, const Report& 
     }
     q.push_back(qk);
     levels.push_back(level);
-    if (estimated <= S.target) {
+    if (estimated <= S.job.run.target) {
       met = true;
       break;
     }
   }
   if (q.empty()) PARAFAB_INPUT_ERROR("grid.target: no grid could be run: " << stop);
-  out["accuracy"] = {{"target", S.target}, {"met", met}, {"estimated_error", std::isfinite(estimated) ? json(estimated) : json(nullptr)},
+  out["accuracy"] = {{"target", S.job.run.target}, {"met", met}, {"estimated_error", std::isfinite(estimated) ? json(estimated) : json(nullptr)},
                      {"order", order}, {"quantity", out["probes"].empty() ? "max_displacement" : "probe displacements"},
                      {"levels", levels}, {"stopped", met ? "target met" : stop}};
   if (!out_dir.empty()) write_text_atomically(out_dir + "/result.json", out.dump(2) + "\n");
@@ -648,10 +474,10 @@ json SimulationSession::update(const std::string& new_part_path, const std::stri
   }
   refuse_if_too_big();
   std::optional<tbb::global_control> threads;  // for the whole update
-  if (setup_->threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->threads);
+  if (setup_->job.run.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, setup_->job.run.threads);
   report("cut", 0.05);
   occ::RecutReport rr;
-  auto model = std::make_unique<occ::GridModel>(occ::rebuild_grid_model(*part_, *model_, *old_part, setup_->go, &rr));
+  auto model = std::make_unique<occ::GridModel>(occ::rebuild_grid_model(*part_, *model_, *old_part, setup_->job.grid.options, &rr));
   if (!model->done) PARAFAB_INPUT_ERROR("cannot cut " << new_part_path << " by the grid: " << model->message);
   model_ = std::move(model);
   const json recut{{"full", rr.full}, {"message", rr.message}, {"changed_faces", rr.changed_faces},
@@ -669,29 +495,29 @@ template <class Report>
 json SimulationSession::solve(const std::string& out_dir, const Report& report, const json& recut) {
   const Setup& S = *setup_;
   const occ::GridModel& grid = *model_;
-  const auto& mat = S.mat;
+  const auto& mat = S.job.material.elastic;
   const double diag = S.extent.norm();
   report("assemble", 0.6);
   xfem::LinearXfemResult r;
   json newton = nullptr;
   StressFn stress;
   std::function<Eigen::Matrix<double, 6, 1>(const Eigen::Matrix3d&)> stress_of_gradient;  // σ from ∇u
-  report(model_name_is_linear(S.model) ? "solve" : "newton", 0.65);
-  if (model_name_is_linear(S.model)) {
+  report(S.job.material.linear() ? "solve" : "newton", 0.65);
+  if (S.job.material.linear()) {
     if (!linear_solver_) linear_solver_ = std::make_unique<xfem::LinearXfemSolver>();
-    r = linear_solver_->solve(grid.elements, grid.adjacent, mat, S.dirichlet, S.tractions, S.fo);
+    r = linear_solver_->solve(grid.elements, grid.adjacent, mat, S.job.conditions.supports, S.job.conditions.loads, S.job.solver);
     stress = [&](int e, const Vec3& X) { return xfem::stress_at(r, grid.elements, mat, e, X); };
     stress_of_gradient = [&mat](const Eigen::Matrix3d& H) { return xfem::stress_from_gradient(mat, H); };
   } else {
     xfem::NonlinearXfemOptions no;
-    no.boundary = S.fo;
-    no.load_steps = S.load_steps;
+    no.boundary = S.job.solver;
+    no.load_steps = S.job.material.load_steps;
     const xfem::NonlinearXfemResult nr =
-        xfem::solve_nonlinear(grid.elements, grid.adjacent, *S.law, mat, S.dirichlet, S.tractions, no);
+        xfem::solve_nonlinear(grid.elements, grid.adjacent, *S.job.material.law, mat, S.job.conditions.supports, S.job.conditions.loads, no);
     if (!nr.converged)
       PARAFAB_INPUT_ERROR("the hyperelastic simulation did not converge: "
                           << nr.message
-                          << (S.fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Fixed
+                          << (S.job.solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Fixed
                                   ? " (a fixed Nitsche penalty that is not coercive on some cut cell makes the energy "
                                     "non-convex there: try \"nitsche_penalty\": \"local\")"
                                   : ""));
@@ -699,7 +525,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
     r.solve_seconds = nr.seconds;
     r.energy = nr.energy;
     newton = {{"iterations", nr.iterations}, {"residuals", nr.residuals}, {"load_steps", no.load_steps}};
-    const xfem::Material* law = S.law.get();
+    const xfem::Material* law = S.job.material.law.get();
     stress = [&r, &grid, law](int e, const Vec3& X) {  // Cauchy stress σ = P Fᵀ / J
       const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + xfem::displacement_gradient(r, grid.elements, e, X);
       const Eigen::Matrix3d sig = law->stress(F) * F.transpose() / F.determinant();
@@ -763,7 +589,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
   // largest candidate inside the material (below) raises the maximum, and the search stops at
   // the first cell whose bound cannot beat it. Cells without a bound (hyperelastic, points
   // outside the box) come first. The maxima do not depend on the batches.
-  const bool linear = model_name_is_linear(S.model);
+  const bool linear = S.job.material.linear();
   std::vector<int> cut_elements;
   for (size_t e = 0; e < n_el; ++e)
     if (grid.elements[e].subvolume) cut_elements.push_back(static_cast<int>(e));
@@ -903,11 +729,12 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
                      {"grid_shift", {grid.cut->grid_shift.x(), grid.cut->grid_shift.y(), grid.cut->grid_shift.z()}},
                      {"frame_origin", {frame_origin_.x(), frame_origin_.y(), frame_origin_.z()}}}},
            {"dofs", r.dofs},
-           {"element", xfem::element_type_name(S.fo.element)},
-           {"nitsche_penalty", S.fo.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed"},
-           {"nitsche_surface_degree", S.fo.dirichlet_surface_degree},
-           {"estimate", {{"unknowns", S.dofs}, {"factor_mb", S.factor_mb}, {"factor_mb_min", S.factor_mb_min},
-                         {"peak_mb", S.peak_mb}, {"peak_mb_min", S.peak_mb_min}, {"cut", to_json(S.cut_estimate)}}},
+           {"element", xfem::element_type_name(S.job.solver.element)},
+           {"nitsche_penalty", S.job.solver.nitsche_penalty == xfem::LinearXfemOptions::NitschePenalty::Local ? "local" : "fixed"},
+           {"nitsche_surface_degree", S.job.solver.dirichlet_surface_degree},
+           {"estimate", {{"unknowns", S.size.solve.dofs}, {"factor_mb", S.size.solve.factor_mb},
+                         {"factor_mb_min", S.size.solve.factor_mb_min}, {"peak_mb", S.size.solve.peak_mb},
+                         {"peak_mb_min", S.size.solve.peak_mb_min}, {"cut", to_json(S.size.cut)}}},
            {"max_displacement", umax},
            {"max_von_mises", vmmax},
            {"points_classified", classified},
@@ -915,12 +742,12 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"points_classified_by_occt", occt_calls},      // the rest by crossing parity in their cut cell
            {"cut_elements_skipped", skipped_elements},     // bounded below the uncut maxima: not evaluated
            {"cut_elements_displacement_only", displacement_only_elements},  // their stress bounded below: u only
-           {"status", result_status(grid.rule_failures.empty(), r.indefinite && model_name_is_linear(S.model),
+           {"status", result_status(grid.rule_failures.empty(), r.indefinite && S.job.material.linear(),
                                     r.u.allFinite() && std::isfinite(umax) && std::isfinite(vmmax) && std::isfinite(r.energy))},
            {"rule_failures", rule_failures},
            {"rules_refinement_capped", grid.rules_refinement_capped},  // flux refinement stopped at quadrature.max_depth
            {"potential", r.energy},  // the minimized functional (strain energy, Nitsche and load terms), up to a constant
-           {"material_model", S.model},
+           {"material_model", S.job.material.model},
            {"aggregated_nodes", r.aggregated_nodes},
            {"newton", newton},
            {"recut", recut},
@@ -934,7 +761,7 @@ json SimulationSession::solve(const std::string& out_dir, const Report& report, 
            {"units", "those of the part and material (e.g. mm, N, MPa)"}};
   out["seconds"]["results"] = seconds_since(t_results);
   out["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
-  if (linear_solver_ && model_name_is_linear(S.model)) {
+  if (linear_solver_ && S.job.material.linear()) {
     const xfem::SolveInfo& si = r.solve_info;
     out["solver"] = {{"analyses", linear_solver_->cholesky().analyses},
                      {"factorizations", linear_solver_->cholesky().factorizations},
