@@ -1237,9 +1237,15 @@ void solve_by_petsc(const std::vector<GridElement>& elements, LinearXfemResult& 
   info.petsc_memory_mb = system->memory_mb;
   info.petsc_seconds = seconds_since(t0);
   if (!res.converged) {
+    // CG breaks down on a matrix that is not positive definite, which a sliver cut cell under the
+    // fixed Nitsche penalty can make (CHOLMOD then falls back to LU and says so).
+    const bool indefinite = res.reason.find("INDEFINITE") != std::string::npos || res.reason == "DIVERGED_PC_FAILED";
     r.message = "the PETSc solve (" + info.krylov + ") did not converge: " + res.reason + " after " +
                 std::to_string(res.iterations) + " iterations, residual " + std::to_string(res.residual) +
-                " (try \"solver\": {\"type\": \"cholmod\"} or a looser \"rtol\")";
+                (indefinite ? "; the stiffness matrix is probably not positive definite (a sliver cut cell under the "
+                              "fixed Nitsche penalty: try \"nitsche_penalty\": \"local\"), or"
+                            : "; try a looser \"rtol\", or") +
+                " \"solver\": {\"type\": \"cholmod\"}";
     return;
   }
   r.u = res.x;
@@ -1436,8 +1442,17 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
   t0 = std::chrono::steady_clock::now();
   const int nr = static_cast<int>(K->rows());
   SolveInfo& info = r.solve_info;
-  const bool iterative = use_petsc(options.solver, nr);
-  if (iterative) solve_by_petsc(elements, r, next->reduced, *K, f, options.solver.krylov);
+  bool iterative = use_petsc(options.solver, nr);
+  bool after_petsc = false;
+  if (iterative) {
+    solve_by_petsc(elements, r, next->reduced, *K, f, options.solver.krylov);
+    // Auto: where the Krylov solve fails, the factorization (with its exact memory check).
+    if (!r.solved && options.solver.type == LinearXfemOptions::Solver::Type::Auto) {
+      info.fallback = r.message;
+      r.message.clear();
+      iterative = false, after_petsc = true;
+    }
+  }
   // CG preconditioned by the last factorization, DOFs matched through equal elements.
   bool tried = false;
   if (!iterative && options.reuse.factorization && previous_ && previous_->factored &&
@@ -1504,6 +1519,7 @@ LinearXfemResult LinearXfemSolver::solve(const std::vector<GridElement>& element
   if (!r.solved && !iterative) {
     const auto tf = std::chrono::steady_clock::now();
     if (tried) info.method = "cholesky after pcg";
+    if (after_petsc) info.method = "cholesky after petsc";
     // Another pattern: a new factorization object (results and preconditioners sharing the old
     // one keep it); the same pattern: factorized again in place, reusing the analysis.
     if (cholesky_->status() != SparseCholesky::Status::Empty && !cholesky_->same_pattern(*K)) {

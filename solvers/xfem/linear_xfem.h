@@ -180,7 +180,8 @@ int patch_rule_degree(const LinearXfemOptions& options, const CutPatch& patch, b
 /// How LinearXfemSolver solved the system.
 struct SolveInfo {
   /// "cholesky" (factorized), "pcg" (CG preconditioned by an earlier factorization),
-  /// "cholesky after pcg" (CG did not converge: factorized; `fallback` says why), or "petsc"
+  /// "cholesky after pcg" (CG did not converge: factorized; `fallback` says why), "cholesky after
+  /// petsc" (Auto: the Krylov solve failed; `fallback` says why), or "petsc"
   /// (LinearXfemOptions::solver: `krylov` says which Krylov solver and preconditioner).
   std::string method = "cholesky";
   std::string fallback;      ///< why CG was not used or failed ("" when it was not tried)

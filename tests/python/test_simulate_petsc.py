@@ -108,6 +108,20 @@ class PetscFailures(unittest.TestCase):
         self.assertIn("did not converge", text)
         self.assertIn("cholmod", text)  # names the way out
 
+    def test_indefinite_system_auto_falls_back_and_petsc_says_why(self):
+        # 26 cells: a sliver cut cell under the fixed Nitsche penalty leaves K indefinite (CHOLMOD
+        # falls back to LU and says so); CG + GAMG breaks down on it.
+        job = dict(bracket_job(26), element="hex8", threads=1)
+        auto = solved(job, {"type": "auto", "petsc_from": 0})
+        self.assertEqual(auto["solver"]["method"], "cholesky after petsc")
+        self.assertIn("not positive definite", auto["solver"]["fallback"])
+        self.assertEqual(auto["status"], "indefinite")
+        code, stdout, _ = run([CLI], dict(job, solver={"type": "petsc"}))
+        self.assertEqual(code, 2)
+        message = json.loads(stdout)["error"]["message"]
+        self.assertIn("not positive definite", message)
+        self.assertIn("nitsche_penalty", message)
+
     def test_unknown_petsc_type_names_the_field(self):
         job = dict(bracket_job(8), element="hex8", solver={"type": "petsc", "pc": "no_such_pc"})
         code, stdout, _ = run([CLI], job)
