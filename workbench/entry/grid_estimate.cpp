@@ -28,10 +28,12 @@ xfem::ElementType element_of_job(const nlohmann::json& job, xfem::ElementType de
   return xfem::element_type_from_name(job["element"].get<std::string>(), "element");
 }
 
-// The iterative path's memory per unknown (hex8; hex27 rows hold about 2.4× the entries):
-// 81 entries per row of 12 bytes, held by Eigen and by PETSc, plus smoothed-aggregation AMG's
-// hierarchy, its prolongators and CG's vectors. Measured by tests/bench/bench_xfem_scale.py.
-constexpr double kIterativeMbPerDof = 4.0e-3;
+// The iterative path's memory per unknown above "the rest of the run" (hex8; hex27 rows hold
+// about 2.4× the entries, not measured): PETSc's copy of the matrix (about 81 entries of 12
+// bytes per row) with GAMG's hierarchy. Measured peaks (tests/bench/README.md, "The solve at
+// scale"): 4.3–5.2 kB per unknown in all (turned L-bracket 369,192 and 822,012 unknowns, turned
+// box 1,333,296), against 6 kB estimated with this figure: on the safe side.
+constexpr double kIterativeMbPerDof = 1.0e-3;
 
 SolveEstimate estimate_solve(const occ::PartInfo& part, double h, xfem::ElementType element, bool iterative) {
   const Eigen::Vector3d ext = part.bbox_max - part.bbox_min;

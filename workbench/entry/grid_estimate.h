@@ -66,8 +66,8 @@ int default_cells(xfem::ElementType element);
 /// (thin-walled ones, factor_mb_min); the run's peak adds 5 (hex8) or 9 (hex27) kB per unknown
 /// and 50 MB. Calibrated on the sample parts (tests/bench/bench_estimate.py).
 /// With `iterative` (the PETSc path) the solve's memory is linear in the unknowns instead:
-/// the stiffness held twice (Eigen's and PETSc's copy) plus AMG's hierarchy, kIterativeMbPerDof
-/// per unknown (hex8; 2.4× for hex27's denser rows); factor_mb is then 0 and peak_mb = peak_mb_min.
+/// PETSc's copy of the stiffness plus AMG's hierarchy, kIterativeMbPerDof per unknown (hex8;
+/// 2.4× for hex27's denser rows); factor_mb is then 0 and peak_mb = peak_mb_min.
 struct SolveEstimate {
   double dofs = 0, factor_mb = 0, factor_mb_min = 0, peak_mb = 0, peak_mb_min = 0;
   bool iterative = false;

@@ -300,7 +300,7 @@ std::vector<Field> solver_fields() {
                    {"pc", kString, "PETSc preconditioner (default \"gamg\")."},
                    {"rtol", kNumber, "Relative residual at which PETSc stops (default 1e-9)."},
                    {"max_iterations", integer(1, 1000000000), "PETSc iterations at most."},
-                   {"petsc_from", integer(0, kIntMax), "Unknowns from which auto takes PETSc (default 400000)."}}),
+                   {"petsc_from", integer(0, kIntMax), "Unknowns from which auto takes PETSc (default 200000)."}}),
            "The linear solver."}};
 }
 
