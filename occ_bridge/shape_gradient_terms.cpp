@@ -463,7 +463,7 @@ std::vector<int> moving_elements(const GradientContext& c) {
     if (elements[e].subvolume)
       for (const xfem::CutPatch& patch : elements[e].subvolume->patches)
         if (c.sp.block(patch.source_face) || c.sp.poles(patch.source_face) || c.conditioned.count(patch.source_face) ||
-            patch.source_face == c.surface_face) {
+            (patch.source_face >= 0 && patch.source_face == c.surface_face)) {  // grid patches: −1
           work.push_back(static_cast<int>(e));
           break;
         }
@@ -881,10 +881,10 @@ ElementTerms element_terms(const GradientContext& c, int e) {
       out.penalised.push_back(face);
     // Bulk: Reynolds over the patches of moving faces (a support's or load's own motion that
     // is flagged by gradient_context is not integrated here).
-    const bool wanted = c.face_moves[face] && (!c.conditioned.count(face) || own);
+    const bool wanted = face >= 0 && c.face_moves[face] && (!c.conditioned.count(face) || own);  // grid patches: −1
     if (const optimize::ParameterBlock* block = wanted ? c.sp.block(face) : nullptr) bulk_term(c, ef, patch, *block, out);
     if (const PoleBlock* poles = wanted ? c.sp.poles(face) : nullptr) pole_bulk_term(c, ef, patch, *poles, out);
-    if (face == c.surface_face) surface_density_term(c, ef, patch, out);
+    if (face >= 0 && face == c.surface_face) surface_density_term(c, ef, patch, out);
     if (!c.conditioned.count(face)) continue;
     // A support's or load's patch: its Nitsche / traction terms.
     const PatchConditions pc = patch_conditions(c, face);
